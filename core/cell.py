@@ -1,0 +1,103 @@
+"""The robot cell as plain data: arms on stands, the plant table, the pot.
+
+One backend-free description that every physics backend, planner check and sink builds from
+(Kubric's pattern: one scene model, many views of it). World frame: z up, origin on the floor
+below the plant; the pot's centre on the table top is the routine's hemisphere centre.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from agrisim.config import CellConfig
+from agrisim.geometry import translation, yaw_matrix
+from agrisim.robot import ARM_JOINTS, CAMERA_FRAME, ur10_with_camera
+
+
+@dataclass(frozen=True)
+class Box:
+    """An axis-aligned (in its own frame) box: ``size`` are full extents, m."""
+
+    name: str
+    size: tuple[float, float, float]
+    world_T: np.ndarray
+
+
+@dataclass(frozen=True)
+class Cylinder:
+    """A z-aligned cylinder centred at ``world_T``'s origin."""
+
+    name: str
+    radius: float
+    height: float
+    world_T: np.ndarray
+
+
+Obstacle = Box | Cylinder
+
+
+@dataclass(frozen=True)
+class Arm:
+    """One arm: its URDF (with camera), where its base sits, and its arm joints."""
+
+    name: str
+    urdf: str
+    world_T_base: np.ndarray
+    stand: str  # the obstacle its base rests on (touching it is not a collision)
+    joints: tuple[str, ...] = ARM_JOINTS
+    camera_frame: str = CAMERA_FRAME
+    home: tuple[float, ...] = (0.0, -1.9, 1.9, -1.57, -1.57, 0.0)
+
+
+@dataclass(frozen=True)
+class Cell:
+    """Arms, static obstacles, and the plant centre."""
+
+    arms: tuple[Arm, ...]
+    obstacles: tuple[Obstacle, ...]
+    plant_center: np.ndarray
+
+    def arm(self, name: str) -> Arm:
+        for arm in self.arms:
+            if arm.name == name:
+                return arm
+        raise KeyError(f"no arm named {name!r}; arms are {[a.name for a in self.arms]}")
+
+    @property
+    def arm_names(self) -> tuple[str, ...]:
+        return tuple(a.name for a in self.arms)
+
+
+def build_cell(cfg: CellConfig) -> Cell:
+    """The paper's cell: arms ``r1`` (+x side) and ``r2`` (-x side), facing the plant."""
+    urdf = ur10_with_camera()
+    table_top = cfg.table_height
+    center = np.array([0.0, 0.0, table_top])
+    obstacles: list[Obstacle] = [
+        Box("floor", (6.0, 6.0, 0.02), translation(0.0, 0.0, -0.01)),
+        Box("table", (cfg.table_size, cfg.table_size, table_top), translation(0.0, 0.0, table_top / 2)),
+        Cylinder("pot", cfg.pot_radius, cfg.pot_height, translation(0.0, 0.0, table_top + cfg.pot_height / 2)),
+    ]
+    if cfg.keepout_radius > 0 and cfg.keepout_height > 0:
+        obstacles.append(
+            Cylinder(
+                "plant_keepout",
+                cfg.keepout_radius,
+                cfg.keepout_height,
+                translation(0.0, 0.0, table_top + cfg.keepout_height / 2),
+            )
+        )
+    arms = []
+    for i, side in enumerate((1.0, -1.0)[: cfg.arms]):
+        name = f"r{i + 1}"
+        stand = f"{name}_stand"
+        x = side * cfg.arm_distance
+        obstacles.append(
+            Box(stand, (cfg.stand_size, cfg.stand_size, cfg.stand_height), translation(x, 0.0, cfg.stand_height / 2))
+        )
+        # UR10 at zero joints stretches along its base +x: turn each base to face the plant.
+        world_T_base = translation(x, 0.0, cfg.stand_height) @ yaw_matrix(np.pi if side > 0 else 0.0)
+        arms.append(Arm(name=name, urdf=urdf, world_T_base=world_T_base, stand=stand))
+    return Cell(arms=tuple(arms), obstacles=tuple(obstacles), plant_center=center)

@@ -1,0 +1,256 @@
+"""Run configuration: validated models, TOML loading and flag overrides.
+
+Configuration is layered: model defaults (which reproduce the paper's experiment) < the TOML
+file given with ``--config`` < command-line flags. :func:`merge` is the one pure function that
+layers nested dictionaries; :func:`build_config` validates the result. Each backend's own
+options live in a table named after it (``[physics.pybullet]``, ``[planner.ompl]``) and are
+validated by that backend's options model once the backend is known.
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
+
+from agrisim.errors import ConfigError
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover
+    import tomli as tomllib
+
+
+class _Model(BaseModel):
+    model_config = ConfigDict(extra="forbid", validate_assignment=True)
+
+
+class BackendChoice(BaseModel):
+    """Which backend of a kind to use, plus per-backend option tables keyed by backend name."""
+
+    model_config = ConfigDict(extra="allow")
+
+    backend: str
+    """Name of the backend (see ``agrisim plugins``)."""
+
+    def options_for(self, name: str) -> dict[str, Any]:
+        """The option table for backend ``name`` (empty when not given)."""
+        table = (self.model_extra or {}).get(name, {})
+        if not isinstance(table, dict):
+            raise ConfigError(f"options for backend {name!r} must be a table, got {table!r}")
+        return table
+
+
+class CellConfig(_Model):
+    """The robot cell: two arms on stands either side of the plant table."""
+
+    arm_distance: float = Field(1.0, gt=0.3, le=3.0)
+    """Horizontal distance from the plant centre to each arm's base, m (paper: 1.0)."""
+    stand_height: float = Field(0.95, ge=0.0, le=3.0)
+    """Height of the arms' stands (their bases sit on top), m (paper: 0.95)."""
+    stand_size: float = Field(0.4, gt=0.0, le=2.0)
+    """Side of the square robot stands, m."""
+    table_height: float = Field(0.80, ge=0.0, le=3.0)
+    """Height of the plant table's top, m; the pot stands on it."""
+    table_size: float = Field(0.5, gt=0.0, le=3.0)
+    """Side of the square plant table, m."""
+    pot_radius: float = Field(0.09, gt=0.0, le=0.5)
+    """Pot radius, m."""
+    pot_height: float = Field(0.14, gt=0.0, le=1.0)
+    """Pot height, m."""
+    keepout_radius: float = Field(0.16, ge=0.0, le=1.0)
+    """Radius of a cylinder around the plant that arms must not enter, m (0 disables)."""
+    keepout_height: float = Field(0.35, ge=0.0, le=2.0)
+    """Height of that cylinder above the table, m."""
+    arms: int = Field(2, ge=1, le=2)
+    """Number of arms: 2 as in the paper, or 1 (the arm on the +x side)."""
+
+
+class RoutineConfig(_Model):
+    """Where the camera goes: the paper's hemisphere, or poses from a CSV file."""
+
+    setpoints: str = "5x10"
+    """``LxC``: L elevation levels x C azimuth columns per arm (paper: 5x10)."""
+    radius: float = Field(0.5, gt=0.05, le=1.5)
+    """Hemisphere radius around the plant centre, m (paper: 0.5)."""
+    phi_deg: tuple[float, float] = (36.0, 540.0 / 7.0)
+    """Polar angle range from the zenith, degrees (paper: pi/5 .. 3pi/7)."""
+    theta_deg: tuple[float, float] = (180.0 / 19.0, 18.0 * 180.0 / 19.0)
+    """Azimuth range of each arm's half, degrees (paper: pi/19 .. 18pi/19)."""
+    csv: Path | None = None
+    """CSV of camera poses (columns x, y, z, roll, pitch, yaw; optional robot) instead."""
+
+    @field_validator("setpoints")
+    @classmethod
+    def _grid(cls, v: str) -> str:
+        parse_grid(v)
+        return v
+
+    @field_validator("phi_deg", "theta_deg")
+    @classmethod
+    def _range(cls, v: tuple[float, float]) -> tuple[float, float]:
+        if not all(math.isfinite(x) for x in v):
+            raise ValueError("angles must be finite")
+        return v
+
+    @field_validator("csv")
+    @classmethod
+    def _csv_exists(cls, v: Path | None) -> Path | None:
+        if v is not None and not v.is_file():
+            raise ValueError(f"setpoint CSV not found: {v}")
+        return v
+
+
+class MotionConfig(_Model):
+    """IK, time-parametrisation and the reach check."""
+
+    velocity_scale: float = Field(1.0, gt=0.0, le=1.0)
+    """Fraction of the URDF's joint velocity limits used."""
+    max_acceleration: float = Field(4.0, gt=0.0, le=100.0)
+    """Joint acceleration limit, rad/s^2."""
+    max_jerk: float = Field(40.0, gt=0.0, le=10000.0)
+    """Joint jerk limit, rad/s^3."""
+    reach_tolerance_mm: float = Field(0.05, gt=0.0, le=100.0)
+    """A setpoint is reached when the camera is this close to it, mm (paper: 0.05)."""
+    reach_tolerance_rad: float = Field(1e-4, gt=0.0, le=1.0)
+    """... and its orientation this close, rad."""
+    reach_timeout: float = Field(5.0, gt=0.0, le=600.0)
+    """Simulated seconds to settle after the trajectory ends before giving up (paper: 5)."""
+    ik_restarts: int = Field(16, ge=0, le=1000)
+    """Random restarts of IK besides the warm start from the current joints."""
+    ik_max_restarts: int = Field(100, ge=0, le=100000)
+    """Random restarts allowed while no collision-free solution has been found."""
+    ik_candidates: int = Field(3, ge=1, le=100)
+    """IK solutions (nearest first) the planner tries before a setpoint is given up."""
+    ik_max_iterations: int = Field(200, ge=1, le=100000)
+    """Iterations per IK attempt."""
+    collision_check_step: float = Field(0.02, gt=0.0, le=1.0)
+    """Joint-space resolution of edge and trajectory collision checks, rad."""
+
+
+class OutputConfig(_Model):
+    """Where results go."""
+
+    out: Path | None = None
+    """Output directory (default: runs/<timestamp>)."""
+    rrd: Path | None = None
+    """Rerun recording path (default: OUT/recording.rrd)."""
+    no_rrd: bool = False
+    """Write no Rerun recording."""
+    spawn: bool = False
+    """Stream to a Rerun viewer spawned for the run."""
+    overwrite: bool = False
+    """Replace an existing output directory."""
+    resume: bool = False
+    """Continue an interrupted run in the output directory."""
+
+    @model_validator(mode="after")
+    def _exclusive(self) -> OutputConfig:
+        if self.overwrite and self.resume:
+            raise ValueError("--overwrite and --resume exclude each other")
+        if self.no_rrd and self.rrd is not None:
+            raise ValueError("--rrd and --no-rrd exclude each other")
+        return self
+
+
+class CameraConfig(_Model):
+    """The camera on each arm's flange."""
+
+    preset: str = "rpi3-wide-1080p"
+    """Camera preset (the paper's Raspberry Pi v3 Wide: 6.45 x 3.63 mm sensor, 2.75 mm)."""
+    resolution: str | None = None
+    """``WxH`` overriding the preset's 1920x1080 (the field of view stays)."""
+
+    @field_validator("resolution")
+    @classmethod
+    def _resolution(cls, v: str | None) -> str | None:
+        if v is not None:
+            from agrisim.camera import parse_resolution
+
+            parse_resolution(v)
+        return v
+
+
+class RunConfig(_Model):
+    """Everything one episode needs. Defaults reproduce the paper's experiment."""
+
+    seed: int = Field(0, ge=0, le=2**32 - 1)
+    """Seed for IK restarts and sampling planners."""
+    physics: BackendChoice = BackendChoice(backend="pybullet")
+    """Physics backend (``--physics``)."""
+    planner: BackendChoice = BackendChoice(backend="ompl")
+    """Motion planner (``--planner``)."""
+    cell: CellConfig = CellConfig()
+    routine: RoutineConfig = RoutineConfig()
+    camera: CameraConfig = CameraConfig()
+    motion: MotionConfig = MotionConfig()
+    output: OutputConfig = OutputConfig()
+
+
+def parse_grid(text: str) -> tuple[int, int]:
+    """``"5x10"`` -> (5, 10)."""
+    parts = text.lower().split("x")
+    if len(parts) != 2 or not all(p.strip().isdigit() for p in parts):
+        raise ValueError(f"setpoints must look like LxC (e.g. 5x10), got {text!r}")
+    levels, columns = int(parts[0]), int(parts[1])
+    if not (1 <= levels <= 100 and 1 <= columns <= 100):
+        raise ValueError(f"setpoints {text!r}: L and C must be between 1 and 100")
+    return levels, columns
+
+
+def merge(base: Mapping[str, Any], override: Mapping[str, Any]) -> dict[str, Any]:
+    """Nested dictionaries layered: ``override`` wins, tables merge key by key."""
+    out = dict(base)
+    for key, value in override.items():
+        if isinstance(value, Mapping) and isinstance(out.get(key), Mapping):
+            out[key] = merge(out[key], value)
+        else:
+            out[key] = value
+    return out
+
+
+def load_toml(path: Path) -> dict[str, Any]:
+    """Read a TOML configuration file; unreadable or malformed files are a ConfigError."""
+    try:
+        with open(path, "rb") as f:
+            return tomllib.load(f)
+    except FileNotFoundError:
+        raise ConfigError(f"config file not found: {path}") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ConfigError(f"cannot read config file {path}: {exc}") from None
+    except tomllib.TOMLDecodeError as exc:
+        raise ConfigError(f"malformed TOML in {path}: {exc}") from None
+
+
+def _describe(exc: ValidationError) -> str:
+    err = exc.errors()[0]
+    where = ".".join(str(p) for p in err["loc"]) or "config"
+    msg = err["msg"].removeprefix("Value error, ")
+    if err["type"] == "extra_forbidden":
+        return f"unknown setting {where!r}"
+    return f"invalid setting {where!r}: {msg} (got {err.get('input')!r})"
+
+
+def build_config(*layers: Mapping[str, Any]) -> RunConfig:
+    """Validate the layered dictionaries into a :class:`RunConfig`."""
+    data: dict[str, Any] = {}
+    for layer in layers:
+        data = merge(data, layer)
+    try:
+        return RunConfig.model_validate(data)
+    except ValidationError as exc:
+        raise ConfigError(_describe(exc)) from None
+
+
+def backend_options(model: type[BaseModel], table: Mapping[str, Any], what: str) -> BaseModel:
+    """Validate one backend's option table with its own model."""
+    try:
+        return model.model_validate(dict(table))
+    except ValidationError as exc:
+        raise ConfigError(f"{what}: {_describe(exc)}") from None
+
+

@@ -1,0 +1,395 @@
+"""One episode of the routine: per setpoint IK -> plan -> time-parametrise -> execute -> reach
+check -> capture, for both arms, announcing everything through event hooks.
+
+The episode talks to backends only through :mod:`agrisim.interfaces`; sinks (Rerun, dataset
+files) are plugins on the event hooks. A setpoint that cannot be reached is recorded with its
+reason and the run goes on.
+"""
+
+from __future__ import annotations
+
+import datetime as _dt
+import os
+import shutil
+import time
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pluggy
+
+from agrisim.camera import preset
+from agrisim.cell import Cell, build_cell
+from agrisim.config import RunConfig, backend_options
+from agrisim.errors import OutputError
+from agrisim.geometry import pose_error
+from agrisim.interfaces import Capture, CameraModel, JointTrajectory, PhysicsBackend, Planner, PlanningFailed, Trajectory
+from agrisim.kinematics import ArmKinematics
+from agrisim.planning import segment_is_valid
+from agrisim.registry import Registry, make_plugin_manager
+from agrisim.setpoints import Setpoint, routine
+from agrisim.timing import Limits, TimedPath, time_parametrize
+
+#: rate at which planned trajectories are sampled for physics and sinks, Hz
+TRAJECTORY_RATE = 240.0
+
+
+@dataclass
+class SetpointResult:
+    """What happened at one setpoint of one arm (a row of ``run.json``)."""
+
+    robot: str
+    index: int
+    frame: str
+    reached: bool
+    ee_error_mm: float | None = None  # camera position error after settling
+    rot_error_rad: float | None = None
+    ik_s: float = 0.0  # wall seconds in IK
+    plan_s: float = 0.0  # wall seconds in the planner
+    motion_s: float = 0.0  # simulated seconds of the trajectory plus settling
+    sim_time: float = 0.0  # simulated time when the setpoint was done
+    waited: bool = False  # the other arm moved first because moving together would collide
+    contacts: list[str] = field(default_factory=list)
+    reason: str = ""
+
+
+@dataclass
+class RunSummary:
+    """How the episode ended (``agrisim_run_finished``)."""
+
+    status: str  # complete | failed | interrupted
+    setpoints: int
+    reached: int
+    failed: int
+    collisions: int
+    sim_time: float
+    wall_s: dict[str, float]
+    error: str = ""
+
+    def to_dict(self) -> dict[str, Any]:
+        return asdict(self)
+
+
+@dataclass
+class Run:
+    """The state of one episode, as sinks see it."""
+
+    config: RunConfig
+    cell: Cell
+    out_dir: Path
+    kinematics: dict[str, ArmKinematics]
+    setpoints: dict[str, list[Setpoint]]
+    camera: CameraModel
+    backends: dict[str, str]
+    started_at: str
+    results: list[SetpointResult] = field(default_factory=list)
+    wall_s: dict[str, float] = field(default_factory=dict)
+
+    @property
+    def seed(self) -> int:
+        return self.config.seed
+
+
+class Episode:
+    """A validated, ready-to-run episode. Building it checks every input and writes nothing."""
+
+    def __init__(self, config: RunConfig, pm: pluggy.PluginManager | None = None) -> None:
+        self.config = config
+        self.pm = pm if pm is not None else make_plugin_manager()
+        self.registry = Registry(self.pm)
+        self.physics_spec = self.registry.get("physics", config.physics.backend)
+        self.planner_spec = self.registry.get("planner", config.planner.backend)
+        self.physics_options = backend_options(
+            self.physics_spec.options_model,
+            config.physics.options_for(self.physics_spec.name),
+            f"physics backend {self.physics_spec.name!r}",
+        )
+        self.planner_options = backend_options(
+            self.planner_spec.options_model,
+            config.planner.options_for(self.planner_spec.name),
+            f"planner {self.planner_spec.name!r}",
+        )
+        self.cell = build_cell(config.cell)
+        self.setpoints = routine(self.cell, config.routine)
+        self.camera = preset(config.camera.preset, config.camera.resolution)
+        self.out_dir = resolve_out_dir(config)
+        self.kinematics = {arm.name: ArmKinematics(arm) for arm in self.cell.arms}
+        m = config.motion
+        self.limits = {
+            name: Limits(
+                k.velocity_limit * m.velocity_scale,
+                np.full(k.dof, m.max_acceleration),
+                np.full(k.dof, m.max_jerk),
+            )
+            for name, k in self.kinematics.items()
+        }
+
+    # ------------------------------------------------------------------ running
+    def run(self, progress: Callable[[int, int], None] | None = None) -> tuple[Run, RunSummary]:
+        """Run the episode; returns the run (with per-setpoint results) and its summary."""
+        prepare_out_dir(self.out_dir, self.config)
+        run = Run(
+            config=self.config,
+            cell=self.cell,
+            out_dir=self.out_dir,
+            kinematics=self.kinematics,
+            setpoints=self.setpoints,
+            camera=self.camera,
+            backends={"physics": self.physics_spec.name, "planner": self.planner_spec.name},
+            started_at=_dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
+        )
+        sinks = self._register_sinks(run)
+        physics: PhysicsBackend = self.physics_spec.factory(self.cell, self.physics_options)
+        planner: Planner = self.planner_spec.factory(self.planner_options)
+        self._physics, self._planner, self._run = physics, planner, run
+        self._rng = np.random.default_rng(self.config.seed)
+        status, error = "complete", ""
+        try:
+            for arm in self.cell.arms:
+                physics.reset(arm.name, np.array(arm.home))
+            self.pm.hook.agrisim_run_started(run=run)
+            steps = max(len(s) for s in self.setpoints.values())
+            for k in range(steps):
+                targets = {r: sps[k] for r, sps in self.setpoints.items() if k < len(sps)}
+                self._step(targets)
+                if progress:
+                    progress(k + 1, steps)
+        except KeyboardInterrupt:
+            status, error = "interrupted", "interrupted by the user"
+            raise
+        except Exception as exc:
+            status, error = "failed", f"{type(exc).__name__}: {exc}"
+            raise
+        finally:
+            summary = RunSummary(
+                status=status,
+                setpoints=len(run.results),
+                reached=sum(r.reached for r in run.results),
+                failed=sum(not r.reached for r in run.results),
+                collisions=sum(bool(r.contacts) for r in run.results),
+                sim_time=physics.sim_time,
+                wall_s={k: round(v, 4) for k, v in run.wall_s.items()},
+                error=error,
+            )
+            try:
+                self.pm.hook.agrisim_run_finished(run=run, summary=summary)
+            finally:
+                physics.close()
+                for sink in sinks:
+                    self.pm.unregister(sink)
+        return run, summary
+
+    def _register_sinks(self, run: Run) -> list[object]:
+        sinks = []
+        for spec in self.registry.specs("sink").values():
+            sink = spec.factory(run)
+            if sink is not None:
+                self.pm.register(sink, name=f"sink:{spec.name}:{id(run)}")
+                sinks.append(sink)
+        self.pm.check_pending()
+        return sinks
+
+    @contextmanager
+    def _stage(self, name: str) -> Iterator[None]:
+        t0 = time.perf_counter()
+        try:
+            yield
+        finally:
+            self._run.wall_s[name] = self._run.wall_s.get(name, 0.0) + time.perf_counter() - t0
+
+    def _valid(self, robot: str, others: dict[str, np.ndarray] | None = None) -> Callable[[np.ndarray], bool]:
+        physics = self._physics
+        return lambda q: not physics.in_collision(robot, q, others)
+
+    def _prepare_move(self, sp: Setpoint, result: SetpointResult) -> tuple[np.ndarray, TimedPath] | None:
+        """IK and planning for one arm with the other arms where they are now."""
+        kin = self.kinematics[sp.robot]
+        q_now = self._physics.joint_positions(sp.robot)
+        m = self.config.motion
+        t0 = time.perf_counter()
+        with self._stage("ik"):
+            ik = kin.ik(
+                sp.world_T_camera,
+                q_now,
+                is_valid=self._valid(sp.robot),
+                rng=self._rng,
+                restarts=m.ik_restarts,
+                max_restarts=m.ik_max_restarts,
+                iterations=m.ik_max_iterations,
+                position_tolerance=m.reach_tolerance_mm * 1e-3,
+                rotation_tolerance=m.reach_tolerance_rad,
+            )
+        result.ik_s += time.perf_counter() - t0
+        if not ik.ok:
+            result.reason = ik.reason
+            return None
+        # The nearest IK branch may be unreachable without a long detour (an elbow flip the
+        # joint limits forbid, say); another often lies on a free straight line. Candidates
+        # with a free straight line go first, nearest first; a few are tried before giving up.
+        valid = self._valid(sp.robot)
+        with self._stage("plan"):
+            candidates = sorted(
+                [ik.q, *ik.alternatives][: m.ik_candidates],
+                key=lambda g: not segment_is_valid(q_now, g, valid, m.collision_check_step),
+            )
+        reasons = []
+        path = None
+        for goal in candidates:
+            t0 = time.perf_counter()
+            try:
+                with self._stage("plan"):
+                    path = self._planner.plan(
+                        q_now,
+                        goal,
+                        self._valid(sp.robot),
+                        kin.lower,
+                        kin.upper,
+                        int(self._rng.integers(2**31)),
+                        m.collision_check_step,
+                    )
+                break
+            except PlanningFailed as exc:
+                reasons.append(str(exc))
+            finally:
+                result.plan_s += time.perf_counter() - t0
+        if path is None:
+            result.reason = "plan: " + "; ".join(dict.fromkeys(reasons))
+            return None
+        with self._stage("parametrize"):
+            timed = time_parametrize(path, self.limits[sp.robot])
+        return path, timed
+
+    def _jointly_free(self, moves: dict[str, TimedPath]) -> bool:
+        """Do the arms' trajectories, played together, stay clear of each other?"""
+        if len(moves) < 2:
+            return True
+        step = self.config.motion.collision_check_step
+        vmax = max(float(np.max(self.limits[r].velocity)) for r in moves)
+        dt = step / vmax  # no joint moves more than `step` between samples
+        horizon = max(m.duration for m in moves.values())
+        robots = list(moves)
+        with self._stage("joint_check"):
+            for t in np.append(np.arange(0.0, horizon, dt), horizon):
+                if self._physics.arms_in_collision({r: moves[r].sample(float(t))[0] for r in robots}):
+                    return False
+        return True
+
+    def _step(self, targets: dict[str, Setpoint]) -> None:
+        results = {r: SetpointResult(r, sp.index, sp.frame, reached=False) for r, sp in targets.items()}
+        moves: dict[str, tuple[np.ndarray, TimedPath]] = {}
+        for robot, sp in targets.items():
+            move = self._prepare_move(sp, results[robot])
+            if move is not None:
+                moves[robot] = move
+        if self._jointly_free({r: m[1] for r, m in moves.items()}):
+            self._execute(targets, moves, results)
+        else:
+            # Together they would collide: the first arm moves, the others wait and re-plan.
+            order = list(moves)
+            self._execute(targets, {order[0]: moves[order[0]]}, results)
+            for robot in order[1:]:
+                results[robot] = SetpointResult(robot, targets[robot].index, targets[robot].frame, False, waited=True)
+                move = self._prepare_move(targets[robot], results[robot])
+                if move is not None:
+                    self._execute(targets, {robot: move}, results)
+        for robot, res in results.items():
+            if robot not in moves and not res.reason:
+                res.reason = "not moved"
+            res.sim_time = self._physics.sim_time
+            self._run.results.append(res)
+            self.pm.hook.agrisim_setpoint(run=self._run, robot=robot, result=res)
+
+    def _execute(
+        self,
+        targets: dict[str, Setpoint],
+        moves: dict[str, tuple[np.ndarray, TimedPath]],
+        results: dict[str, SetpointResult],
+    ) -> None:
+        if not moves:
+            return
+        m = self.config.motion
+        tol_p, tol_r = m.reach_tolerance_mm * 1e-3, m.reach_tolerance_rad
+        kin = self.kinematics
+
+        def settled(robot: str, q: np.ndarray) -> bool:
+            ep, er = pose_error(kin[robot].fk(q), targets[robot].world_T_camera)
+            return ep <= tol_p and er <= tol_r
+
+        t_start = self._physics.sim_time
+        plans = {r: timed.discretize(1.0 / TRAJECTORY_RATE) for r, (_, timed) in moves.items()}
+        with self._stage("execute"):
+            executions = self._physics.execute(plans, settled, m.reach_timeout)
+        for robot, ex in executions.items():
+            res = results[robot]
+            q_final = self._physics.joint_positions(robot)
+            world_T_camera = kin[robot].fk(q_final)
+            ep, er = pose_error(world_T_camera, targets[robot].world_T_camera)
+            res.ee_error_mm = ep * 1e3
+            res.rot_error_rad = er
+            res.motion_s = plans[robot].duration + ex.settle_time
+            res.contacts = sorted(set(ex.contacts))
+            res.reached = ex.settled and not ex.contacts
+            if not ex.settled:
+                res.reason = f"not settled within {m.reach_timeout:g} s (error {ep * 1e3:.4f} mm, {er:.2e} rad)"
+            elif ex.contacts:
+                res.reason = f"collision while moving: {', '.join(res.contacts)}"
+            self.pm.hook.agrisim_trajectory(
+                run=self._run,
+                robot=robot,
+                trajectory=Trajectory(robot, targets[robot].index, moves[robot][0], plans[robot].shifted(t_start), ex.executed),
+            )
+            if res.reached:
+                capture = Capture(
+                    robot=robot,
+                    frame=targets[robot].frame,
+                    setpoint=targets[robot].index,
+                    sim_time=self._physics.sim_time,
+                    world_T_camera=world_T_camera,
+                    camera=self.camera,
+                )
+                with self._stage("capture"):
+                    self.pm.hook.agrisim_capture(run=self._run, capture=capture)
+
+
+# ---------------------------------------------------------------------- output directory
+
+
+def resolve_out_dir(config: RunConfig) -> Path:
+    """The output directory, checked (not created): exists only with --overwrite, writable."""
+    out = config.output.out
+    if out is None:
+        stamp = _dt.datetime.now().strftime("%Y%m%d-%H%M%S")
+        out = Path("runs") / stamp
+    out = out.expanduser()
+    if out.exists():
+        if not out.is_dir():
+            raise OutputError(f"--out {out} exists and is not a directory")
+        if any(out.iterdir()) and not config.output.overwrite:
+            raise OutputError(f"--out {out} already exists; pass --overwrite to replace it")
+    parent = out
+    while not parent.exists():
+        parent = parent.parent
+    if not parent.is_dir() or not os.access(parent, os.W_OK | os.X_OK):
+        raise OutputError(f"--out {out} is not writable ({parent} does not allow creating files)")
+    return out
+
+
+def prepare_out_dir(out: Path, config: RunConfig) -> None:
+    """Create the output directory, replacing an old one only under --overwrite."""
+    if out.exists() and config.output.overwrite:
+        shutil.rmtree(out)
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise OutputError(f"cannot create --out {out}: {exc}") from None
+
+
+def run_episode(config: RunConfig, *, pm: pluggy.PluginManager | None = None) -> tuple[Run, RunSummary]:
+    """Validate ``config``, run one episode, and return the run and its summary."""
+    return Episode(config, pm).run()
+
+
+__all__ = ["Episode", "Run", "RunSummary", "SetpointResult", "run_episode", "JointTrajectory"]

@@ -1,0 +1,64 @@
+"""Small pose helpers (4x4 homogeneous matrices, ``a_T_b`` maps frame b to frame a)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+def translation(x: float, y: float, z: float) -> np.ndarray:
+    T = np.eye(4)
+    T[:3, 3] = (x, y, z)
+    return T
+
+
+def yaw_matrix(yaw: float) -> np.ndarray:
+    """Rotation about world z by ``yaw`` radians, as a 4x4 pose."""
+    c, s = np.cos(yaw), np.sin(yaw)
+    T = np.eye(4)
+    T[:2, :2] = [[c, -s], [s, c]]
+    return T
+
+
+def pose(R: np.ndarray, p: np.ndarray) -> np.ndarray:
+    T = np.eye(4)
+    T[:3, :3] = R
+    T[:3, 3] = p
+    return T
+
+
+def look_at(eye: np.ndarray, target: np.ndarray, up: np.ndarray = np.array([0.0, 0.0, 1.0])) -> np.ndarray:
+    """``world_T_camera`` (OpenCV optical: x right, y down, z forward) at ``eye`` facing ``target``.
+
+    The image's up direction follows ``up``; looking straight along ``up`` is ambiguous and
+    falls back to world x as the image's right.
+    """
+    z = np.asarray(target, float) - np.asarray(eye, float)
+    z /= np.linalg.norm(z)
+    x = np.cross(z, up)
+    if np.linalg.norm(x) < 1e-9:
+        x = np.array([1.0, 0.0, 0.0])
+    x /= np.linalg.norm(x)
+    y = np.cross(z, x)
+    return pose(np.column_stack([x, y, z]), np.asarray(eye, float))
+
+
+def rpy_matrix(roll: float, pitch: float, yaw: float) -> np.ndarray:
+    """R = Rz(yaw) Ry(pitch) Rx(roll), the URDF/ROS convention (3x3)."""
+    cr, sr, cp, sp, cy, sy = np.cos(roll), np.sin(roll), np.cos(pitch), np.sin(pitch), np.cos(yaw), np.sin(yaw)
+    return np.array(
+        [
+            [cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
+            [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
+            [-sp, cp * sr, cp * cr],
+        ]
+    )
+
+
+def pose_error(a_T: np.ndarray, b_T: np.ndarray) -> tuple[float, float]:
+    """(position error in m, rotation angle error in rad) between two poses."""
+    dp = float(np.linalg.norm(a_T[:3, 3] - b_T[:3, 3]))
+    R = a_T[:3, :3].T @ b_T[:3, :3]
+    # atan2 of sine and cosine stays accurate for tiny angles, where arccos does not.
+    sine = 0.5 * np.linalg.norm([R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1]])
+    angle = float(np.arctan2(sine, (np.trace(R) - 1.0) / 2.0))
+    return dp, angle

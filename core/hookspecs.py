@@ -1,0 +1,105 @@
+"""Every hook agrisim calls, in one place.
+
+Two families:
+
+* **Providers** (``agrisim_physics``, ``agrisim_renderers``, ``agrisim_planners``,
+  ``agrisim_reconstructors``, ``agrisim_plants``, ``agrisim_sinks``) return a list of
+  :class:`agrisim.BackendSpec`. Results of all plugins are concatenated; a name provided twice is
+  an error naming both distributions. They are called once per run, never in the inner loop.
+* **Events** (``agrisim_run_started`` ... ``agrisim_run_finished``) announce what an episode does.
+  Sinks (the Rerun recording, the dataset files) are plugins on these hooks. Return values are
+  ignored.
+
+Signatures may gain keyword arguments in later versions; implementations take only the
+arguments they need, as pluggy allows.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Any
+
+import pluggy
+
+if TYPE_CHECKING:
+    from agrisim.episode import Run, RunSummary
+    from agrisim.interfaces import Capture, Trajectory
+    from agrisim.registry import BackendSpec
+
+PROJECT = "agrisim"
+hookspec = pluggy.HookspecMarker(PROJECT)
+
+
+# ---------------------------------------------------------------- backend providers
+
+
+@hookspec
+def agrisim_physics() -> list[BackendSpec]:
+    """Physics backends: each factory returns a :class:`agrisim.interfaces.PhysicsBackend`."""
+
+
+@hookspec
+def agrisim_renderers() -> list[BackendSpec]:
+    """Renderers: each factory returns a :class:`agrisim.interfaces.Renderer`."""
+
+
+@hookspec
+def agrisim_planners() -> list[BackendSpec]:
+    """Motion planners: each factory returns a :class:`agrisim.interfaces.Planner`."""
+
+
+@hookspec
+def agrisim_reconstructors() -> list[BackendSpec]:
+    """Reconstructors: each factory returns a :class:`agrisim.interfaces.Reconstructor`."""
+
+
+@hookspec
+def agrisim_plants() -> list[BackendSpec]:
+    """Plant species: each factory returns a :class:`agrisim.interfaces.PlantSpecies`."""
+
+
+@hookspec
+def agrisim_sinks() -> list[BackendSpec]:
+    """Sinks: each factory takes the :class:`agrisim.episode.Run` and returns an object whose
+    event hook implementations are registered for that run only (or ``None`` to stay out of
+    it, e.g. the Rerun sink under ``--no-rrd``). Per-run objects keep sinks' state out of
+    module globals."""
+
+
+# ---------------------------------------------------------------- episode events
+
+
+@hookspec
+def agrisim_run_started(run: Run) -> None:
+    """The run is validated and its backends are built; nothing has moved yet.
+
+    ``run.config`` is the configuration actually used, ``run.cell`` the robot cell, and
+    ``run.out_dir`` the output directory (already created).
+    """
+
+
+@hookspec
+def agrisim_trajectory(run: Run, robot: str, trajectory: Trajectory) -> None:
+    """``robot`` moved towards ``trajectory.setpoint``: planned and executed joint paths,
+    sampled in simulated time (``trajectory.t``, seconds since the run started)."""
+
+
+@hookspec
+def agrisim_setpoint(run: Run, robot: str, result: Any) -> None:
+    """A setpoint has been handled (reached or not): ``result`` is a
+    :class:`agrisim.episode.SetpointResult` with the reason when it failed."""
+
+
+@hookspec
+def agrisim_capture(run: Run, capture: Capture) -> None:
+    """A camera captured a frame at a reached setpoint. Without a renderer the capture holds
+    only the camera pose and intrinsics."""
+
+
+@hookspec
+def agrisim_cloud(run: Run, label: str, cloud: Any, merged: bool) -> None:
+    """A point cloud for ``label``: one view's (``merged=False``) or the running merge."""
+
+
+@hookspec
+def agrisim_run_finished(run: Run, summary: RunSummary) -> None:
+    """The episode ended (``summary.status`` says how). Sinks flush and close here."""

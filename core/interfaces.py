@@ -1,0 +1,205 @@
+"""The contracts between the episode and its backends.
+
+Small ABCs: the episode talks to backends only through these. Data passed between them are
+plain dataclasses of numpy arrays (metres, radians, seconds; poses are 4x4 ``a_T_b``).
+"""
+
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from agrisim.cell import Cell
+
+Validity = Callable[[np.ndarray], bool]
+
+
+@dataclass
+class JointTrajectory:
+    """Joint positions ``q`` (N x dof) at times ``t`` (N,), seconds; ``qd`` optional velocities."""
+
+    t: np.ndarray
+    q: np.ndarray
+    qd: np.ndarray | None = None
+
+    @property
+    def duration(self) -> float:
+        return float(self.t[-1] - self.t[0]) if len(self.t) else 0.0
+
+    def shifted(self, t0: float) -> JointTrajectory:
+        """The same trajectory starting at ``t0``."""
+        return JointTrajectory(self.t - self.t[0] + t0, self.q, self.qd)
+
+
+@dataclass
+class Trajectory:
+    """One arm's move to a setpoint, as announced by ``agrisim_trajectory``."""
+
+    robot: str
+    setpoint: int
+    path: np.ndarray  # the planner's collision-checked waypoints (M x dof)
+    planned: JointTrajectory  # the time-parametrised path, in run time
+    executed: JointTrajectory  # what the physics reports the arm did
+
+
+@dataclass
+class Execution:
+    """What a physics backend reports after executing one arm's trajectory."""
+
+    executed: JointTrajectory
+    settled: bool  # reached the goal (by the caller's test) before the timeout
+    settle_time: float  # seconds after the trajectory's end until settled (or the timeout)
+    contacts: list[str] = field(default_factory=list)  # collisions seen while moving, "a|b"
+
+
+@dataclass
+class CameraModel:
+    """A pinhole camera (OpenCV conventions; pixel centres at integer coordinates)."""
+
+    width: int
+    height: int
+    fx: float
+    fy: float
+    cx: float
+    cy: float
+
+    @property
+    def K(self) -> np.ndarray:  # noqa: N802 - the field's name for it
+        return np.array([[self.fx, 0.0, self.cx], [0.0, self.fy, self.cy], [0.0, 0.0, 1.0]])
+
+    @property
+    def hfov_deg(self) -> float:
+        return float(np.degrees(2.0 * np.arctan(self.width / (2.0 * self.fx))))
+
+
+@dataclass
+class Capture:
+    """A camera's capture at a reached setpoint (``agrisim_capture``).
+
+    ``images`` is empty until a renderer is configured; renderers fill ``rgb`` (H x W x 3 uint8),
+    ``labels`` (H x W uint8) and ``depth`` (H x W float32, metres, 0 = no hit).
+    """
+
+    robot: str
+    frame: str  # r1_000 ... r2_049
+    setpoint: int
+    sim_time: float
+    world_T_camera: np.ndarray
+    camera: CameraModel
+    images: dict[str, np.ndarray] = field(default_factory=dict)
+
+
+# ---------------------------------------------------------------------------- backends
+
+
+class PhysicsBackend(ABC):
+    """Simulates the cell: arms, stands, table, pot. Answers collision queries for planners."""
+
+    def __init__(self, cell: Cell, options: Any) -> None:
+        self.cell = cell
+        self.options = options
+
+    @abstractmethod
+    def in_collision(self, robot: str, q: np.ndarray, others: Mapping[str, np.ndarray] | None = None) -> bool:
+        """Is ``robot`` at ``q`` in collision with itself, the cell, or the other arms?
+
+        ``others`` gives other arms' configurations; arms not named stay where they are.
+        """
+
+    def arms_in_collision(self, configs: Mapping[str, np.ndarray]) -> bool:
+        """Do the arms at ``configs`` touch each other? (Each arm's own path is already checked
+        against the cell; this is the cheaper question asked along simultaneous motions.)
+        Backends with a faster arm-against-arm test override this."""
+        names = list(configs)
+        return any(
+            self.in_collision(a, configs[a], {b: configs[b] for b in names if b != a}) for a in names[:1]
+        )
+
+    @abstractmethod
+    def joint_positions(self, robot: str) -> np.ndarray:
+        """The arm's current joint positions."""
+
+    @abstractmethod
+    def reset(self, robot: str, q: np.ndarray) -> None:
+        """Place the arm at ``q`` at rest (no simulated motion)."""
+
+    @abstractmethod
+    def execute(
+        self,
+        plans: Mapping[str, JointTrajectory],
+        settled: Callable[[str, np.ndarray], bool],
+        timeout: float,
+    ) -> dict[str, Execution]:
+        """Run the arms' trajectories together from the current simulated time.
+
+        Each trajectory's ``t`` starts at 0. After its end an arm holds its last position until
+        ``settled(robot, q)`` holds or ``timeout`` seconds of simulated time pass.
+        """
+
+    @property
+    @abstractmethod
+    def sim_time(self) -> float:
+        """Simulated seconds since the backend was built."""
+
+    def close(self) -> None:  # noqa: B027 - optional hook for backends holding resources
+        """Release resources (connections, files)."""
+
+
+class Planner(ABC):
+    """Finds a collision-free joint path between two configurations."""
+
+    def __init__(self, options: Any) -> None:
+        self.options = options
+
+    @abstractmethod
+    def plan(
+        self,
+        start: np.ndarray,
+        goal: np.ndarray,
+        is_valid: Validity,
+        lower: np.ndarray,
+        upper: np.ndarray,
+        seed: int,
+        resolution: float,
+    ) -> np.ndarray:
+        """Waypoints (M x dof, first = start, last = goal) whose straight segments are valid
+        when checked every ``resolution`` radians (see :mod:`agrisim.planning`).
+
+        Raises :class:`PlanningFailed` when there is none within the planner's budget.
+        """
+
+
+class PlanningFailed(RuntimeError):
+    """The planner found no path; the message is the reason recorded for the setpoint."""
+
+
+class Renderer(ABC):
+    """Renders a capture's images from the scene at the arms' current poses."""
+
+    @abstractmethod
+    def render(self, capture: Capture) -> dict[str, np.ndarray]:
+        """``rgb``, ``labels`` and ``depth`` for ``capture.camera`` at ``capture.world_T_camera``."""
+
+
+class Reconstructor(ABC):
+    """Fuses captures into a 3D reconstruction per label."""
+
+    @abstractmethod
+    def integrate(self, capture: Capture) -> None:
+        """Add one capture."""
+
+    @abstractmethod
+    def result(self) -> dict[str, Any]:
+        """The reconstruction so far, per label name."""
+
+
+class PlantSpecies(ABC):
+    """A plant that can be built into the scene from a seed."""
+
+    @abstractmethod
+    def build(self, seed: int) -> Any:
+        """The plant's geometry, textures and label table for ``seed``."""

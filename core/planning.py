@@ -1,0 +1,46 @@
+"""Collision checking of joint-space segments, shared by every planner and by tests."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+
+
+def segment_samples(a: np.ndarray, b: np.ndarray, resolution: float) -> np.ndarray:
+    """Configurations from ``a`` to ``b`` (both included) no more than ``resolution`` apart in
+    any joint."""
+    a, b = np.asarray(a, float), np.asarray(b, float)
+    n = max(int(np.ceil(np.max(np.abs(b - a)) / resolution)), 1)
+    return a + (b - a) * np.linspace(0.0, 1.0, n + 1)[:, None]
+
+
+def segment_is_valid(a: np.ndarray, b: np.ndarray, is_valid: Callable[[np.ndarray], bool], resolution: float) -> bool:
+    """Is every sample of the straight segment ``a``-``b`` valid? Checks the middle first,
+    where a blocked segment is most likely to fail, to stop early."""
+    samples = segment_samples(a, b, resolution)
+    order = _bisection_order(len(samples))
+    return all(is_valid(samples[i]) for i in order)
+
+
+def path_is_valid(path: np.ndarray, is_valid: Callable[[np.ndarray], bool], resolution: float) -> bool:
+    """Is every segment of ``path`` valid?"""
+    return all(segment_is_valid(a, b, is_valid, resolution) for a, b in zip(path[:-1], path[1:], strict=True))
+
+
+def _bisection_order(n: int) -> list[int]:
+    order, seen = [], set()
+    stack = [(0, n - 1)]
+    for end in (n - 1, 0):
+        order.append(end)
+        seen.add(end)
+    while stack:
+        lo, hi = stack.pop(0)
+        mid = (lo + hi) // 2
+        if mid not in seen:
+            seen.add(mid)
+            order.append(mid)
+        if hi - lo > 1:
+            stack.append((lo, mid))
+            stack.append((mid, hi))
+    return order

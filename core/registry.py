@@ -1,0 +1,147 @@
+"""The plugin manager and the backend registry.
+
+Plugins are discovered only through the entry-point group ``agrisim``; the built-in backends are
+declared in agrisim's own ``pyproject.toml`` exactly like a third-party package's. Environment:
+
+* ``AGRISIM_DISABLE_PLUGIN_AUTOLOAD=1`` loads no entry points (tests register by hand).
+* ``AGRISIM_LOAD_PLUGINS=a,b`` loads only the entry points with these names.
+* ``AGRISIM_TRACE_PLUGINS=1`` prints every hook call to stderr.
+"""
+
+from __future__ import annotations
+
+import importlib
+import os
+import sys
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from importlib import metadata
+from typing import Any, Literal
+
+import pluggy
+from pydantic import BaseModel, ConfigDict
+
+from agrisim import hookspecs
+from agrisim.errors import PluginError
+
+hookimpl = pluggy.HookimplMarker(hookspecs.PROJECT)
+
+Kind = Literal["physics", "renderer", "planner", "reconstructor", "plant", "sink"]
+
+#: kind -> provider hook name
+PROVIDER_HOOKS: dict[str, str] = {
+    "physics": "agrisim_physics",
+    "renderer": "agrisim_renderers",
+    "planner": "agrisim_planners",
+    "reconstructor": "agrisim_reconstructors",
+    "plant": "agrisim_plants",
+    "sink": "agrisim_sinks",
+}
+
+
+class NoOptions(BaseModel):
+    """Options model for a backend that takes none."""
+
+    model_config = ConfigDict(extra="forbid")
+
+
+@dataclass(frozen=True)
+class BackendSpec:
+    """What a provider hook returns for one backend.
+
+    ``factory(options, **context)`` builds the backend; ``options`` is an instance of
+    ``options_model`` validated from the user's configuration (its field docstrings are the
+    documentation users see).
+    """
+
+    name: str
+    factory: Callable[..., Any]
+    description: str
+    options_model: type[BaseModel] = NoOptions
+    limits: str = ""
+    #: filled in by the registry: the distribution that provided the spec
+    distribution: str = field(default="", compare=False)
+
+
+def make_plugin_manager(*, autoload: bool | None = None) -> pluggy.PluginManager:
+    """A fresh plugin manager with agrisim's hookspecs and the installed plugins.
+
+    Built per run (nothing happens at import time). ``check_pending()`` turns a misspelt hook
+    implementation into an error instead of silently ignoring it.
+    """
+    pm = pluggy.PluginManager(hookspecs.PROJECT)
+    pm.add_hookspecs(hookspecs)
+    if autoload is None:
+        autoload = os.environ.get("AGRISIM_DISABLE_PLUGIN_AUTOLOAD", "") in ("", "0")
+    if autoload:
+        only = {n.strip() for n in os.environ.get("AGRISIM_LOAD_PLUGINS", "").split(",") if n.strip()}
+        for ep in metadata.entry_points(group=hookspecs.PROJECT):
+            if only and ep.name not in only:
+                pm.set_blocked(ep.name)
+                continue
+            try:  # import first so that a broken plugin is named in the error
+                importlib.import_module(ep.module)
+            except Exception as exc:
+                dist = ep.dist.name if ep.dist else "?"
+                raise PluginError(f"plugin {ep.name!r} from {dist} failed to import: {exc}") from exc
+        pm.load_setuptools_entrypoints(hookspecs.PROJECT)
+    try:
+        pm.check_pending()
+    except pluggy.PluginValidationError as exc:
+        raise PluginError(f"plugin {exc.plugin!r} implements an unknown hook: {exc}") from exc
+    if os.environ.get("AGRISIM_TRACE_PLUGINS", "") not in ("", "0"):
+        pm.trace.root.setwriter(lambda msg: sys.stderr.write(msg))
+        pm.enable_tracing()
+    return pm
+
+
+def _distribution_of(pm: pluggy.PluginManager, plugin: object) -> str:
+    for plug, dist in pm.list_plugin_distinfo():
+        if plug is plugin:
+            return f"{dist.project_name} {dist.version}"
+    return pm.get_name(plugin) or repr(plugin)
+
+
+class Registry:
+    """Backends of every kind, looked up by name."""
+
+    def __init__(self, pm: pluggy.PluginManager) -> None:
+        self.pm = pm
+        self._specs: dict[str, dict[str, BackendSpec]] = {}
+
+    def specs(self, kind: str) -> dict[str, BackendSpec]:
+        """All backends of ``kind`` by name (collected once per registry)."""
+        if kind not in PROVIDER_HOOKS:
+            raise PluginError(f"unknown backend kind {kind!r}; kinds are {', '.join(PROVIDER_HOOKS)}")
+        if kind not in self._specs:
+            self._specs[kind] = self._collect(kind)
+        return self._specs[kind]
+
+    def _collect(self, kind: str) -> dict[str, BackendSpec]:
+        hook_name = PROVIDER_HOOKS[kind]
+        caller = getattr(self.pm.hook, hook_name)
+        found: dict[str, BackendSpec] = {}
+        for impl in caller.get_hookimpls():
+            dist = _distribution_of(self.pm, impl.plugin)
+            result = impl.function()
+            if not isinstance(result, (list, tuple)):
+                raise PluginError(f"{hook_name}() of {dist} must return a list of BackendSpec")
+            for spec in result:
+                if not isinstance(spec, BackendSpec) or not spec.name or not callable(spec.factory):
+                    raise PluginError(f"{hook_name}() of {dist} returned {spec!r}, not a BackendSpec")
+                if not (isinstance(spec.options_model, type) and issubclass(spec.options_model, BaseModel)):
+                    raise PluginError(f"{kind} {spec.name!r} of {dist}: options_model must be a pydantic model")
+                if spec.name in found:
+                    raise PluginError(
+                        f"{kind} backend {spec.name!r} is provided twice: by {found[spec.name].distribution} and by {dist}"
+                    )
+                found[spec.name] = BackendSpec(**{**spec.__dict__, "distribution": dist})
+        return dict(sorted(found.items()))
+
+    def get(self, kind: str, name: str) -> BackendSpec:
+        """The backend ``name`` of ``kind``; an unknown name lists the available ones."""
+        specs = self.specs(kind)
+        if name not in specs:
+            available = ", ".join(specs) or "none installed"
+            raise PluginError(f"unknown {kind} backend {name!r}; available: {available}")
+        return specs[name]

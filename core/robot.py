@@ -1,0 +1,117 @@
+"""The UR10 description shipped by ``example-robot-data``, with a camera on its flange.
+
+The URDF is patched once, in memory: ``package://`` mesh paths become absolute (pybullet does
+not resolve them) and a camera body plus its OpenCV optical frame are attached to ``ee_link``,
+so Pinocchio and every physics backend see the same camera frame and camera collision box.
+"""
+
+from __future__ import annotations
+
+import sysconfig
+import xml.etree.ElementTree as ET
+from functools import lru_cache
+from importlib import metadata
+from pathlib import Path
+
+from agrisim.errors import UserError
+
+ROBOT_DATA_DIST = "example-robot-data"
+UR10_URDF = "example-robot-data/robots/ur_description/urdf/ur10_robot.urdf"
+ARM_JOINTS = (
+    "shoulder_pan_joint",
+    "shoulder_lift_joint",
+    "elbow_joint",
+    "wrist_1_joint",
+    "wrist_2_joint",
+    "wrist_3_joint",
+)
+CAMERA_FRAME = "camera_optical_frame"
+FLANGE_FRAME = "ee_link"
+
+# The camera body: a 5 x 4 x 4 cm box in front of the flange; the optical centre sits on its
+# front face. ee_link's x axis points out of the flange, so the optical z axis is ee x.
+CAMERA_BODY = (0.05, 0.04, 0.04)
+_CAMERA_LINKS = """
+  <joint name="camera_mount_joint" type="fixed">
+    <parent link="ee_link"/>
+    <child link="camera_link"/>
+    <origin xyz="{half:.6f} 0 0" rpy="0 0 0"/>
+  </joint>
+  <link name="camera_link">
+    <visual><geometry><box size="{bx} {by} {bz}"/></geometry></visual>
+    <collision><geometry><box size="{bx} {by} {bz}"/></geometry></collision>
+    <inertial><mass value="0.1"/><origin xyz="0 0 0"/>
+      <inertia ixx="1e-4" ixy="0" ixz="0" iyy="1e-4" iyz="0" izz="1e-4"/></inertial>
+  </link>
+  <joint name="camera_optical_joint" type="fixed">
+    <parent link="camera_link"/>
+    <child link="camera_optical_frame"/>
+    <!-- optical z = ee x, optical x = -ee y, optical y = -ee z -->
+    <origin xyz="{half:.6f} 0 0" rpy="-1.5707963267949 0 -1.5707963267949"/>
+  </joint>
+  <link name="camera_optical_frame"/>
+"""
+
+
+@lru_cache(maxsize=1)
+def robot_data_share() -> Path:
+    """``<prefix>/share`` of the installed ``example-robot-data`` (it ships no Python module)."""
+    candidates: list[Path] = []
+    try:
+        dist = metadata.distribution(ROBOT_DATA_DIST)
+        for f in dist.files or ():
+            if str(f).endswith("ur10_robot.urdf"):
+                full = Path(dist.locate_file(f)).resolve()
+                candidates.append(full.parents[4])  # .../share/example-robot-data/robots/ur_description/urdf
+                break
+    except metadata.PackageNotFoundError:
+        pass
+    candidates.append(Path(sysconfig.get_paths()["purelib"]) / "cmeel.prefix" / "share")
+    for share in candidates:
+        if (share / UR10_URDF).is_file():
+            return share
+    raise UserError(
+        f"the UR10 URDF ({UR10_URDF}) was not found: install the '{ROBOT_DATA_DIST}' package"
+    )
+
+
+def ur10_urdf_path() -> Path:
+    return robot_data_share() / UR10_URDF
+
+
+@lru_cache(maxsize=4)
+def ur10_with_camera(urdf_path: str | None = None) -> str:
+    """The UR10 URDF text with absolute mesh paths, explicit small inertias on massless links
+    (pybullet would give them 1 kg each), and the camera links attached."""
+    path = Path(urdf_path) if urdf_path else ur10_urdf_path()
+    if not path.is_file():
+        raise UserError(f"URDF not found: {path}")
+    share = robot_data_share() if urdf_path is None else path.parents[4]
+    try:
+        root = ET.fromstring(path.read_text())
+    except (ET.ParseError, OSError, UnicodeDecodeError) as exc:
+        raise UserError(f"cannot read URDF {path}: {exc}") from None
+    if root.tag != "robot":
+        raise UserError(f"not a URDF robot description: {path}")
+    bx, by, bz = CAMERA_BODY
+    for element in ET.fromstring(f"<r>{_CAMERA_LINKS.format(half=bx / 2, bx=bx, by=by, bz=bz)}</r>"):
+        root.append(element)
+    for mesh in root.iter("mesh"):
+        filename = mesh.get("filename", "")
+        if filename.startswith("package://"):
+            mesh.set("filename", str(share / filename.removeprefix("package://")))
+    for link in root.iter("link"):
+        inertial = link.find("inertial")
+        mass = inertial.find("mass") if inertial is not None else None
+        if mass is None or float(mass.get("value", "0")) <= 0.0:
+            if inertial is not None:
+                link.remove(inertial)
+            link.append(ET.fromstring(_TINY_INERTIAL))
+    return ET.tostring(root, encoding="unicode")
+
+
+# Frames without mass (world, base, tool0, ee_link, the optical frame) get a negligible one.
+_TINY_INERTIAL = (
+    '<inertial><mass value="0.001"/><origin xyz="0 0 0" rpy="0 0 0"/>'
+    '<inertia ixx="1e-7" ixy="0" ixz="0" iyy="1e-7" iyz="0" izz="1e-7"/></inertial>'
+)

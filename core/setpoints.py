@@ -1,0 +1,86 @@
+"""The camera setpoint routines: the paper's hemisphere, or poses read from a CSV file."""
+
+from __future__ import annotations
+
+import csv
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from agrisim.cell import Cell
+from agrisim.config import RoutineConfig, parse_grid
+from agrisim.errors import UserError
+from agrisim.geometry import look_at, pose, rpy_matrix
+
+
+@dataclass(frozen=True)
+class Setpoint:
+    """A camera target for one arm: ``world_T_camera`` (OpenCV optical frame)."""
+
+    robot: str
+    index: int  # per arm, 0-based: frame name r1_000 ...
+    world_T_camera: np.ndarray
+
+    @property
+    def frame(self) -> str:
+        return f"{self.robot}_{self.index:03d}"
+
+
+def hemisphere(cell: Cell, cfg: RoutineConfig) -> dict[str, list[Setpoint]]:
+    """The paper's routine: per arm, L levels x C columns on its half of the hemisphere.
+
+    ``phi`` is the polar angle from the zenith, ``theta`` the azimuth across the arm's half
+    (0..pi spans the half facing that arm). Levels run top to bottom and columns alternate
+    direction (snake order), so consecutive setpoints are neighbours.
+    """
+    levels, columns = parse_grid(cfg.setpoints)
+    phis = np.radians(np.linspace(*cfg.phi_deg, levels))
+    thetas = np.radians(np.linspace(*cfg.theta_deg, columns))
+    center = cell.plant_center
+    out: dict[str, list[Setpoint]] = {}
+    for arm in cell.arms:
+        # Azimuth 0..pi is turned so that the half faces the arm's base.
+        base = arm.world_T_base[:3, 3] - center
+        facing = np.arctan2(base[1], base[0])
+        points = []
+        for i, phi in enumerate(phis):
+            row = thetas if i % 2 == 0 else thetas[::-1]
+            for theta in row:
+                azimuth = facing - np.pi / 2 + theta
+                direction = np.array([np.sin(phi) * np.cos(azimuth), np.sin(phi) * np.sin(azimuth), np.cos(phi)])
+                points.append(look_at(center + cfg.radius * direction, center))
+        out[arm.name] = [Setpoint(arm.name, k, T) for k, T in enumerate(points)]
+    return out
+
+
+def from_csv(cell: Cell, path: Path) -> dict[str, list[Setpoint]]:
+    """Camera poses from a CSV with columns x, y, z, roll, pitch, yaw (world frame, metres and
+    radians, the optical frame's orientation as URDF rpy) and an optional ``robot`` column;
+    rows without one go to the first arm."""
+    try:
+        with open(path, newline="") as f:
+            rows = list(csv.DictReader(f))
+    except OSError as exc:
+        raise UserError(f"cannot read setpoint CSV {path}: {exc}") from None
+    need = ("x", "y", "z", "roll", "pitch", "yaw")
+    if not rows or any(k not in rows[0] for k in need):
+        raise UserError(f"setpoint CSV {path} needs a header with columns {', '.join(need)} (and optionally robot)")
+    out: dict[str, list[Setpoint]] = {a.name: [] for a in cell.arms}
+    for line, row in enumerate(rows, start=2):
+        robot = (row.get("robot") or cell.arms[0].name).strip()
+        if robot not in out:
+            raise UserError(f"{path}:{line}: unknown robot {robot!r}; arms are {', '.join(out)}")
+        try:
+            x, y, z, roll, pitch, yaw = (float(row[k]) for k in need)
+        except (TypeError, ValueError):
+            raise UserError(f"{path}:{line}: x, y, z, roll, pitch, yaw must be numbers") from None
+        if not np.all(np.isfinite([x, y, z, roll, pitch, yaw])):
+            raise UserError(f"{path}:{line}: values must be finite")
+        out[robot].append(Setpoint(robot, len(out[robot]), pose(rpy_matrix(roll, pitch, yaw), np.array([x, y, z]))))
+    return out
+
+
+def routine(cell: Cell, cfg: RoutineConfig) -> dict[str, list[Setpoint]]:
+    """The configured routine's setpoints per arm."""
+    return from_csv(cell, cfg.csv) if cfg.csv is not None else hemisphere(cell, cfg)

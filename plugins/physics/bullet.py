@@ -1,0 +1,406 @@
+"""The ``pybullet`` physics backend: the cell simulated with dynamics in DIRECT mode.
+
+Arms are driven by pybullet's joint position motors (gains and force limits configurable: the
+paper's "arm dynamics options") stepping at ``rate`` Hz; what the arms actually did is reported
+back. Collision queries for planners run in a second, kinematic-only pybullet world so that
+probing configurations never disturbs the simulated state.
+"""
+
+from __future__ import annotations
+
+import tempfile
+from collections.abc import Callable, Mapping
+from pathlib import Path
+
+import numpy as np
+from pydantic import BaseModel, ConfigDict, Field
+
+from agrisim import BackendSpec, hookimpl
+from agrisim.cell import Box, Cell, Cylinder
+from agrisim.interfaces import Execution, JointTrajectory, PhysicsBackend
+from agrisim.quiet import native_output_silenced
+
+with native_output_silenced():  # pybullet prints its build time on import
+    import pybullet as pb
+    from pybullet_utils.bullet_client import BulletClient
+
+
+class BulletOptions(BaseModel):
+    """Options of the pybullet physics backend."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    rate: float = Field(240.0, ge=240.0, le=10000.0)
+    """Simulation steps per second (at least 240 Hz)."""
+    position_gain: float = Field(0.3, gt=0.0, le=1.0)
+    """Position gain of the joint motors (pybullet's ``positionGain``)."""
+    velocity_gain: float = Field(1.0, ge=0.0, le=10.0)
+    """Velocity gain of the joint motors (pybullet's ``velocityGain``)."""
+    force_scale: float = Field(1.0, gt=0.0, le=10.0)
+    """Scale on the URDF's joint effort limits used as motor force limits."""
+    gravity: float = Field(9.81, ge=0.0, le=100.0)
+    """Gravity, m/s^2 (pointing down)."""
+    clearance: float = Field(0.005, ge=0.0, le=0.2)
+    """Distance below which planning queries count as a collision, m: room for the arm's
+    tracking error, so executed motions stay collision-free."""
+
+
+def _quat_xyzw(R: np.ndarray) -> list[float]:
+    # Shepperd's method, robust for every rotation.
+    m = R
+    tr = np.trace(m)
+    if tr > 0:
+        s = np.sqrt(tr + 1.0) * 2
+        q = [(m[2, 1] - m[1, 2]) / s, (m[0, 2] - m[2, 0]) / s, (m[1, 0] - m[0, 1]) / s, 0.25 * s]
+    elif m[0, 0] > m[1, 1] and m[0, 0] > m[2, 2]:
+        s = np.sqrt(1.0 + m[0, 0] - m[1, 1] - m[2, 2]) * 2
+        q = [0.25 * s, (m[0, 1] + m[1, 0]) / s, (m[0, 2] + m[2, 0]) / s, (m[2, 1] - m[1, 2]) / s]
+    elif m[1, 1] > m[2, 2]:
+        s = np.sqrt(1.0 + m[1, 1] - m[0, 0] - m[2, 2]) * 2
+        q = [(m[0, 1] + m[1, 0]) / s, 0.25 * s, (m[1, 2] + m[2, 1]) / s, (m[0, 2] - m[2, 0]) / s]
+    else:
+        s = np.sqrt(1.0 + m[2, 2] - m[0, 0] - m[1, 1]) * 2
+        q = [(m[0, 2] + m[2, 0]) / s, (m[1, 2] + m[2, 1]) / s, 0.25 * s, (m[1, 0] - m[0, 1]) / s]
+    return [float(x) for x in q]
+
+
+class _World:
+    """One pybullet world holding the cell: arms, obstacles, collision filters."""
+
+    def __init__(
+        self,
+        cell: Cell,
+        urdf_dir: Path,
+        *,
+        dynamics: bool,
+        gravity: float = 9.81,
+        dt: float = 1 / 240,
+        margin: float = 0.0,
+    ) -> None:
+        with native_output_silenced():
+            self.client = BulletClient(connection_mode=pb.DIRECT)
+        c = self.client
+        self.margin = margin
+        if dynamics:
+            c.setGravity(0, 0, -gravity)
+            c.setTimeStep(dt)
+        self.bodies: dict[str, int] = {}  # obstacle name -> body id
+        self.names: dict[int, str] = {}
+        for ob in cell.obstacles:
+            if isinstance(ob, Box):
+                shape = c.createCollisionShape(pb.GEOM_BOX, halfExtents=[s / 2 for s in ob.size])
+            elif isinstance(ob, Cylinder):
+                shape = c.createCollisionShape(pb.GEOM_CYLINDER, radius=ob.radius, height=ob.height)
+            else:  # pragma: no cover - Cell only holds these two
+                raise TypeError(f"unsupported obstacle {ob!r}")
+            body = c.createMultiBody(
+                baseMass=0,
+                baseCollisionShapeIndex=shape,
+                basePosition=ob.world_T[:3, 3].tolist(),
+                baseOrientation=_quat_xyzw(ob.world_T[:3, :3]),
+            )
+            self.bodies[ob.name] = body
+            self.names[body] = ob.name
+        self.ignored: set[tuple[int, int, int, int]] = set()  # (body, link, other, link) pairs
+        self.shaped: dict[str, list[int]] = {}  # arm -> links with collision shapes
+        self.shaped_by_body: dict[int, list[int]] = {body: [-1] for body in self.bodies.values()}
+        self._box_cache: dict[int, np.ndarray] = {}  # bounds, dropped when a body moves
+        self.arms: dict[str, int] = {}
+        self.self_pairs: dict[str, list[tuple[int, int]]] = {}
+        self.joints: dict[str, list[int]] = {}
+        self.links: dict[str, dict[int, str]] = {}
+        flags = pb.URDF_USE_SELF_COLLISION | pb.URDF_USE_SELF_COLLISION_EXCLUDE_PARENT | pb.URDF_USE_INERTIA_FROM_FILE
+        for arm in cell.arms:
+            urdf = urdf_dir / f"{arm.name}.urdf"
+            if not urdf.exists():
+                urdf.write_text(arm.urdf)
+            with native_output_silenced():  # the URDF importer warns on stdout
+                body = c.loadURDF(
+                    str(urdf),
+                    basePosition=arm.world_T_base[:3, 3].tolist(),
+                    baseOrientation=_quat_xyzw(arm.world_T_base[:3, :3]),
+                    useFixedBase=True,
+                    flags=flags,
+                )
+            self.arms[arm.name] = body
+            self.names[body] = arm.name
+            by_name = {}
+            links = {-1: c.getBodyInfo(body)[0].decode()}
+            parent: dict[int, int] = {}
+            fixed: set[int] = set()
+            for j in range(c.getNumJoints(body)):
+                info = c.getJointInfo(body, j)
+                by_name[info[1].decode()] = j
+                links[j] = info[12].decode()
+                parent[j] = info[16]
+                if info[2] == pb.JOINT_FIXED:
+                    fixed.add(j)
+            self.joints[arm.name] = [by_name[n] for n in arm.joints]
+            self.links[arm.name] = links
+            # Links welded by fixed joints form one rigid part (flange, ee_link, camera): each
+            # link's part is named by its first ancestor behind a moving joint. Parts touching
+            # themselves or their parent part is not a collision, nor the base part its stand.
+            def part(j: int) -> int:
+                while j in fixed:
+                    j = parent[j]
+                return j
+
+            def part_parent(p: int) -> int:
+                return part(parent[p]) if p >= 0 else -2
+
+            shaped = [j for j in links if c.getCollisionShapeData(body, j)]
+            pairs = []
+            for i, a in enumerate(shaped):
+                for b in shaped[i + 1 :]:
+                    pa, pb_ = part(a), part(b)
+                    if pa == pb_ or part_parent(pa) == pb_ or part_parent(pb_) == pa:
+                        c.setCollisionFilterPair(body, body, a, b, 0)
+                    else:
+                        pairs.append((a, b))
+            self.self_pairs[arm.name] = pairs
+            self.shaped[arm.name] = shaped
+            self.shaped_by_body[body] = shaped
+            stand = self.bodies[arm.stand]
+            for j in shaped:
+                if part(j) == -1:
+                    c.setCollisionFilterPair(body, stand, j, -1, 0)
+                    self.ignored.add((body, j, stand, -1))
+            for j in range(c.getNumJoints(body)):
+                # pybullet turns on velocity motors by default, which act as joint friction
+                c.setJointMotorControl2(body, j, pb.VELOCITY_CONTROL, force=0)
+
+    def set_joints(self, robot: str, q: np.ndarray) -> None:
+        body, idx = self.arms[robot], self.joints[robot]
+        self._box_cache.pop(body, None)
+        self.client.resetJointStatesMultiDof(body, idx, [[float(x)] for x in q], targetVelocities=[[0.0]] * len(idx))
+
+    def _boxes(self, body: int, links: list[int]) -> np.ndarray:
+        """Axis-aligned bounds of ``links`` of ``body``, (n, 2, 3)."""
+        if body not in self._box_cache:
+            self._box_cache[body] = np.array([self.client.getAABB(body, j) for j in links])
+        return self._box_cache[body]
+
+    def near(self, robot: str, only: str | None = None) -> list[str]:
+        """The first pair involving ``robot`` closer than ``margin`` (empty when clear);
+        ``only`` restricts the search to that other arm.
+
+        pybullet's contact detection only sees penetration, so clearance is asked pair by pair
+        with closest-point queries, for the pairs whose bounds (grown by the margin) overlap.
+        """
+        c, body, m = self.client, self.arms[robot], self.margin
+        links = self.shaped[robot]
+        mine = self._boxes(body, links)
+        lo, hi = mine[:, 0] - m, mine[:, 1] + m
+        candidates: list[tuple[int, int, int]] = []  # (other body, my link, its link)
+        others = self.shaped_by_body if only is None else {self.arms[only]: self.shaped[only]}
+        for other, olinks in others.items():
+            if other == body:
+                continue
+            theirs = self._boxes(other, olinks)
+            overlap = np.all((lo[:, None] <= theirs[None, :, 1]) & (hi[:, None] >= theirs[None, :, 0]), axis=2)
+            for i, k in zip(*np.nonzero(overlap), strict=True):
+                if (body, links[i], other, olinks[k]) not in self.ignored:
+                    candidates.append((other, links[i], olinks[k]))
+        index = {j: i for i, j in enumerate(links)}
+        for a, b in self.self_pairs[robot] if only is None else ():
+            i, k = index[a], index[b]
+            if np.all((lo[i] <= mine[k, 1]) & (hi[i] >= mine[k, 0])):
+                candidates.append((body, a, b))
+        for other, a, b in candidates:
+            for cp in c.getClosestPoints(body, other, m, linkIndexA=a, linkIndexB=b):
+                if cp[8] <= m:
+                    return [self._pair(robot, cp)]
+        return []
+
+    def _pair(self, robot: str, cp: tuple) -> str:
+        a = f"{robot}/{self.links[robot][cp[3]]}"
+        name = self.names.get(cp[2], str(cp[2]))
+        b = f"{name}/{self.links[name][cp[4]]}" if name in self.links else name
+        return "|".join(sorted((a, b)))
+
+    def contacts(self, robot: str) -> list[str]:
+        """Penetrating pairs involving ``robot`` found by the last collision detection."""
+        body = self.arms[robot]
+        # near misses are reported too: only distance <= 0 is a contact
+        return [self._pair(robot, cp) for cp in self.client.getContactPoints(bodyA=body) if cp[8] <= 0.0]
+
+    def close(self) -> None:
+        try:
+            self.client.disconnect()
+        except pb.error:
+            pass
+
+
+class BulletPhysics(PhysicsBackend):
+    """The cell in pybullet: position-controlled arms with dynamics, plus a query world."""
+
+    def __init__(self, cell: Cell, options: BulletOptions) -> None:
+        super().__init__(cell, options)
+        self._tmp = tempfile.TemporaryDirectory(prefix="agrisim-pybullet-")
+        self.dt = 1.0 / options.rate
+        urdf_dir = Path(self._tmp.name)
+        self.sim = _World(cell, urdf_dir, dynamics=True, gravity=options.gravity, dt=self.dt)
+        self.query = _World(cell, urdf_dir, dynamics=False, margin=options.clearance)
+        self._q: dict[str, np.ndarray] = {a.name: np.array(a.home, float) for a in cell.arms}
+        self._query_q: dict[str, np.ndarray] = {}
+        self._time = 0.0
+        c = self.sim.client
+        self._force: dict[str, list[float]] = {}
+        for arm in cell.arms:
+            body = self.sim.arms[arm.name]
+            self._force[arm.name] = [
+                c.getJointInfo(body, j)[10] * options.force_scale for j in self.sim.joints[arm.name]
+            ]
+            self.reset(arm.name, self._q[arm.name])
+
+    # ------------------------------------------------------------------ queries
+    def _place_query(self, robot: str, q: np.ndarray) -> None:
+        last = self._query_q.get(robot)
+        if last is None or not np.array_equal(last, q):
+            self.query.set_joints(robot, q)
+            self._query_q[robot] = np.array(q, float)
+
+    def in_collision(self, robot: str, q: np.ndarray, others: Mapping[str, np.ndarray] | None = None) -> bool:
+        others = others or {}
+        for name in self._q:
+            self._place_query(name, q if name == robot else others.get(name, self._q[name]))
+        if self.query.margin > 0:
+            return bool(self.query.near(robot))
+        self.query.client.performCollisionDetection()
+        return bool(self.query.contacts(robot))
+
+    def arms_in_collision(self, configs: Mapping[str, np.ndarray]) -> bool:
+        for name, q in configs.items():
+            self._place_query(name, q)
+        names = list(configs)
+        for i, a in enumerate(names):
+            for b in names[i + 1 :]:
+                if self.query.near(a, only=b):
+                    return True
+        return False
+
+    def joint_positions(self, robot: str) -> np.ndarray:
+        return self._q[robot].copy()
+
+    def reset(self, robot: str, q: np.ndarray) -> None:
+        q = np.asarray(q, float)
+        self.sim.set_joints(robot, q)
+        self._q[robot] = q.copy()
+        self._command(robot, q, np.zeros_like(q))
+
+    @property
+    def sim_time(self) -> float:
+        return self._time
+
+    # ------------------------------------------------------------------ dynamics
+    def _command(self, robot: str, q: np.ndarray, qd: np.ndarray) -> None:
+        o = self.options
+        n = len(q)
+        self.sim.client.setJointMotorControlArray(
+            self.sim.arms[robot],
+            self.sim.joints[robot],
+            pb.POSITION_CONTROL,
+            targetPositions=q.tolist(),
+            targetVelocities=qd.tolist(),
+            forces=self._force[robot],
+            positionGains=[o.position_gain] * n,
+            velocityGains=[o.velocity_gain] * n,
+        )
+
+    def _read(self, robot: str) -> np.ndarray:
+        states = self.sim.client.getJointStates(self.sim.arms[robot], self.sim.joints[robot])
+        return np.array([s[0] for s in states])
+
+    def execute(
+        self,
+        plans: Mapping[str, JointTrajectory],
+        settled: Callable[[str, np.ndarray], bool],
+        timeout: float,
+    ) -> dict[str, Execution]:
+        robots = list(plans)
+        ends = {r: plans[r].t[-1] for r in robots}
+        done: dict[str, float] = {}  # robot -> settle time after its plan ended
+        times: dict[str, list[float]] = {r: [] for r in robots}
+        samples: dict[str, list[np.ndarray]] = {r: [] for r in robots}
+        contacts: dict[str, set[str]] = {r: set() for r in robots}
+        t0 = self._time
+        step = 0
+        horizon = max(ends.values()) + timeout
+        while len(done) < len(robots):
+            t = step * self.dt
+            for r in robots:
+                if r in done:
+                    continue
+                plan = plans[r]
+                if t <= ends[r]:
+                    q = np.array([np.interp(t, plan.t, plan.q[:, j]) for j in range(plan.q.shape[1])])
+                    qd = (
+                        np.array([np.interp(t, plan.t, plan.qd[:, j]) for j in range(plan.qd.shape[1])])
+                        if plan.qd is not None
+                        else np.zeros_like(q)
+                    )
+                else:
+                    q, qd = plan.q[-1], np.zeros(plan.q.shape[1])
+                self._command(r, q, qd)
+            self.sim.client.stepSimulation()
+            step += 1
+            self._time = t0 + step * self.dt
+            t = step * self.dt
+            for r in robots:
+                if r in done:
+                    continue
+                q = self._read(r)
+                self._q[r] = q
+                times[r].append(self._time)
+                samples[r].append(q)
+                contacts[r].update(self.sim.contacts(r))
+                if t >= ends[r] and settled(r, q):
+                    done[r] = t - ends[r]
+                elif t >= ends[r] + timeout:
+                    done[r] = -1.0
+            if t > horizon:
+                break
+        out = {}
+        for r in robots:
+            settle = done.get(r, -1.0)
+            out[r] = Execution(
+                executed=JointTrajectory(np.array(times[r]), np.array(samples[r])),
+                settled=settle >= 0.0,
+                settle_time=settle if settle >= 0.0 else timeout,
+                contacts=sorted(contacts[r]),
+            )
+        return out
+
+    def link_poses(self, robot: str) -> dict[str, np.ndarray]:
+        """``world_T_link`` of every link as pybullet has them (URDF link frames)."""
+        c, body = self.sim.client, self.sim.arms[robot]
+        out = {}
+        for j, name in self.sim.links[robot].items():
+            if j < 0:
+                pos, orn = c.getBasePositionAndOrientation(body)
+            else:
+                st = c.getLinkState(body, j, computeForwardKinematics=True)
+                pos, orn = st[4], st[5]
+            T = np.eye(4)
+            T[:3, :3] = np.array(c.getMatrixFromQuaternion(orn)).reshape(3, 3)
+            T[:3, 3] = pos
+            out[name] = T
+        return out
+
+    def close(self) -> None:
+        self.sim.close()
+        self.query.close()
+        self._tmp.cleanup()
+
+
+@hookimpl
+def agrisim_physics() -> list[BackendSpec]:
+    return [
+        BackendSpec(
+            name="pybullet",
+            factory=BulletPhysics,
+            description="pybullet dynamics (DIRECT), joint position motors with configurable gains and force limits",
+            options_model=BulletOptions,
+            limits="rigid bodies only; contacts are detected and reported, not resolved into the plan",
+        )
+    ]

@@ -1,0 +1,582 @@
+"""The ``rerun`` sink: the episode as a Rerun recording (``OUT/recording.rrd``).
+
+One :class:`rerun.RecordingStream` per run (never the process-global one), written to
+``--rrd PATH`` or ``OUT/recording.rrd`` and, with ``--spawn``, streamed to a spawned viewer as
+well. Two timelines: ``setpoint`` (sequence, the setpoint index) and ``sim_time`` (duration,
+simulated seconds since the run started). Every temporal row carries both, so scrubbing either
+shows the same state.
+
+Entity layout (``world/`` is z up; every path is built by :class:`paths`, which renderer and
+reconstruction code should reuse)::
+
+    world                               ViewCoordinates RIGHT_HAND_Z_UP (static)
+    world/cell/<obstacle>               Boxes3D / Cylinders3D (static)
+    world/<robot>/<link>                Transform3D world_T_link over time
+    world/<robot>/<link>/visual_<i>     Asset3D (GLB) or Boxes3D, static, link_T_visual
+    world/<robot>/camera                Transform3D world_T_camera + Pinhole (OpenCV RDF)
+    world/<robot>/camera/{rgb,labels,depth}   Image, SegmentationImage, DepthImage
+    world/<robot>/planned|executed      LineStrips3D of the camera position per move
+    world/setpoints/<robot>             Points3D (colour = pending/reached/failed)
+    world/setpoints/<robot>/view        Arrows3D, the camera's viewing direction
+    world/clouds/view|merged/<label>    Points3D per view and merged, per label
+    metrics/<robot>/ee_error_mm         Scalars
+    log/<robot>                         TextLog per setpoint
+    run/config, run/summary             TextDocument
+
+Arm motion is logged decimated to :data:`TRANSFORM_RATE` Hz of simulated time (every link at
+every physics step would dominate the file), always including each move's last sample.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import json
+import logging
+import uuid
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from agrisim import BackendSpec, hookimpl
+from agrisim.plugins.sinks import robot_meshes
+
+if TYPE_CHECKING:
+    import rerun as rr
+    import rerun.blueprint as rrb
+
+    from agrisim.cell import Box, Cylinder
+    from agrisim.episode import Run, RunSummary, SetpointResult
+    from agrisim.interfaces import Capture, Trajectory
+
+log = logging.getLogger(__name__)
+
+APPLICATION_ID = "agrisim"
+#: arm link transforms are logged at this rate of simulated time, Hz
+TRANSFORM_RATE = 30.0
+#: planned / executed camera paths are drawn with points at this rate, Hz
+PATH_RATE = 60.0
+#: port of the viewer started by ``--spawn`` (Rerun's default)
+SPAWN_PORT = 9876
+#: distance of the image plane drawn for each camera in 3D views, m
+IMAGE_PLANE_DISTANCE = 0.08
+#: length of the viewing-direction arrows drawn at each setpoint, m
+SETPOINT_ARROW = 0.05
+RGB_JPEG_QUALITY = 90
+
+TIMELINE_SETPOINT = "setpoint"
+TIMELINE_SIM_TIME = "sim_time"
+
+ROBOT_COLORS = [(230, 120, 40), (40, 130, 230), (120, 200, 80), (200, 80, 200)]
+OBSTACLE_COLORS = {
+    "floor": (205, 205, 200, 255),
+    "table": (150, 110, 75, 255),
+    "pot": (170, 85, 50, 255),
+    "plant_keepout": (220, 60, 60, 60),
+}
+STAND_COLOR = (90, 90, 95, 255)
+STATUS_COLORS = {"pending": (160, 160, 160), "reached": (40, 200, 80), "failed": (230, 40, 40)}
+CAMERA_BODY_COLOR = (40, 40, 40, 255)
+
+
+class paths:  # noqa: N801 - a namespace of path builders, used like a module
+    """Entity paths of the recording, in one place."""
+
+    WORLD = "world"
+    CELL = "world/cell"
+    SETPOINTS = "world/setpoints"
+    CLOUDS = "world/clouds"
+    PLANT = "world/plant"
+    LIGHTS = "world/lights"
+    METRICS = "metrics"
+    RUN_CONFIG = "run/config"
+    RUN_SUMMARY = "run/summary"
+    #: images under each camera: capture.images key -> child entity name
+    IMAGE_KINDS = ("rgb", "labels", "depth")
+
+    @staticmethod
+    def obstacle(name: str) -> str:
+        return f"world/cell/{name}"
+
+    @staticmethod
+    def robot(robot: str) -> str:
+        return f"world/{robot}"
+
+    @staticmethod
+    def link(robot: str, link: str) -> str:
+        """The entity whose transform is ``world_T_link``."""
+        return f"world/{robot}/{link}"
+
+    @staticmethod
+    def link_visual(robot: str, link: str, index: int) -> str:
+        """A link's visual geometry (with its static ``link_T_visual``)."""
+        return f"world/{robot}/{link}/visual_{index}"
+
+    @staticmethod
+    def camera(robot: str) -> str:
+        """The camera's optical frame (``world_T_camera``, OpenCV axes) and its ``Pinhole``."""
+        return f"world/{robot}/camera"
+
+    @staticmethod
+    def camera_image(robot: str, kind: str) -> str:
+        """``kind`` is ``rgb``, ``labels`` or ``depth``."""
+        return f"world/{robot}/camera/{kind}"
+
+    @staticmethod
+    def planned(robot: str) -> str:
+        return f"world/{robot}/planned"
+
+    @staticmethod
+    def executed(robot: str) -> str:
+        return f"world/{robot}/executed"
+
+    @staticmethod
+    def setpoints(robot: str) -> str:
+        return f"world/setpoints/{robot}"
+
+    @staticmethod
+    def setpoint_views(robot: str) -> str:
+        return f"world/setpoints/{robot}/view"
+
+    @staticmethod
+    def cloud(label: str, merged: bool) -> str:
+        return f"world/clouds/{'merged' if merged else 'view'}/{label}"
+
+    @staticmethod
+    def metric(robot: str, name: str) -> str:
+        return f"metrics/{robot}/{name}"
+
+    @staticmethod
+    def log(robot: str) -> str:
+        return f"log/{robot}"
+
+
+# ---------------------------------------------------------------------- small helpers
+
+
+def quaternions_xyzw(R: np.ndarray) -> np.ndarray:
+    """Unit quaternions (x, y, z, w) of rotation matrices ``R`` (N x 3 x 3), vectorised.
+
+    Each row uses the largest of the four squared components as the pivot (Shepperd's method),
+    which stays accurate for every rotation, 180-degree turns included.
+    """
+    R = np.asarray(R, float).reshape(-1, 3, 3)
+    m00, m11, m22 = R[:, 0, 0], R[:, 1, 1], R[:, 2, 2]
+    four = np.stack([1 + m00 - m11 - m22, 1 - m00 + m11 - m22, 1 - m00 - m11 + m22, 1 + m00 + m11 + m22], axis=1)
+    pivot = np.argmax(four, axis=1)
+    s = 2.0 * np.sqrt(np.maximum(four[np.arange(len(R)), pivot], 1e-300))  # = 4 * pivot component
+    d21, d02, d10 = R[:, 2, 1] - R[:, 1, 2], R[:, 0, 2] - R[:, 2, 0], R[:, 1, 0] - R[:, 0, 1]
+    s01, s02, s12 = R[:, 0, 1] + R[:, 1, 0], R[:, 0, 2] + R[:, 2, 0], R[:, 1, 2] + R[:, 2, 1]
+    q = np.empty((len(R), 4))
+    cases = [
+        np.stack([s / 4, s01 / s, s02 / s, d21 / s], 1),  # x largest
+        np.stack([s01 / s, s / 4, s12 / s, d02 / s], 1),  # y largest
+        np.stack([s02 / s, s12 / s, s / 4, d10 / s], 1),  # z largest
+        np.stack([d21 / s, d02 / s, d10 / s, s / 4], 1),  # w largest
+    ]
+    for k, case in enumerate(cases):
+        q[pivot == k] = case[pivot == k]
+    return q / np.linalg.norm(q, axis=1, keepdims=True)
+
+
+def decimate(t: np.ndarray, rate: float) -> np.ndarray:
+    """Indices of the samples at times ``t`` (sorted) nearest below each tick of ``rate`` Hz,
+    always with the first and last sample."""
+    t = np.asarray(t, float)
+    if len(t) == 0:
+        return np.zeros(0, int)
+    ticks = np.arange(t[0], t[-1], 1.0 / rate)
+    idx = np.searchsorted(t, ticks, side="left")
+    return np.unique(np.concatenate([[0], np.clip(idx, 0, len(t) - 1), [len(t) - 1]]))
+
+
+def recording_id(run: Run) -> str:
+    """A recording id derived from the run (output directory and start time), stable for the
+    run so that other processes logging about it land in the same recording."""
+    ident = f"agrisim:{Path(run.out_dir).resolve()}:{run.started_at}"
+    return str(uuid.uuid5(uuid.NAMESPACE_URL, ident))
+
+
+def rrd_path(run: Run) -> Path:
+    """Where the recording is saved: ``--rrd`` or ``OUT/recording.rrd``."""
+    rrd = run.config.output.rrd
+    return Path(rrd).expanduser() if rrd is not None else Path(run.out_dir) / "recording.rrd"
+
+
+def _robot_color(run: Run, robot: str) -> tuple[int, int, int]:
+    names = list(run.cell.arm_names)
+    return ROBOT_COLORS[names.index(robot) % len(ROBOT_COLORS)] if robot in names else (200, 200, 200)
+
+
+def _rgba255(rgba: Sequence[float] | None, default: tuple[int, int, int, int]) -> tuple[int, int, int, int]:
+    if rgba is None:
+        return default
+    return tuple(int(round(255 * min(max(c, 0.0), 1.0))) for c in rgba)  # type: ignore[return-value]
+
+
+def _time_columns(setpoint: int | np.ndarray, sim_time: np.ndarray) -> list[Any]:
+    n = len(sim_time)
+    seq = np.broadcast_to(np.asarray(setpoint, np.int64), (n,))
+    return [rr.TimeColumn(TIMELINE_SETPOINT, sequence=seq), rr.TimeColumn(TIMELINE_SIM_TIME, duration=np.asarray(sim_time, float))]
+
+
+def _load_rerun() -> None:
+    # Imported on first use: rerun costs ~0.3 s to import, which runs without a recording
+    # (--no-rrd, `agrisim plugins`) should not pay just because this plugin is registered.
+    global rr, rrb
+    import rerun as rr
+    import rerun.blueprint as rrb
+
+
+# ---------------------------------------------------------------------- the sink
+
+
+class RerunSink:
+    """Records one run. Built by the ``rerun`` sink factory; the stream opens at run start."""
+
+    def __init__(self, run: Run) -> None:
+        _load_rerun()
+        self.run = run
+        self.path = rrd_path(run)
+        self.spawn = bool(run.config.output.spawn)
+        self.save = not run.config.output.no_rrd
+        self.rec: rr.RecordingStream | None = None
+        self.visuals = {arm.name: robot_meshes.link_visuals(arm.urdf) for arm in run.cell.arms}
+        self._status: dict[str, list[str]] = {}
+        self._now = (0, 0.0)  # (setpoint, sim_time) of the latest event, for events without a time
+
+    # ------------------------------------------------------------------ stream
+    def blueprint(self) -> rrb.Blueprint:
+        """The default layout: the cell in 3D, each arm's camera in 2D, the reach errors."""
+        arms = self.run.cell.arm_names
+        side = [rrb.Spatial2DView(origin=paths.camera(a), name=f"{a} camera") for a in arms]
+        side.append(rrb.TimeSeriesView(origin=paths.METRICS, name="camera error (mm)"))
+        return rrb.Blueprint(
+            rrb.Horizontal(
+                rrb.Spatial3DView(origin=paths.WORLD, name="cell"),
+                rrb.Vertical(*side),
+                column_shares=[2, 1],
+            ),
+            rrb.TimePanel(timeline=TIMELINE_SIM_TIME),
+            collapse_panels=False,
+        )
+
+    def open(self) -> rr.RecordingStream:
+        """Create the run's recording stream and attach its sinks (file and/or viewer)."""
+        rec = rr.RecordingStream(APPLICATION_ID, recording_id=recording_id(self.run))
+        sinks: list[Any] = []
+        if self.save:
+            self.path.parent.mkdir(parents=True, exist_ok=True)
+            sinks.append(rr.FileSink(str(self.path)))
+        if self.spawn:
+            try:
+                # Spawn without connecting, then tee: spawn() alone would replace the file sink.
+                rec.spawn(port=SPAWN_PORT, connect=False)
+                sinks.append(rr.GrpcSink(f"rerun+http://127.0.0.1:{SPAWN_PORT}/proxy"))
+            except Exception as exc:  # a missing viewer or display must not cost the run
+                log.warning("could not spawn a Rerun viewer (%s); recording to file only", exc)
+        if sinks:
+            rec.set_sinks(*sinks, default_blueprint=self.blueprint())
+        rec.send_recording_name(Path(self.run.out_dir).name or "agrisim")
+        self.rec = rec
+        return rec
+
+    def close(self) -> None:
+        """Flush and close the stream (idempotent)."""
+        if self.rec is not None:
+            self.rec.flush()
+            self.rec.disconnect()
+            self.rec = None
+
+    def _set_time(self, setpoint: int, sim_time: float) -> None:
+        assert self.rec is not None
+        self.rec.set_time(TIMELINE_SETPOINT, sequence=int(setpoint))
+        self.rec.set_time(TIMELINE_SIM_TIME, duration=float(sim_time))
+        self._now = (int(setpoint), float(sim_time))
+
+    # ------------------------------------------------------------------ static scene
+    def _log_obstacle(self, ob: Box | Cylinder) -> None:
+        assert self.rec is not None
+        from agrisim.cell import Box
+
+        path = paths.obstacle(ob.name)
+        T = np.asarray(ob.world_T, float)
+        self.rec.log(path, rr.Transform3D(translation=T[:3, 3], quaternion=quaternions_xyzw(T[:3, :3])[0]), static=True)
+        color = OBSTACLE_COLORS.get(ob.name, STAND_COLOR)
+        # The keep-out zone is virtual: drawn as a wire cage, not as a solid.
+        fill = "transparentfillmajorwireframe" if ob.name == "plant_keepout" else "solid"
+        if isinstance(ob, Box):
+            shape: Any = rr.Boxes3D(half_sizes=[np.asarray(ob.size) / 2], colors=[color], fill_mode=fill, labels=[ob.name], show_labels=False)
+        else:
+            shape = rr.Cylinders3D(lengths=[ob.height], radii=[ob.radius], colors=[color], fill_mode=fill, labels=[ob.name], show_labels=False)
+        self.rec.log(path, shape, static=True)
+
+    def _log_robot_geometry(self, robot: str) -> None:
+        assert self.rec is not None
+        for link, visuals in self.visuals[robot].items():
+            for v in visuals:
+                path = paths.link_visual(robot, link, v.index)
+                T = v.link_T_visual
+                self.rec.log(
+                    path,
+                    rr.Transform3D(translation=T[:3, 3], quaternion=quaternions_xyzw(T[:3, :3])[0], scale=v.scale),
+                    static=True,
+                )
+                if v.kind == "mesh" and v.filename:
+                    try:
+                        contents, media_type = robot_meshes.asset_bytes(v.filename)
+                    except Exception as exc:  # a broken visual mesh costs its picture, not the run
+                        log.warning("%s/%s: visual mesh %s not recorded: %s", robot, link, v.filename, exc)
+                        continue
+                    asset = rr.Asset3D(contents=contents, media_type=media_type)
+                    if v.rgba is not None:
+                        asset = rr.Asset3D(contents=contents, media_type=media_type, albedo_factor=_rgba255(v.rgba, (255,) * 4))
+                    self.rec.log(path, asset, static=True)
+                elif v.kind == "box" and v.size is not None:
+                    color = _rgba255(v.rgba, CAMERA_BODY_COLOR)
+                    self.rec.log(path, rr.Boxes3D(half_sizes=[np.asarray(v.size) / 2], colors=[color], fill_mode="solid"), static=True)
+                elif v.kind == "cylinder" and v.radius is not None and v.length is not None:
+                    color = _rgba255(v.rgba, CAMERA_BODY_COLOR)
+                    self.rec.log(path, rr.Cylinders3D(lengths=[v.length], radii=[v.radius], colors=[color], fill_mode="solid"), static=True)
+                elif v.kind == "sphere" and v.radius is not None:
+                    color = _rgba255(v.rgba, CAMERA_BODY_COLOR)
+                    self.rec.log(path, rr.Ellipsoids3D(half_sizes=[[v.radius] * 3], colors=[color], fill_mode="solid"), static=True)
+
+    def _log_setpoints(self) -> None:
+        assert self.rec is not None
+        for robot, sps in self.run.setpoints.items():
+            if not sps:
+                continue
+            T = np.stack([sp.world_T_camera for sp in sps])
+            origins = T[:, :3, 3]
+            self.rec.log(
+                paths.setpoints(robot),
+                rr.Points3D(origins, radii=0.008, labels=[sp.frame for sp in sps], show_labels=False),
+                static=True,
+            )
+            self.rec.log(
+                paths.setpoint_views(robot),
+                rr.Arrows3D(origins=origins, vectors=T[:, :3, 2] * SETPOINT_ARROW, colors=_robot_color(self.run, robot), radii=0.002),
+                static=True,
+            )
+            self._status[robot] = ["pending"] * len(sps)
+            self._log_setpoint_status(robot)
+            self.rec.log(paths.metric(robot, "ee_error_mm"), rr.SeriesPoints(colors=[_robot_color(self.run, robot)], names=[robot]), static=True)
+
+    def _log_setpoint_status(self, robot: str) -> None:
+        assert self.rec is not None
+        colors = [STATUS_COLORS[s] for s in self._status[robot]]
+        # Colours only, at the current time: positions stay static, status changes over time.
+        self.rec.log(paths.setpoints(robot), rr.Points3D.from_fields(colors=colors))
+
+    def _link_columns(self, robot: str, qs: np.ndarray) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+        """``entity path -> (translations, quaternions)`` for every visual link and the camera."""
+        kin = self.run.kinematics[robot]
+        links = [link for link in self.visuals[robot]]
+        camera_frame = self.run.cell.arm(robot).camera_frame
+        wanted = {paths.link(robot, link): link for link in links}
+        wanted[paths.camera(robot)] = camera_frame
+        poses: dict[str, list[np.ndarray]] = {path: [] for path in wanted}
+        for q in qs:
+            frames = kin.link_poses(q)
+            for path, frame in wanted.items():
+                if frame in frames:
+                    poses[path].append(frames[frame])
+        out = {}
+        for path, Ts in poses.items():
+            if len(Ts) == len(qs) and Ts:
+                M = np.stack(Ts)
+                out[path] = (M[:, :3, 3], quaternions_xyzw(M[:, :3, :3]))
+        return out
+
+    def _log_arm(self, robot: str, setpoint: int | np.ndarray, t: np.ndarray, qs: np.ndarray) -> None:
+        assert self.rec is not None
+        for path, (translation, quaternion) in self._link_columns(robot, qs).items():
+            self.rec.send_columns(
+                path,
+                indexes=_time_columns(setpoint, t),
+                columns=rr.Transform3D.columns(translation=translation, quaternion=quaternion),
+            )
+
+    # ------------------------------------------------------------------ hooks
+    @hookimpl
+    def agrisim_run_started(self, run: Run) -> None:
+        """Open the stream; log the static cell, the robots at home, setpoints and config."""
+        if run is not self.run:
+            return
+        rec = self.open()
+        rec.log(paths.WORLD, rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
+        rec.log(paths.RUN_CONFIG, rr.TextDocument(_config_markdown(run), media_type=rr.MediaType.MARKDOWN), static=True)
+        for ob in run.cell.obstacles:
+            self._log_obstacle(ob)
+        for arm in run.cell.arms:
+            self._log_robot_geometry(arm.name)
+        self._set_time(0, 0.0)
+        self._log_setpoints()
+        for arm in run.cell.arms:
+            self._log_arm(arm.name, 0, np.array([0.0]), np.array([arm.home], float))
+
+    @hookimpl
+    def agrisim_trajectory(self, run: Run, robot: str, trajectory: Trajectory) -> None:
+        """The arm's links along the executed motion; the camera's planned and executed paths."""
+        if run is not self.run or self.rec is None:
+            return
+        ex = trajectory.executed
+        if len(ex.t):
+            idx = decimate(ex.t, TRANSFORM_RATE)
+            self._log_arm(robot, trajectory.setpoint, np.asarray(ex.t)[idx], np.asarray(ex.q)[idx])
+        kin = run.kinematics[robot]
+        color = _robot_color(run, robot)
+        planned = trajectory.planned
+        if len(planned.t):
+            pts = np.array([kin.fk(q)[:3, 3] for q in np.asarray(planned.q)[decimate(planned.t, PATH_RATE)]])
+            self._set_time(trajectory.setpoint, float(planned.t[0]))
+            self.rec.log(paths.planned(robot), rr.LineStrips3D([pts], colors=[(*color, 110)], radii=0.002))
+        if len(ex.t):
+            pts = np.array([kin.fk(q)[:3, 3] for q in np.asarray(ex.q)[decimate(ex.t, PATH_RATE)]])
+            self._set_time(trajectory.setpoint, float(ex.t[-1]))
+            self.rec.log(paths.executed(robot), rr.LineStrips3D([pts], colors=[color], radii=0.003))
+
+    @hookimpl
+    def agrisim_setpoint(self, run: Run, robot: str, result: SetpointResult) -> None:
+        """The camera error as a scalar series; reached/failed as a log line and point colour."""
+        if run is not self.run or self.rec is None:
+            return
+        self._set_time(result.index, result.sim_time)
+        if result.ee_error_mm is not None:
+            self.rec.log(paths.metric(robot, "ee_error_mm"), rr.Scalars(float(result.ee_error_mm)))
+        if robot in self._status and 0 <= result.index < len(self._status[robot]):
+            self._status[robot][result.index] = "reached" if result.reached else "failed"
+            self._log_setpoint_status(robot)
+        error = f"{result.ee_error_mm:.4f} mm" if result.ee_error_mm is not None else "no error measured"
+        if result.reached:
+            self.rec.log(paths.log(robot), rr.TextLog(f"{result.frame}: reached ({error})", level="INFO"))
+        else:
+            self.rec.log(paths.log(robot), rr.TextLog(f"{result.frame}: not reached ({error}): {result.reason}", level="WARN"))
+
+    @hookimpl
+    def agrisim_capture(self, run: Run, capture: Capture) -> None:
+        """The camera pose and intrinsics at the capture; its images when a renderer made any."""
+        if run is not self.run or self.rec is None:
+            return
+        rec = self.rec
+        self._set_time(capture.setpoint, capture.sim_time)
+        T = np.asarray(capture.world_T_camera, float)
+        cam = capture.camera
+        rec.log(paths.camera(capture.robot), rr.Transform3D(translation=T[:3, 3], quaternion=quaternions_xyzw(T[:3, :3])[0]))
+        rec.log(
+            paths.camera(capture.robot),
+            rr.Pinhole(
+                image_from_camera=cam.K,
+                resolution=[cam.width, cam.height],
+                camera_xyz=rr.ViewCoordinates.RDF,
+                image_plane_distance=IMAGE_PLANE_DISTANCE,
+            ),
+        )
+        self.log_images(capture.robot, capture.images)
+
+    def log_images(self, robot: str, images: Mapping[str, np.ndarray]) -> None:
+        """Log a capture's ``rgb``, ``labels`` and ``depth`` at the current time."""
+        assert self.rec is not None
+        rgb = images.get("rgb")
+        if rgb is not None:
+            image = rr.Image(np.asarray(rgb))
+            # JPEG keeps a full run's frames in tens of MB instead of GB; Pillow is optional.
+            if np.asarray(rgb).dtype == np.uint8 and importlib.util.find_spec("PIL") is not None:
+                image = image.compress(jpeg_quality=RGB_JPEG_QUALITY)
+            self.rec.log(paths.camera_image(robot, "rgb"), image)
+        labels = images.get("labels")
+        if labels is not None:
+            self.rec.log(paths.camera_image(robot, "labels"), rr.SegmentationImage(np.asarray(labels)))
+        depth = images.get("depth")
+        if depth is not None:
+            # Millimetres in uint16 (as the dataset's depth PNGs): half the size of float32 metres
+            # and far more compressible; 1 mm steps are invisible at the cell's scale.
+            mm = np.clip(np.round(np.asarray(depth, float) * 1000.0), 0, 65535).astype(np.uint16)
+            self.rec.log(paths.camera_image(robot, "depth"), rr.DepthImage(mm, meter=1000.0))
+
+    def log_label_table(self, table: Mapping[int, tuple[str, Sequence[int]]]) -> None:
+        """The label ids' names and colours (``id -> (name, rgb)``) for every camera's
+        ``labels`` image, static. Call once the plant's label table is known."""
+        assert self.rec is not None
+        context = rr.AnnotationContext([(int(i), name, tuple(color)) for i, (name, color) in sorted(table.items())])
+        for robot in self.run.cell.arm_names:
+            self.rec.log(paths.camera_image(robot, "labels"), context, static=True)
+
+    @hookimpl
+    def agrisim_cloud(self, run: Run, label: str, cloud: Any, merged: bool) -> None:
+        """A per-view or merged point cloud, at the time of the latest event."""
+        if run is not self.run or self.rec is None:
+            return
+        points, colors = _cloud_arrays(cloud)
+        if points is None:
+            log.debug("cloud %r of type %s not recorded", label, type(cloud).__name__)
+            return
+        self._set_time(*self._now)
+        self.rec.log(paths.cloud(label, merged), rr.Points3D(points, colors=colors, radii=rr.Radius.ui_points(1.5)))
+
+    @hookimpl
+    def agrisim_run_finished(self, run: Run, summary: RunSummary) -> None:
+        """Log the summary, then flush and close the stream."""
+        if run is not self.run or self.rec is None:
+            return
+        try:
+            self.rec.log(paths.RUN_SUMMARY, rr.TextDocument(_summary_markdown(summary), media_type=rr.MediaType.MARKDOWN), static=True)
+        finally:
+            self.close()
+
+
+def _cloud_arrays(cloud: Any) -> tuple[np.ndarray | None, np.ndarray | None]:
+    """Points (N x 3) and optional colours from an array (N x 3 or N x 6) or an object with
+    ``points``/``colors`` (Open3D's ``PointCloud``, trimesh's ``PointCloud``)."""
+    if isinstance(cloud, np.ndarray):
+        if cloud.ndim == 2 and cloud.shape[1] in (3, 6):
+            return cloud[:, :3], (cloud[:, 3:6] if cloud.shape[1] == 6 else None)
+        return None, None
+    points = getattr(cloud, "points", None) if cloud is not None else None
+    if points is None:
+        return None, None
+    pts = np.asarray(points, float)
+    colors = getattr(cloud, "colors", None)
+    cols = np.asarray(colors) if colors is not None and len(colors) else None
+    if cols is not None and cols.shape[0] != pts.shape[0]:
+        cols = None
+    return pts, cols
+
+
+def _config_markdown(run: Run) -> str:
+    config = json.dumps(run.config.model_dump(mode="json"), indent=2)
+    backends = ", ".join(f"{k}: `{v}`" for k, v in run.backends.items())
+    return f"# agrisim run\n\nstarted {run.started_at}, backends {backends}\n\n```json\n{config}\n```\n"
+
+
+def _summary_markdown(summary: RunSummary) -> str:
+    rows = "\n".join(f"| {k} | {v} |" for k, v in summary.to_dict().items() if k != "wall_s")
+    wall = "\n".join(f"| {k} | {v:.3f} |" for k, v in summary.wall_s.items())
+    text = f"# Run summary\n\n| | |\n|---|---|\n{rows}\n"
+    if wall:
+        text += f"\n## Wall time per stage (s)\n\n| stage | s |\n|---|---|\n{wall}\n"
+    return text
+
+
+def make_sink(run: Run) -> RerunSink | None:
+    """The sink for ``run``, or None under ``--no-rrd`` without ``--spawn``."""
+    out = run.config.output
+    if out.no_rrd and not out.spawn:
+        return None
+    return RerunSink(run)
+
+
+@hookimpl
+def agrisim_sinks() -> list[BackendSpec]:
+    return [
+        BackendSpec(
+            name="rerun",
+            factory=make_sink,
+            description="Rerun recording (OUT/recording.rrd or --rrd; --spawn streams to a viewer)",
+        )
+    ]
+
+
+__all__ = ["RerunSink", "make_sink", "paths", "quaternions_xyzw", "decimate", "rrd_path", "recording_id"]

@@ -1,0 +1,288 @@
+"""The ``rerun`` sink: a real small episode recorded, then read back with Rerun's own RRD reader."""
+
+from __future__ import annotations
+
+import importlib
+from collections import defaultdict
+from importlib import metadata
+from pathlib import Path
+
+import numpy as np
+import pinocchio as pin
+import pyarrow as pa
+import pytest
+
+rr = pytest.importorskip("rerun")
+from rerun.chunk import RrdReader  # noqa: E402
+
+from agrisim.camera import preset  # noqa: E402
+from agrisim.cell import build_cell  # noqa: E402
+from agrisim.config import build_config  # noqa: E402
+from agrisim.episode import Episode, Run, RunSummary, SetpointResult  # noqa: E402
+from agrisim.interfaces import Capture, JointTrajectory, Trajectory  # noqa: E402
+from agrisim.kinematics import ArmKinematics  # noqa: E402
+from agrisim.plugins.sinks import robot_meshes, rerun_sink  # noqa: E402
+from agrisim.plugins.sinks.rerun_sink import paths  # noqa: E402
+from agrisim.registry import make_plugin_manager  # noqa: E402
+from agrisim.setpoints import routine  # noqa: E402
+
+UR10_MESH_LINKS = {
+    "base_link",
+    "shoulder_link",
+    "upper_arm_link",
+    "forearm_link",
+    "wrist_1_link",
+    "wrist_2_link",
+    "wrist_3_link",
+}
+
+
+@pytest.fixture(autouse=True)
+def _isolated_mesh_cache(tmp_path_factory: pytest.TempPathFactory, monkeypatch: pytest.MonkeyPatch) -> None:
+    # Converted meshes go to a per-session directory, not the user's cache.
+    monkeypatch.setenv("AGRISIM_CACHE_DIR", str(tmp_path_factory.getbasetemp() / "agrisim-cache"))
+    rr.set_strict_mode(True)  # a malformed archetype raises instead of logging a warning
+
+
+# ---------------------------------------------------------------------- reading recordings
+
+
+class Recording:
+    """The chunks of an ``.rrd`` grouped by entity path (leading slash dropped)."""
+
+    def __init__(self, path: Path) -> None:
+        reader = RrdReader(path)
+        self.recordings = reader.recordings()
+        self.blueprints = reader.blueprints()
+        self.chunks: dict[str, list] = defaultdict(list)
+        for chunk in reader.stream():
+            self.chunks[chunk.entity_path.lstrip("/")].append(chunk)
+
+    def temporal(self, entity: str, component: str) -> dict[str, np.ndarray]:
+        """Rows of ``entity`` holding ``component``, on every timeline, sorted by row id."""
+        rows: dict[str, list] = defaultdict(list)
+        for chunk in self.chunks.get(entity, []):
+            if chunk.is_static:
+                continue
+            rb = chunk.to_record_batch()
+            if component not in rb.schema.names:
+                continue
+            rows["row_id"] += [bytes(x) for x in rb.column("rerun.controls.RowId").to_pylist()]
+            for name in rb.schema.names:
+                if name == "rerun.controls.RowId":
+                    continue
+                col = rb.column(name)
+                if pa.types.is_duration(col.type):
+                    rows[name] += list(col.cast(pa.int64()).to_numpy() * 1e-9)
+                elif pa.types.is_timestamp(col.type):  # log_time: wall clock, not checked
+                    continue
+                elif pa.types.is_integer(col.type):
+                    rows[name] += list(col.to_numpy())
+                else:
+                    rows[name] += col.to_pylist()
+        order = np.argsort(rows["row_id"]) if rows else []
+        return {k: [v[i] for i in order] for k, v in rows.items()}
+
+    def static(self, entity: str, component: str) -> list:
+        for chunk in self.chunks.get(entity, []):
+            rb = chunk.to_record_batch()
+            if chunk.is_static and component in rb.schema.names:
+                return rb.column(component).to_pylist()[-1]
+        return []
+
+
+def _plugin_manager():
+    # Only the backends this test needs: other plugins may be half-written in a working tree.
+    pm = make_plugin_manager(autoload=False)
+    for name in ("agrisim.plugins.physics.kinematic", "agrisim.plugins.planners.direct", "agrisim.plugins.sinks.rerun_sink"):
+        pm.register(importlib.import_module(name), name=name)
+    return pm
+
+
+# ---------------------------------------------------------------------- an episode recorded
+
+
+def test_episode_recording_holds_robots_on_both_timelines(tmp_path: Path) -> None:
+    pytest.importorskip("agrisim.plugins.physics.kinematic")
+    pytest.importorskip("agrisim.plugins.planners.direct")
+    cfg = build_config(
+        {
+            "physics": {"backend": "kinematic"},
+            "planner": {"backend": "direct"},
+            "routine": {"setpoints": "2x2"},
+            "output": {"out": str(tmp_path / "run")},
+        }
+    )
+    run, summary = Episode(cfg, _plugin_manager()).run()
+    rrd = tmp_path / "run" / "recording.rrd"
+    assert rrd.is_file() and rrd.stat().st_size > 100_000
+    rec = Recording(rrd)
+
+    assert [r.application_id for r in rec.recordings] == ["agrisim"]
+    assert rec.recordings[0].recording_id == rerun_sink.recording_id(run)
+    assert rec.blueprints, "the default blueprint is saved with the recording"
+    assert rec.static("world", "ViewCoordinates:xyz"), "world/ is z-up"
+    for name in ("floor", "table", "pot", "r1_stand", "r2_stand"):
+        assert rec.chunks.get(f"world/cell/{name}"), name
+
+    moved = {(r.robot, r.index) for r in run.results if r.ee_error_mm is not None}
+    assert moved, "the direct planner reached nothing: nothing to check"
+    for arm in run.cell.arms:
+        kin = run.kinematics[arm.name]
+        # Static meshes: one GLB per UR10 link, the camera body as a box.
+        for link in UR10_MESH_LINKS:
+            blob = rec.static(paths.link_visual(arm.name, link, 0), "Asset3D:blob")
+            assert bytes(blob[0][:4]) == b"glTF", (arm.name, link)
+        assert rec.static(paths.link_visual(arm.name, "camera_link", 0), "Boxes3D:half_sizes")
+
+        # Link transforms over time, on both timelines, from home (setpoint 0, t = 0) onwards.
+        for link in UR10_MESH_LINKS | {"camera_link"}:
+            rows = rec.temporal(paths.link(arm.name, link), "Transform3D:translation")
+            assert rows, (arm.name, link)
+            assert {"setpoint", "sim_time"} <= rows.keys()
+            assert len(rows["setpoint"]) == len(rows["sim_time"]) > 1
+            assert rows["sim_time"][0] == 0.0 and rows["setpoint"][0] == 0
+            home = kin.link_poses(np.array(arm.home))[link][:3, 3]
+            np.testing.assert_allclose(rows["Transform3D:translation"][0][0], home, atol=1e-5)
+            assert max(rows["sim_time"]) <= summary.sim_time + 1e-9
+            assert set(rows["setpoint"]) == {i for r, i in moved if r == arm.name} | {0}
+
+        # The last row logged at each setpoint puts the camera where it was captured.
+        cam = rec.temporal(paths.camera(arm.name), "Transform3D:translation")
+        for result in run.results:
+            if result.robot != arm.name or not result.reached:
+                continue
+            last = max(i for i, s in enumerate(cam["setpoint"]) if s == result.index)
+            target = run.setpoints[arm.name][result.index].world_T_camera[:3, 3]
+            np.testing.assert_allclose(cam["Transform3D:translation"][last][0], target, atol=1e-5)
+        pinholes = rec.temporal(paths.camera(arm.name), "Pinhole:image_from_camera")
+        assert len(pinholes["setpoint"]) == sum(r.reached for r in run.results if r.robot == arm.name)
+
+        errors = rec.temporal(paths.metric(arm.name, "ee_error_mm"), "Scalars:scalars")
+        assert len(errors.get("setpoint", [])) == sum(1 for r, _ in moved if r == arm.name)
+        assert rec.temporal(paths.planned(arm.name), "LineStrips3D:strips")
+        assert rec.temporal(paths.executed(arm.name), "LineStrips3D:strips")
+        assert len(rec.static(paths.setpoints(arm.name), "Points3D:positions")) == len(run.setpoints[arm.name])
+    summary_text = rec.static(paths.RUN_SUMMARY, "TextDocument:text")
+    assert summary_text and "complete" in summary_text[0]
+
+
+# ---------------------------------------------------------------------- hooks driven by hand
+
+
+def _hand_built_run(tmp_path: Path, **output: object) -> Run:
+    cfg = build_config({"routine": {"setpoints": "1x2"}, "cell": {"arms": 1}, "output": {"out": str(tmp_path / "run"), **output}})
+    cell = build_cell(cfg.cell)
+    (tmp_path / "run").mkdir()
+    return Run(
+        config=cfg,
+        cell=cell,
+        out_dir=tmp_path / "run",
+        kinematics={a.name: ArmKinematics(a) for a in cell.arms},
+        setpoints=routine(cell, cfg.routine),
+        camera=preset("rpi3-wide-1080p", "64x36"),
+        backends={"physics": "none", "planner": "none"},
+        started_at="2024-01-01T00:00:00+00:00",
+    )
+
+
+def test_hooks_record_motion_images_and_clouds(tmp_path: Path) -> None:
+    custom = tmp_path / "elsewhere" / "custom.rrd"
+    run = _hand_built_run(tmp_path, rrd=str(custom))
+    sink = rerun_sink.make_sink(run)
+    assert sink is not None
+    arm = run.cell.arms[0]
+    home = np.array(arm.home)
+    goal = home + np.array([0.3, -0.2, 0.1, 0.0, 0.2, 0.5])
+    t = np.linspace(0.0, 2.0, 481)  # 240 Hz for 2 s
+    q = home + (goal - home) * (t / t[-1])[:, None]
+    trajectory = Trajectory("r1", 0, np.stack([home, goal]), JointTrajectory(t, q), JointTrajectory(t, q))
+    kin = run.kinematics["r1"]
+    cam = run.camera
+    images = {
+        "rgb": np.full((cam.height, cam.width, 3), 120, np.uint8),
+        "labels": np.zeros((cam.height, cam.width), np.uint8),
+        "depth": np.full((cam.height, cam.width), 0.5, np.float32),
+    }
+    capture = Capture("r1", "r1_000", 0, 2.0, kin.fk(goal), cam, images)
+
+    sink.agrisim_run_started(run=run)
+    sink.agrisim_trajectory(run=run, robot="r1", trajectory=trajectory)
+    sink.agrisim_setpoint(run=run, robot="r1", result=SetpointResult("r1", 0, "r1_000", True, ee_error_mm=0.01, sim_time=2.0))
+    sink.agrisim_capture(run=run, capture=capture)
+    sink.log_label_table({0: ("background", (0, 0, 0)), 1: ("plant", (0, 200, 0))})
+    sink.agrisim_cloud(run=run, label="plant", cloud=np.random.default_rng(0).random((50, 3)), merged=True)
+    sink.agrisim_setpoint(run=run, robot="r1", result=SetpointResult("r1", 1, "r1_001", False, reason="ik: nope", sim_time=2.0))
+    sink.agrisim_run_finished(
+        run=run, summary=RunSummary("complete", 2, 1, 1, 0, 2.0, {"ik": 0.1})
+    )
+    assert sink.rec is None, "the stream is closed at the end of the run"
+    assert not (run.out_dir / "recording.rrd").exists(), "--rrd moves the recording"
+
+    rec = Recording(custom)
+    rows = rec.temporal(paths.link("r1", "wrist_3_link"), "Transform3D:quaternion")
+    # Home, then the move decimated to 30 Hz: 2 s -> 61 samples including both ends.
+    assert len(rows["sim_time"]) == 1 + 61
+    np.testing.assert_allclose(np.diff(rows["sim_time"][1:]), 1 / 30, atol=1 / 240 + 1e-9)
+    final = kin.link_poses(goal)["wrist_3_link"]
+    np.testing.assert_allclose(rows["Transform3D:quaternion"][-1][0], rerun_sink.quaternions_xyzw(final[:3, :3])[0], atol=1e-6)
+    for kind, component in (("rgb", "EncodedImage:blob"), ("labels", "SegmentationImage:buffer"), ("depth", "DepthImage:buffer")):
+        entity = paths.camera_image("r1", kind)
+        got = rec.temporal(entity, component) or rec.temporal(entity, "Image:buffer")
+        assert got and got["setpoint"] == [0] and got["sim_time"] == [2.0], kind
+    assert rec.static(paths.camera_image("r1", "labels"), "AnnotationContext:context")
+    assert rec.temporal(paths.cloud("plant", merged=True), "Points3D:positions")
+    colors = rec.temporal(paths.setpoints("r1"), "Points3D:colors")
+    assert len(colors["setpoint"]) == 3  # pending at start, then one update per setpoint
+    assert rec.temporal(paths.log("r1"), "TextLog:text")["TextLog:text"][-1][0].startswith("r1_001: not reached")
+
+
+def test_no_rrd_without_spawn_stays_out(tmp_path: Path) -> None:
+    run = _hand_built_run(tmp_path, no_rrd=True)
+    assert rerun_sink.make_sink(run) is None
+
+
+def test_registered_through_the_entry_point() -> None:
+    eps = {ep.name: ep.value for ep in metadata.entry_points(group="agrisim")}
+    assert eps.get("sink-rerun") == "agrisim.plugins.sinks.rerun_sink"
+    (spec,) = rerun_sink.agrisim_sinks()
+    assert spec.name == "rerun" and spec.factory is rerun_sink.make_sink and spec.description
+
+
+# ---------------------------------------------------------------------- helpers
+
+
+def test_quaternions_match_pinocchio() -> None:
+    Rs = [pin.SE3.Random().rotation for _ in range(500)]
+    Rs += [np.diag([1.0, -1.0, -1.0]), np.diag([-1.0, 1.0, -1.0]), np.diag([-1.0, -1.0, 1.0]), np.eye(3)]
+    q = rerun_sink.quaternions_xyzw(np.array(Rs))
+    ref = np.array([pin.Quaternion(R).coeffs() for R in Rs])  # x, y, z, w
+    err = np.minimum(np.abs(q - ref).max(axis=1), np.abs(q + ref).max(axis=1))
+    assert err.max() < 1e-12
+
+
+def test_decimate_keeps_both_ends() -> None:
+    t = np.arange(0, 1.0 + 1e-9, 1 / 240)
+    idx = rerun_sink.decimate(t, 30.0)
+    assert idx[0] == 0 and idx[-1] == len(t) - 1 and len(idx) == 31
+    assert list(rerun_sink.decimate(np.array([3.0]), 30.0)) == [0]
+    assert len(rerun_sink.decimate(np.array([]), 30.0)) == 0
+
+
+def test_link_visuals_and_mesh_cache(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    cell = build_cell(build_config({}).cell)
+    visuals = robot_meshes.link_visuals(cell.arms[0].urdf)
+    assert set(visuals) == UR10_MESH_LINKS | {"camera_link"}
+    assert visuals["camera_link"][0].kind == "box"
+    mesh = visuals["wrist_3_link"][0]
+    assert mesh.kind == "mesh" and mesh.filename.endswith(".dae")
+
+    monkeypatch.setenv("AGRISIM_CACHE_DIR", str(tmp_path / "cache"))
+    monkeypatch.setattr(robot_meshes, "_memory", {})
+    data = robot_meshes.glb_bytes(mesh.filename)
+    assert data[:4] == b"glTF"
+    (cached,) = (tmp_path / "cache" / "meshes").glob("wrist3-*.glb")
+    # A second process (empty memory cache) reads the disk copy instead of converting again.
+    monkeypatch.setattr(robot_meshes, "_memory", {})
+    monkeypatch.setattr(robot_meshes, "_convert", lambda path: pytest.fail("converted twice"))
+    assert robot_meshes.glb_bytes(mesh.filename) == data == cached.read_bytes()
