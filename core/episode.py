@@ -84,6 +84,7 @@ class Run:
     setpoints: dict[str, list[Setpoint]]
     camera: CameraModel
     backends: dict[str, str]
+    backend_options: dict[str, dict[str, Any]]
     started_at: str
     results: list[SetpointResult] = field(default_factory=list)
     wall_s: dict[str, float] = field(default_factory=dict)
@@ -139,6 +140,10 @@ class Episode:
             setpoints=self.setpoints,
             camera=self.camera,
             backends={"physics": self.physics_spec.name, "planner": self.planner_spec.name},
+            backend_options={
+                "physics": self.physics_options.model_dump(mode="json"),
+                "planner": self.planner_options.model_dump(mode="json"),
+            },
             started_at=_dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
         )
         sinks = self._register_sinks(run)

@@ -57,6 +57,8 @@ class OmplOptions(BaseModel):
     """Shorten and smooth the found path with OMPL's path simplifier."""
     try_direct: bool = True
     """Return the straight line at once when it is collision-free (as most setpoints are)."""
+    seed: int = Field(0, ge=0, le=2**31 - 1)
+    """Seed of OMPL's global random generator (taken once per process, before any planning)."""
     search_resolution: float = Field(0.1, gt=0.0, le=1.0)
     """Joint step (rad) at which OMPL checks edges while searching. Coarser than the motion
     resolution so the search explores more in its time; the found path is then re-checked at
@@ -77,6 +79,7 @@ class OmplPlanner(Planner):
     def __init__(self, options: OmplOptions) -> None:
         super().__init__(options)
         ou.setLogLevel(ou.LogLevel.LOG_WARN)
+        _seed_once(options.seed)
         silence_native_output_at_exit()  # nanobind's leak report at interpreter exit
 
     def plan(
@@ -117,7 +120,6 @@ class OmplPlanner(Planner):
             a[i], b[i] = float(start[i]), float(goal[i])
         ss.setStartAndGoalStates(a, b)
         ss.setup()
-        _seed_once(seed)
         last = "no attempt"
         for _ in range(self.options.attempts):
             ss.clear()

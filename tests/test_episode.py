@@ -1,0 +1,167 @@
+"""Whole episodes: setpoints reached within tolerance, no collisions (checked by a second
+collision library), both arms moving together, run.json telling what happened."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from agrisim.cell import build_cell
+from agrisim.config import CellConfig, build_config
+from agrisim.episode import Episode
+from agrisim.geometry import pose_error
+from agrisim.plugins.physics.kinematic import KinematicOptions, KinematicPhysics
+from agrisim.registry import hookimpl
+
+
+class Recorder:
+    """A test plugin on the event hooks."""
+
+    def __init__(self) -> None:
+        self.trajectories: list = []
+        self.captures: list = []
+        self.events: list[str] = []
+
+    @hookimpl
+    def agrisim_run_started(self, run):
+        self.events.append("started")
+
+    @hookimpl
+    def agrisim_trajectory(self, run, robot, trajectory):
+        self.trajectories.append(trajectory)
+
+    @hookimpl
+    def agrisim_capture(self, run, capture):
+        self.captures.append(capture)
+
+    @hookimpl
+    def agrisim_run_finished(self, run, summary):
+        self.events.append(f"finished:{summary.status}")
+
+
+def _run(tmp_path, **overrides):
+    layer = {"routine": {"setpoints": "2x3"}, "output": {"out": str(tmp_path / "run"), "no_rrd": True}}
+    for key, value in overrides.items():
+        layer.setdefault(key, {}).update(value) if isinstance(value, dict) else layer.__setitem__(key, value)
+    episode = Episode(build_config(layer))
+    recorder = Recorder()
+    episode.pm.register(recorder)
+    run, summary = episode.run()
+    return episode, run, summary, recorder
+
+
+@pytest.fixture(scope="module")
+def pybullet_run(tmp_path_factory):
+    return _run(tmp_path_factory.mktemp("ep"))
+
+
+def test_pybullet_episode_reaches_every_setpoint_within_tolerance(pybullet_run):
+    episode, run, summary, recorder = pybullet_run
+    assert summary.status == "complete" and summary.setpoints == 12
+    assert summary.reached == 12, [r.reason for r in run.results if not r.reached]
+    for r in run.results:
+        assert r.ee_error_mm <= 0.05
+    # captures carry the camera pose FK gives for the executed joints, at the setpoint
+    targets = {sp.frame: sp.world_T_camera for sps in run.setpoints.values() for sp in sps}
+    assert len(recorder.captures) == 12
+    for cap in recorder.captures:
+        assert pose_error(cap.world_T_camera, targets[cap.frame])[0] <= 5e-5
+    assert recorder.events == ["started", "finished:complete"]
+
+
+def test_executed_trajectories_are_collision_free_by_coal(pybullet_run):
+    """Replay what pybullet says the arms did, both arms at the same instants, through
+    Pinocchio + coal collision checking: no contact anywhere."""
+    episode, run, summary, recorder = pybullet_run
+    coal = KinematicPhysics(run.cell, KinematicOptions())
+    try:
+        # the arms' executed joint paths over the whole run, as functions of time
+        by_robot: dict[str, list] = {}
+        for tr in recorder.trajectories:
+            by_robot.setdefault(tr.robot, []).append(tr.executed)
+        samples = {r: (np.concatenate([e.t for e in ex]), np.concatenate([e.q for e in ex])) for r, ex in by_robot.items()}
+        homes = {a.name: np.array(a.home) for a in run.cell.arms}
+
+        def q_at(robot, t):
+            ts, qs = samples[robot]
+            i = np.searchsorted(ts, t, side="right") - 1
+            return homes[robot] if i < 0 else qs[i]
+
+        checked = 0
+        for robot, (ts, qs) in samples.items():
+            other = next(r for r in samples if r != robot)
+            for t, q in zip(ts[::4], qs[::4], strict=True):
+                assert not coal.in_collision(robot, q, {other: q_at(other, t)}), (robot, t)
+                checked += 1
+        assert checked > 100
+    finally:
+        coal.close()
+
+
+def test_arms_move_concurrently_when_that_is_collision_free(pybullet_run):
+    episode, run, summary, recorder = pybullet_run
+    spans = {(tr.robot, tr.setpoint): (tr.executed.t[0], tr.executed.t[-1]) for tr in recorder.trajectories}
+    overlapping = sum(
+        1 for k in range(6) if ("r1", k) in spans and ("r2", k) in spans and spans["r1", k][0] == spans["r2", k][0]
+    )
+    assert overlapping >= 5
+    assert not any(r.waited for r in run.results)
+
+
+def test_run_json_records_the_run(pybullet_run):
+    episode, run, summary, recorder = pybullet_run
+    doc = json.loads((run.out_dir / "run.json").read_text())
+    assert doc["status"] == "complete"
+    assert doc["config"]["routine"]["setpoints"] == "2x3"
+    assert doc["backends"] == {"physics": "pybullet", "planner": "ompl"}
+    assert doc["backend_options"]["physics"]["rate"] >= 240
+    assert {"pin", "pybullet", "ompl", "ruckig", "rerun-sdk"} <= set(doc["versions"])
+    assert len(doc["results"]) == 12 and all(r["reached"] for r in doc["results"])
+    assert doc["summary"]["reached"] == 12 and set(doc["summary"]["wall_s"]) >= {"ik", "plan", "execute"}
+    cams = json.loads((run.out_dir / "cameras.json").read_text())
+    assert len(cams["frames"]) == 12
+    np.testing.assert_allclose(np.array(cams["intrinsics"]["K"])[0, 2], 960.0)
+
+
+def test_arms_take_turns_when_moving_together_would_collide(tmp_path, monkeypatch):
+    """When the joint check says the simultaneous motions collide, one arm waits."""
+    from agrisim.plugins.physics.kinematic import KinematicPhysics as K
+
+    monkeypatch.setattr(K, "arms_in_collision", lambda self, configs: True)
+    episode, run, summary, recorder = _run(
+        tmp_path, physics={"backend": "kinematic"}, planner={"backend": "direct"}, routine={"setpoints": "1x2"}
+    )
+    assert summary.reached == 4
+    spans = {(tr.robot, tr.setpoint): (tr.executed.t[0], tr.executed.t[-1]) for tr in recorder.trajectories}
+    for k in range(2):
+        assert spans["r2", k][0] >= spans["r1", k][1] - 1e-9  # r2 starts after r1 arrived
+    assert all(r.waited for r in run.results if r.robot == "r2")
+
+
+def test_unreachable_setpoints_are_recorded_and_the_run_goes_on(tmp_path):
+    csv = tmp_path / "sp.csv"
+    csv.write_text("robot,x,y,z,roll,pitch,yaw\nr1,0.3,0,1.2,3.14159,0,0\nr1,4.0,0,1.0,0,0,0\nr1,0.3,0.1,1.2,3.14159,0,0\n")
+    episode, run, summary, recorder = _run(
+        tmp_path, physics={"backend": "kinematic"}, cell={"arms": 1}, routine={"csv": str(csv)}
+    )
+    assert [r.reached for r in run.results] == [True, False, True]
+    assert "ik: no solution" in run.results[1].reason
+    assert summary.status == "complete" and summary.failed == 1
+
+
+@pytest.mark.parametrize("physics, planner", [("kinematic", "ompl"), ("pybullet", "direct")])
+def test_backends_swap(tmp_path, physics, planner):
+    episode, run, summary, recorder = _run(
+        tmp_path, physics={"backend": physics}, planner={"backend": planner}, routine={"setpoints": "1x3"}
+    )
+    assert run.backends == {"physics": physics, "planner": planner}
+    assert summary.reached == 6
+
+
+def test_cell_matches_the_paper():
+    cell = build_cell(CellConfig())
+    for arm in cell.arms:
+        base = arm.world_T_base[:3, 3]
+        assert abs(abs(base[0]) - 1.0) < 1e-12 and base[2] == 0.95

@@ -1,0 +1,89 @@
+"""Pinocchio kinematics against pybullet's, and IK against FK."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from agrisim.geometry import look_at, pose_error
+from agrisim.plugins.physics.bullet import BulletOptions, BulletPhysics
+
+
+@pytest.fixture(scope="module")
+def bullet(cell):
+    physics = BulletPhysics(cell, BulletOptions())
+    yield physics
+    physics.close()
+
+
+def test_fk_matches_pybullet_link_poses(cell, kin, bullet):
+    """Every URDF link frame agrees with pybullet's to 1e-6 m on random configurations."""
+    rng = np.random.default_rng(7)
+    worst_p = worst_r = 0.0
+    for arm in cell.arms:
+        k = kin[arm.name]
+        for _ in range(25):
+            q = rng.uniform(k.lower, k.upper)
+            bullet.sim.set_joints(arm.name, q)
+            theirs = bullet.link_poses(arm.name)
+            ours = k.link_poses(q)
+            assert set(theirs) <= set(ours)
+            for name, T in theirs.items():
+                dp, dr = pose_error(ours[name], T)
+                worst_p, worst_r = max(worst_p, dp), max(worst_r, dr)
+    assert worst_p < 1e-6
+    assert worst_r < 1e-5  # pybullet stores orientations in single precision
+
+
+def test_camera_frame_is_opencv_optical_on_the_flange(kin):
+    """Optical z = the flange's approach axis (ee_link x), x = -ee y, y = -ee z."""
+    k = kin["r1"]
+    q = np.array([0.3, -1.2, 1.4, -0.5, 0.7, 0.2])
+    ee, cam = k.fk(q, "ee_link"), k.fk(q)
+    R = ee[:3, :3].T @ cam[:3, :3]
+    np.testing.assert_allclose(R, [[0, 0, 1], [-1, 0, 0], [0, -1, 0]], atol=1e-9)
+    # the optical centre sits on the front face of the 5 cm camera body
+    np.testing.assert_allclose(ee[:3, :3].T @ (cam[:3, 3] - ee[:3, 3]), [0.05, 0, 0], atol=1e-9)
+
+
+def test_ik_reaches_random_reachable_poses(kin):
+    """FK(IK(x)) = x within 0.05 mm / 1e-4 rad for poses FK produced, within joint limits."""
+    k = kin["r1"]
+    rng = np.random.default_rng(3)
+    for _ in range(15):
+        q_true = rng.uniform(-2.5, 2.5, k.dof)
+        target = k.fk(q_true)
+        start = q_true + rng.normal(0.0, 0.4, k.dof)
+        result = k.ik(target, start, rng=rng)
+        assert result.ok, result.reason
+        assert np.all(result.q >= k.lower) and np.all(result.q <= k.upper)
+        dp, dr = pose_error(k.fk(result.q), target)
+        assert dp < 5e-5 and dr < 1e-4
+
+
+def test_ik_prefers_the_solution_nearest_the_current_joints(kin):
+    k = kin["r1"]
+    q_now = np.array([0.2, -1.4, 1.6, -1.8, -1.57, 0.1])
+    target = k.fk(q_now + 0.05)
+    result = k.ik(target, q_now, rng=np.random.default_rng(0))
+    assert result.ok
+    assert np.linalg.norm(result.q - q_now) < 0.2  # the same branch, not another one
+    for other in result.alternatives:
+        assert np.linalg.norm(other - q_now) >= np.linalg.norm(result.q - q_now)
+
+
+def test_ik_skips_solutions_the_validity_test_rejects(kin):
+    k = kin["r1"]
+    q_now = np.array([0.2, -1.4, 1.6, -1.8, -1.57, 0.1])
+    target = k.fk(q_now)
+    # reject the branch the arm is on (wrist_2 negative): IK must find another one
+    result = k.ik(target, q_now, rng=np.random.default_rng(0), is_valid=lambda q: q[4] > 0)
+    assert result.ok and result.q[4] > 0
+    assert pose_error(k.fk(result.q), target)[0] < 5e-5
+
+
+def test_ik_reports_why_an_unreachable_pose_fails(cell, kin):
+    far = look_at(np.array([5.0, 0.0, 1.0]), np.array([6.0, 0.0, 1.0]))
+    result = kin["r1"].ik(far, np.array(cell.arms[0].home), rng=np.random.default_rng(0), restarts=2, max_restarts=2)
+    assert not result.ok
+    assert "no solution within tolerance" in result.reason
