@@ -45,6 +45,16 @@ class BackendChoice(BaseModel):
         return table
 
 
+class PhysicsChoice(BackendChoice):
+    backend: str = "pybullet"
+    """Physics backend (``--physics``): pybullet or kinematic, or a plugin's."""
+
+
+class PlannerChoice(BackendChoice):
+    backend: str = "ompl"
+    """Motion planner (``--planner``): ompl or direct, or a plugin's."""
+
+
 class CellConfig(_Model):
     """The robot cell: two arms on stands either side of the plant table."""
 
@@ -145,13 +155,9 @@ class OutputConfig(_Model):
     """Stream to a Rerun viewer spawned for the run."""
     overwrite: bool = False
     """Replace an existing output directory."""
-    resume: bool = False
-    """Continue an interrupted run in the output directory."""
 
     @model_validator(mode="after")
     def _exclusive(self) -> OutputConfig:
-        if self.overwrite and self.resume:
-            raise ValueError("--overwrite and --resume exclude each other")
         if self.no_rrd and self.rrd is not None:
             raise ValueError("--rrd and --no-rrd exclude each other")
         return self
@@ -180,10 +186,10 @@ class RunConfig(_Model):
 
     seed: int = Field(0, ge=0, le=2**32 - 1)
     """Seed for IK restarts and sampling planners."""
-    physics: BackendChoice = BackendChoice(backend="pybullet")
-    """Physics backend (``--physics``)."""
-    planner: BackendChoice = BackendChoice(backend="ompl")
-    """Motion planner (``--planner``)."""
+    physics: PhysicsChoice = PhysicsChoice()
+    """Physics backend and per-backend options (``[physics.pybullet]``)."""
+    planner: PlannerChoice = PlannerChoice()
+    """Motion planner and per-backend options (``[planner.ompl]``)."""
     cell: CellConfig = CellConfig()
     routine: RoutineConfig = RoutineConfig()
     camera: CameraConfig = CameraConfig()

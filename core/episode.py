@@ -12,6 +12,7 @@ import datetime as _dt
 import os
 import shutil
 import time
+import uuid
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import asdict, dataclass, field
@@ -84,8 +85,9 @@ class Run:
     setpoints: dict[str, list[Setpoint]]
     camera: CameraModel
     backends: dict[str, str]
-    backend_options: dict[str, dict[str, Any]]
     started_at: str
+    backend_options: dict[str, dict[str, Any]] = field(default_factory=dict)
+    run_id: str = field(default_factory=lambda: uuid.uuid4().hex)
     results: list[SetpointResult] = field(default_factory=list)
     wall_s: dict[str, float] = field(default_factory=dict)
 
@@ -131,7 +133,14 @@ class Episode:
     # ------------------------------------------------------------------ running
     def run(self, progress: Callable[[int, int], None] | None = None) -> tuple[Run, RunSummary]:
         """Run the episode; returns the run (with per-setpoint results) and its summary."""
-        prepare_out_dir(self.out_dir, self.config)
+        # Backends first: if one cannot be built, nothing has been written yet.
+        physics: PhysicsBackend = self.physics_spec.factory(self.cell, self.physics_options)
+        try:
+            planner: Planner = self.planner_spec.factory(self.planner_options)
+            prepare_out_dir(self.out_dir, self.config)
+        except BaseException:
+            physics.close()
+            raise
         run = Run(
             config=self.config,
             cell=self.cell,
@@ -146,11 +155,13 @@ class Episode:
             },
             started_at=_dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
         )
-        sinks = self._register_sinks(run)
-        physics: PhysicsBackend = self.physics_spec.factory(self.cell, self.physics_options)
-        planner: Planner = self.planner_spec.factory(self.planner_options)
         self._physics, self._planner, self._run = physics, planner, run
         self._rng = np.random.default_rng(self.config.seed)
+        try:
+            sinks = self._register_sinks(run)
+        except BaseException:
+            physics.close()
+            raise
         status, error = "complete", ""
         try:
             for arm in self.cell.arms:
@@ -188,13 +199,18 @@ class Episode:
         return run, summary
 
     def _register_sinks(self, run: Run) -> list[object]:
-        sinks = []
-        for spec in self.registry.specs("sink").values():
-            sink = spec.factory(run)
-            if sink is not None:
-                self.pm.register(sink, name=f"sink:{spec.name}:{id(run)}")
-                sinks.append(sink)
-        self.pm.check_pending()
+        sinks: list[object] = []
+        try:
+            for spec in self.registry.specs("sink").values():
+                sink = spec.factory(run)
+                if sink is not None:
+                    self.pm.register(sink, name=f"sink:{spec.name}:{run.run_id}")
+                    sinks.append(sink)
+            self.pm.check_pending()
+        except BaseException:
+            for sink in sinks:
+                self.pm.unregister(sink)
+            raise
         return sinks
 
     @contextmanager
@@ -374,6 +390,9 @@ def resolve_out_dir(config: RunConfig) -> Path:
             raise OutputError(f"--out {out} exists and is not a directory")
         if any(out.iterdir()) and not config.output.overwrite:
             raise OutputError(f"--out {out} already exists; pass --overwrite to replace it")
+    rrd = config.output.rrd
+    if rrd is not None and rrd.exists() and not config.output.overwrite:
+        raise OutputError(f"--rrd {rrd} already exists; pass --overwrite to replace it")
     parent = out
     while not parent.exists():
         parent = parent.parent

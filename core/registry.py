@@ -75,15 +75,25 @@ def make_plugin_manager(*, autoload: bool | None = None) -> pluggy.PluginManager
         autoload = os.environ.get("AGRISIM_DISABLE_PLUGIN_AUTOLOAD", "") in ("", "0")
     if autoload:
         only = {n.strip() for n in os.environ.get("AGRISIM_LOAD_PLUGINS", "").split(",") if n.strip()}
+        seen: dict[str, str] = {}
         for ep in metadata.entry_points(group=hookspecs.PROJECT):
+            dist = f"{ep.dist.name} {ep.dist.version}" if ep.dist else "?"
+            if ep.name in seen and seen[ep.name] != dist:
+                # pluggy would silently keep whichever it met first
+                raise PluginError(f"entry point {ep.name!r} in group 'agrisim' is declared by both {seen[ep.name]} and {dist}")
+            seen[ep.name] = dist
             if only and ep.name not in only:
                 pm.set_blocked(ep.name)
                 continue
             try:  # import first so that a broken plugin is named in the error
                 importlib.import_module(ep.module)
             except Exception as exc:
-                dist = ep.dist.name if ep.dist else "?"
                 raise PluginError(f"plugin {ep.name!r} from {dist} failed to import: {exc}") from exc
+        unknown = only - set(seen)
+        if unknown:
+            raise PluginError(
+                f"AGRISIM_LOAD_PLUGINS names unknown plugins {', '.join(sorted(unknown))}; installed: {', '.join(sorted(seen))}"
+            )
         pm.load_setuptools_entrypoints(hookspecs.PROJECT)
     try:
         pm.check_pending()

@@ -86,7 +86,7 @@ def ur10_with_camera(urdf_path: str | None = None) -> str:
     path = Path(urdf_path) if urdf_path else ur10_urdf_path()
     if not path.is_file():
         raise UserError(f"URDF not found: {path}")
-    share = robot_data_share() if urdf_path is None else path.parents[4]
+    share = robot_data_share()  # package:// URIs name example-robot-data's files
     try:
         root = ET.fromstring(path.read_text())
     except (ET.ParseError, OSError, UnicodeDecodeError) as exc:

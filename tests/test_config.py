@@ -40,13 +40,18 @@ def test_toml_then_flags(tmp_path):
         ({"routine": {"setpoints": "five"}}, "LxC"),
         ({"motion": {"reach_tolerance_mm": 0}}, "motion.reach_tolerance_mm"),
         ({"seed": -1}, "seed"),
-        ({"output": {"overwrite": True, "resume": True}}, "exclude each other"),
+        ({"output": {"rrd": "x.rrd", "no_rrd": True}}, "exclude each other"),
         ({"camera": {"resolution": "10x"}}, "WxH"),
     ],
 )
 def test_bad_values_name_the_setting(layer, message):
     with pytest.raises(ConfigError, match=message):
         build_config(layer)
+
+
+def test_backend_options_without_naming_the_backend_keep_the_default():
+    cfg = build_config({"planner": {"ompl": {"algorithm": "PRM"}}})
+    assert cfg.planner.backend == "ompl" and cfg.planner.options_for("ompl") == {"algorithm": "PRM"}
 
 
 def test_malformed_toml(tmp_path):

@@ -2,7 +2,12 @@
 
 from __future__ import annotations
 
+import dataclasses
 import importlib
+import socket
+import subprocess
+import sys
+import time
 from collections import defaultdict
 from importlib import metadata
 from pathlib import Path
@@ -174,7 +179,7 @@ def _hand_built_run(tmp_path: Path, **output: object) -> Run:
     cfg = build_config({"routine": {"setpoints": "1x2"}, "cell": {"arms": 1}, "output": {"out": str(tmp_path / "run"), **output}})
     cell = build_cell(cfg.cell)
     (tmp_path / "run").mkdir()
-    return Run(
+    known: dict[str, object] = dict(
         config=cfg,
         cell=cell,
         out_dir=tmp_path / "run",
@@ -184,6 +189,11 @@ def _hand_built_run(tmp_path: Path, **output: object) -> Run:
         backends={"physics": "none", "planner": "none"},
         started_at="2024-01-01T00:00:00+00:00",
     )
+    # Fields the sink does not read may be added to Run over time: give them empty values.
+    for f in dataclasses.fields(Run):
+        if f.name not in known and f.default is dataclasses.MISSING and f.default_factory is dataclasses.MISSING:
+            known[f.name] = {} if str(f.type).startswith("dict") else None
+    return Run(**known)
 
 
 def test_hooks_record_motion_images_and_clouds(tmp_path: Path) -> None:
@@ -235,6 +245,55 @@ def test_hooks_record_motion_images_and_clouds(tmp_path: Path) -> None:
     colors = rec.temporal(paths.setpoints("r1"), "Points3D:colors")
     assert len(colors["setpoint"]) == 3  # pending at start, then one update per setpoint
     assert rec.temporal(paths.log("r1"), "TextLog:text")["TextLog:text"][-1][0].startswith("r1_001: not reached")
+
+
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def test_spawn_tees_to_the_viewer_and_the_file(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    # A Rerun gRPC server in a child process stands in for the spawned viewer (no display here).
+    port = _free_port()
+    server = subprocess.Popen(
+        [sys.executable, "-c", f"import rerun as rr, time; r = rr.RecordingStream('viewer'); r.serve_grpc(grpc_port={port}); time.sleep(60)"],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+    )
+    try:
+        deadline = time.monotonic() + 15
+        while not rerun_sink._listening(port):
+            assert time.monotonic() < deadline and server.poll() is None, "the stand-in viewer did not start"
+            time.sleep(0.1)
+        spawned: list[int] = []
+        monkeypatch.setattr(rr.RecordingStream, "spawn", lambda self, port, connect: spawned.append(port))
+        monkeypatch.setattr(rerun_sink, "SPAWN_PORT", port)
+        run = _hand_built_run(tmp_path, spawn=True)
+        sink = rerun_sink.make_sink(run)
+        assert sink is not None
+        t0 = time.monotonic()
+        sink.agrisim_run_started(run=run)
+        assert spawned == [port] and sink.rec is not None
+        sink.agrisim_run_finished(run=run, summary=RunSummary("complete", 0, 0, 0, 0, 0.0, {}))
+        assert time.monotonic() - t0 < rerun_sink.FLUSH_TIMEOUT
+    finally:
+        server.kill()
+        server.wait()
+    rec = Recording(run.out_dir / "recording.rrd")
+    assert rec.static(paths.RUN_SUMMARY, "TextDocument:text")
+
+
+def test_spawn_without_a_viewer_records_to_file_only(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr(rr.RecordingStream, "spawn", lambda self, port, connect: None)
+    monkeypatch.setattr(rerun_sink, "SPAWN_PORT", _free_port())  # nothing listens there
+    run = _hand_built_run(tmp_path, spawn=True, no_rrd=True)
+    sink = rerun_sink.make_sink(run)
+    assert sink is not None  # --spawn asks for a viewer even under --no-rrd
+    sink.agrisim_run_started(run=run)
+    assert sink.rec is None, "no sink at all: nothing is buffered in memory"
+    sink.agrisim_run_finished(run=run, summary=RunSummary("complete", 0, 0, 0, 0, 0.0, {}))
+    assert not (run.out_dir / "recording.rrd").exists()
 
 
 def test_no_rrd_without_spawn_stays_out(tmp_path: Path) -> None:

@@ -34,7 +34,8 @@ __version__ = "0.1.0"
 class WaypointOptions(BaseModel):
     """Options of the ``waypoint`` planner (``[planner.waypoint]`` in a config file)."""
 
-    model_config = ConfigDict(extra="forbid")
+    # The docstring under each field becomes its description (help text, JSON schema).
+    model_config = ConfigDict(extra="forbid", use_attribute_docstrings=True)
 
     retract: float = Field(1.0, gt=0.0, le=math.pi)
     """Largest move of the shoulder-lift and elbow joints towards the retracted pose, rad."""

@@ -38,7 +38,7 @@ def _seed_once(seed: int) -> None:
     # OMPL takes a global seed only before its first random generator exists.
     global _seeded
     if not _seeded:
-        ou.RNG.setSeed(seed & 0x7FFFFFFF)
+        ou.RNG.setSeed((seed & 0x7FFFFFFF) + 1)  # OMPL refuses 0
         _seeded = True
 
 

@@ -14,7 +14,7 @@ reconstruction code should reuse)::
     world/<robot>/<link>                Transform3D world_T_link over time
     world/<robot>/<link>/visual_<i>     Asset3D (GLB) or Boxes3D, static, link_T_visual
     world/<robot>/camera                Transform3D world_T_camera + Pinhole (OpenCV RDF)
-    world/<robot>/camera/{rgb,labels,depth}   Image, SegmentationImage, DepthImage
+    world/<robot>/camera/{rgb,labels,depth}   Image (JPEG), SegmentationImage, DepthImage (uint16 mm)
     world/<robot>/planned|executed      LineStrips3D of the camera position per move
     world/setpoints/<robot>             Points3D (colour = pending/reached/failed)
     world/setpoints/<robot>/view        Arrows3D, the camera's viewing direction
@@ -32,6 +32,7 @@ from __future__ import annotations
 import importlib.util
 import json
 import logging
+import socket
 import uuid
 from collections.abc import Mapping, Sequence
 from pathlib import Path
@@ -64,6 +65,8 @@ IMAGE_PLANE_DISTANCE = 0.08
 #: length of the viewing-direction arrows drawn at each setpoint, m
 SETPOINT_ARROW = 0.05
 RGB_JPEG_QUALITY = 90
+#: seconds to wait for the sinks (file, viewer) to take the last data at the end of the run
+FLUSH_TIMEOUT = 20.0
 
 TIMELINE_SETPOINT = "setpoint"
 TIMELINE_SIM_TIME = "sim_time"
@@ -77,7 +80,8 @@ OBSTACLE_COLORS = {
 }
 STAND_COLOR = (90, 90, 95, 255)
 STATUS_COLORS = {"pending": (160, 160, 160), "reached": (40, 200, 80), "failed": (230, 40, 40)}
-CAMERA_BODY_COLOR = (40, 40, 40, 255)
+#: URDF primitives (the camera body) without a material colour
+PRIMITIVE_COLOR = (40, 40, 40, 255)
 
 
 class paths:  # noqa: N801 - a namespace of path builders, used like a module
@@ -221,6 +225,14 @@ def _time_columns(setpoint: int | np.ndarray, sim_time: np.ndarray) -> list[Any]
     return [rr.TimeColumn(TIMELINE_SETPOINT, sequence=seq), rr.TimeColumn(TIMELINE_SIM_TIME, duration=np.asarray(sim_time, float))]
 
 
+def _listening(port: int, host: str = "127.0.0.1") -> bool:
+    try:
+        with socket.create_connection((host, port), timeout=1.0):
+            return True
+    except OSError:
+        return False
+
+
 def _load_rerun() -> None:
     # Imported on first use: rerun costs ~0.3 s to import, which runs without a recording
     # (--no-rrd, `agrisim plugins`) should not pay just because this plugin is registered.
@@ -262,8 +274,10 @@ class RerunSink:
             collapse_panels=False,
         )
 
-    def open(self) -> rr.RecordingStream:
-        """Create the run's recording stream and attach its sinks (file and/or viewer)."""
+    def open(self) -> rr.RecordingStream | None:
+        """Create the run's recording stream and attach its sinks (file and/or viewer); None
+        when there is nowhere to send it (a stream without sinks would buffer the whole run in
+        memory)."""
         rec = rr.RecordingStream(APPLICATION_ID, recording_id=recording_id(self.run))
         sinks: list[Any] = []
         if self.save:
@@ -273,21 +287,36 @@ class RerunSink:
             try:
                 # Spawn without connecting, then tee: spawn() alone would replace the file sink.
                 rec.spawn(port=SPAWN_PORT, connect=False)
-                sinks.append(rr.GrpcSink(f"rerun+http://127.0.0.1:{SPAWN_PORT}/proxy"))
             except Exception as exc:  # a missing viewer or display must not cost the run
-                log.warning("could not spawn a Rerun viewer (%s); recording to file only", exc)
-        if sinks:
-            rec.set_sinks(*sinks, default_blueprint=self.blueprint())
+                log.warning("could not spawn a Rerun viewer (%s)", exc)
+            # A viewer that failed to start (no display) only warns; streaming to its port
+            # anyway would stall the end of the run, so check that something listens.
+            if _listening(SPAWN_PORT):
+                sinks.append(rr.GrpcSink(f"rerun+http://127.0.0.1:{SPAWN_PORT}/proxy"))
+            else:
+                log.warning("no Rerun viewer listens on port %d; %s", SPAWN_PORT, "recording to file only" if self.save else "nothing is recorded")
+        if not sinks:
+            return None
+        rec.set_sinks(*sinks, default_blueprint=self.blueprint())
         rec.send_recording_name(Path(self.run.out_dir).name or "agrisim")
         self.rec = rec
         return rec
 
     def close(self) -> None:
-        """Flush and close the stream (idempotent)."""
-        if self.rec is not None:
-            self.rec.flush()
-            self.rec.disconnect()
-            self.rec = None
+        """Flush and close the stream (idempotent).
+
+        A viewer that went away (closed by the user, or one that could not start) makes Rerun's
+        flush raise or wait forever; the file sink is complete by then, so that only warns.
+        """
+        rec, self.rec = self.rec, None
+        if rec is None:
+            return
+        try:
+            rec.flush(timeout_sec=FLUSH_TIMEOUT)
+        except Exception as exc:
+            log.warning("Rerun: not every sink took the whole recording: %s", exc)
+        finally:
+            rec.disconnect()
 
     def _set_time(self, setpoint: int, sim_time: float) -> None:
         assert self.rec is not None
@@ -329,18 +358,17 @@ class RerunSink:
                     except Exception as exc:  # a broken visual mesh costs its picture, not the run
                         log.warning("%s/%s: visual mesh %s not recorded: %s", robot, link, v.filename, exc)
                         continue
-                    asset = rr.Asset3D(contents=contents, media_type=media_type)
-                    if v.rgba is not None:
-                        asset = rr.Asset3D(contents=contents, media_type=media_type, albedo_factor=_rgba255(v.rgba, (255,) * 4))
-                    self.rec.log(path, asset, static=True)
+                    # A URDF material tints the mesh; its own (glTF) colours stay otherwise.
+                    albedo = None if v.rgba is None else _rgba255(v.rgba, (255, 255, 255, 255))
+                    self.rec.log(path, rr.Asset3D(contents=contents, media_type=media_type, albedo_factor=albedo), static=True)
                 elif v.kind == "box" and v.size is not None:
-                    color = _rgba255(v.rgba, CAMERA_BODY_COLOR)
+                    color = _rgba255(v.rgba, PRIMITIVE_COLOR)
                     self.rec.log(path, rr.Boxes3D(half_sizes=[np.asarray(v.size) / 2], colors=[color], fill_mode="solid"), static=True)
                 elif v.kind == "cylinder" and v.radius is not None and v.length is not None:
-                    color = _rgba255(v.rgba, CAMERA_BODY_COLOR)
+                    color = _rgba255(v.rgba, PRIMITIVE_COLOR)
                     self.rec.log(path, rr.Cylinders3D(lengths=[v.length], radii=[v.radius], colors=[color], fill_mode="solid"), static=True)
                 elif v.kind == "sphere" and v.radius is not None:
-                    color = _rgba255(v.rgba, CAMERA_BODY_COLOR)
+                    color = _rgba255(v.rgba, PRIMITIVE_COLOR)
                     self.rec.log(path, rr.Ellipsoids3D(half_sizes=[[v.radius] * 3], colors=[color], fill_mode="solid"), static=True)
 
     def _log_setpoints(self) -> None:
@@ -373,9 +401,8 @@ class RerunSink:
     def _link_columns(self, robot: str, qs: np.ndarray) -> dict[str, tuple[np.ndarray, np.ndarray]]:
         """``entity path -> (translations, quaternions)`` for every visual link and the camera."""
         kin = self.run.kinematics[robot]
-        links = [link for link in self.visuals[robot]]
         camera_frame = self.run.cell.arm(robot).camera_frame
-        wanted = {paths.link(robot, link): link for link in links}
+        wanted = {paths.link(robot, link): link for link in self.visuals[robot]}
         wanted[paths.camera(robot)] = camera_frame
         poses: dict[str, list[np.ndarray]] = {path: [] for path in wanted}
         for q in qs:
@@ -406,6 +433,8 @@ class RerunSink:
         if run is not self.run:
             return
         rec = self.open()
+        if rec is None:
+            return
         rec.log(paths.WORLD, rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
         rec.log(paths.RUN_CONFIG, rr.TextDocument(_config_markdown(run), media_type=rr.MediaType.MARKDOWN), static=True)
         for ob in run.cell.obstacles:
@@ -499,7 +528,8 @@ class RerunSink:
     def log_label_table(self, table: Mapping[int, tuple[str, Sequence[int]]]) -> None:
         """The label ids' names and colours (``id -> (name, rgb)``) for every camera's
         ``labels`` image, static. Call once the plant's label table is known."""
-        assert self.rec is not None
+        if self.rec is None:
+            return
         context = rr.AnnotationContext([(int(i), name, tuple(color)) for i, (name, color) in sorted(table.items())])
         for robot in self.run.cell.arm_names:
             self.rec.log(paths.camera_image(robot, "labels"), context, static=True)

@@ -1,0 +1,219 @@
+"""Bad input: exit status 2, exactly one line on stderr naming the problem, no traceback, and
+nothing written or overwritten (DESIGN.md, "Errors").
+
+The CLI runs in-process (``agrisim.cli.main``) for speed; two cases also run as real
+subprocesses so that the actual stderr and exit status are checked.
+"""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from agrisim.cli import main
+from agrisim.errors import UserError
+from agrisim.robot import ur10_with_camera
+
+@pytest.fixture
+def workdir(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
+    """tmp_path with the input files the cases refer to; the CLI runs from ``tmp_path/cwd`` so
+    that a stray default output (``runs/...``) would be seen."""
+    for var in list(os.environ):
+        if var.startswith("AGRISIM_"):
+            monkeypatch.delenv(var)
+    (tmp_path / "broken.toml").write_text("[routine\nsetpoints = '1x1'\n")
+    (tmp_path / "unknown_key.toml").write_text("[routine]\nsetpoints = '1x1'\nbogus = 1\n")
+    (tmp_path / "rrd_both.toml").write_text("[output]\nrrd = 'x.rrd'\nno_rrd = true\n")
+    (tmp_path / "afile").write_text("a regular file\n")
+    (tmp_path / "existing").mkdir()
+    (tmp_path / "existing" / "keep.txt").write_text("precious results\n")
+    (tmp_path / "cwd").mkdir()
+    monkeypatch.chdir(tmp_path / "cwd")
+    return tmp_path
+
+
+def snapshot(root: Path) -> dict[str, tuple[bytes | None, int]]:
+    """Every path under ``root`` with its contents and mtime (directories: None)."""
+    return {
+        str(p.relative_to(root)): (p.read_bytes() if p.is_file() else None, p.stat().st_mtime_ns)
+        for p in sorted(root.rglob("*"))
+    }
+
+
+def run_cli(args: list[str], capsys: pytest.CaptureFixture[str]) -> tuple[int, str, str]:
+    capsys.readouterr()
+    try:
+        code = main(args)
+    except SystemExit as exc:
+        code = exc.code
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def assert_one_line_error(code: int, err: str, expected: list[str]) -> None:
+    assert code == 2, err
+    assert err.count("\n") == 1 and err.endswith("\n"), f"not exactly one line: {err!r}"
+    assert err.startswith("agrisim: error: "), err
+    assert "Traceback" not in err
+    for fragment in expected:
+        assert fragment in err, f"{fragment!r} not in {err!r}"
+
+
+# arguments after `run` and fragments the message must contain; {tmp} is the work dir. Cases
+# that don't choose a physics backend get the light `kinematic` one (its options aren't
+# touched), except where the default backend's options are the point.
+CASES = [
+    pytest.param(["--physics", "nope"], ["physics", "'nope'", "kinematic", "pybullet"], id="unknown-physics"),
+    pytest.param(["--planner", "nope"], ["planner", "'nope'", "direct", "ompl"], id="unknown-planner"),
+    pytest.param(["--camera", "nope"], ["camera", "'nope'", "rpi3-wide-1080p"], id="unknown-camera"),
+    pytest.param(["--config", "{tmp}/broken.toml"], ["malformed TOML", "broken.toml"], id="malformed-toml"),
+    pytest.param(["--config", "{tmp}/missing.toml"], ["config file not found", "missing.toml"], id="missing-config"),
+    pytest.param(
+        ["--config", "{tmp}/unknown_key.toml"], ["unknown setting", "routine.bogus"], id="unknown-config-key"
+    ),
+    pytest.param(["--set", "nope=1"], ["unknown setting", "'nope'"], id="unknown-set-key"),
+    pytest.param(["--set", "seed"], ["KEY=VALUE", "'seed'"], id="set-without-value"),
+    pytest.param(["--setpoints", "0x10"], ["setpoints", "0x10", "between 1 and 100"], id="setpoints-zero"),
+    pytest.param(["--setpoints", "five"], ["setpoints", "LxC"], id="setpoints-malformed"),
+    pytest.param(
+        ["--set", "motion.reach_tolerance_mm=-1"],
+        ["motion.reach_tolerance_mm", "greater than 0"],
+        id="negative-tolerance",
+    ),
+    pytest.param(["--seed", "-3"], ["seed", "-3"], id="negative-seed"),
+    pytest.param(["--seed", "x"], ["--seed", "'x'"], id="seed-not-int"),
+    pytest.param(["--resolution", "10x"], ["resolution", "10x", "WxH"], id="resolution-malformed"),
+    pytest.param(["--resolution", "4x4"], ["resolution", "4x4"], id="resolution-too-small"),
+    pytest.param(["--arms", "3"], ["cell.arms", "2"], id="three-arms"),
+    pytest.param(
+        ["--setpoints-csv", "{tmp}/missing.csv"], ["setpoint CSV not found", "missing.csv"], id="missing-csv"
+    ),
+    pytest.param(
+        ["--planner", "ompl", "--set", "planner.ompl.algorithm=Nope"],
+        ["OMPL", "'Nope'", "RRTConnect"],
+        id="unknown-ompl-algorithm",
+    ),
+    pytest.param(
+        ["--set", "planner.ompl.algorithm=Nope"],
+        ["OMPL", "'Nope'", "RRTConnect"],
+        id="unknown-ompl-algorithm-default-planner",
+    ),
+    pytest.param(
+        ["--physics", "pybullet", "--set", "physics.pybullet.nope=1"],
+        ["pybullet", "unknown setting 'nope'"],
+        id="unknown-backend-option",
+    ),
+    pytest.param(
+        ["--set", "physics.pybullet.nope=1"],
+        ["pybullet", "unknown setting 'nope'"],
+        id="unknown-backend-option-default-physics",
+    ),
+    pytest.param(
+        ["--planner", "direct", "--set", "planner.direct=3"], ["'direct'", "table"], id="backend-options-not-a-table"
+    ),
+    pytest.param(["--rrd", "{tmp}/x.rrd", "--no-rrd"], ["--rrd", "--no-rrd"], id="rrd-and-no-rrd"),
+    pytest.param(["--config", "{tmp}/rrd_both.toml"], ["--rrd", "--no-rrd"], id="rrd-and-no-rrd-in-config"),
+    pytest.param(["--set", "output.resume=true"], ["unknown setting 'output.resume'"], id="resume-not-yet-a-setting"),
+    pytest.param(["--nope"], ["--nope"], id="unknown-flag"),
+]
+
+
+@pytest.mark.parametrize(("args", "expected"), CASES)
+def test_bad_input(args: list[str], expected: list[str], workdir: Path, capsys) -> None:
+    out = workdir / "out"
+    before = snapshot(workdir)
+    argv = ["run", *(a.format(tmp=workdir) for a in args)]
+    if not any(a.startswith(("--physics", "physics.")) for a in argv[1:]):
+        argv += ["--physics", "kinematic"]
+    code, stdout, err = run_cli([*argv, "--out", str(out)], capsys)
+    assert_one_line_error(code, err, expected)
+    assert stdout == ""
+    assert not out.exists()
+    assert snapshot(workdir) == before, "something was written"
+
+
+def _readonly_dir(workdir: Path) -> Path:
+    ro = workdir / "readonly"
+    ro.mkdir()
+    ro.chmod(0o500)
+    probe = ro / "probe"
+    try:
+        probe.mkdir()
+    except PermissionError:
+        return ro
+    probe.rmdir()  # running as root: permissions don't stop us
+    ro.chmod(0o700)
+    ro.rmdir()
+    return workdir / "afile"  # a regular file cannot hold a directory, even for root
+
+
+@pytest.mark.parametrize("where", ["readonly-dir", "under-a-file"])
+def test_unwritable_out(where: str, workdir: Path, capsys) -> None:
+    parent = _readonly_dir(workdir) if where == "readonly-dir" else workdir / "afile"
+    out = parent / "run"
+    before = snapshot(workdir)
+    try:
+        code, stdout, err = run_cli(["run", "--physics", "kinematic", "--out", str(out)], capsys)
+    finally:
+        if parent.is_dir():
+            parent.chmod(0o700)
+    assert_one_line_error(code, err, ["--out", str(out), "not writable"])
+    assert not out.exists()
+    assert snapshot(workdir) == before
+
+
+def test_out_is_a_file(workdir: Path, capsys) -> None:
+    before = snapshot(workdir)
+    code, _, err = run_cli(["run", "--physics", "kinematic", "--out", str(workdir / "afile")], capsys)
+    assert_one_line_error(code, err, ["--out", "afile", "not a directory"])
+    assert snapshot(workdir) == before
+
+
+def test_existing_out_needs_overwrite(workdir: Path, capsys) -> None:
+    existing = workdir / "existing"
+    before = snapshot(workdir)
+    code, _, err = run_cli(["run", "--physics", "kinematic", "--setpoints", "1x1", "--out", str(existing)], capsys)
+    assert_one_line_error(code, err, ["--out", "already exists", "--overwrite"])
+    assert snapshot(workdir) == before  # contents and mtimes untouched
+    assert (existing / "keep.txt").read_text() == "precious results\n"
+
+
+def test_missing_urdf_is_a_user_error(tmp_path: Path) -> None:
+    with pytest.raises(UserError, match="URDF not found: /nonexistent.urdf"):
+        ur10_with_camera("/nonexistent.urdf")
+    broken = tmp_path / "a" / "b" / "c" / "d" / "broken.urdf"
+    broken.parent.mkdir(parents=True)
+    broken.write_text("<robot name='x'")
+    with pytest.raises(UserError, match="cannot read URDF"):
+        ur10_with_camera(str(broken))
+
+
+# ------------------------------------------------------------------ real subprocesses
+
+
+def _subprocess(args: list[str], cwd: Path) -> subprocess.CompletedProcess[str]:
+    env = {k: v for k, v in os.environ.items() if not k.startswith("AGRISIM_")}
+    return subprocess.run(
+        [sys.executable, "-m", "agrisim", *args], cwd=cwd, env=env, capture_output=True, text=True, timeout=60
+    )
+
+
+def test_subprocess_unknown_backend(workdir: Path) -> None:
+    out = workdir / "out"
+    before = snapshot(workdir)
+    proc = _subprocess(["run", "--physics", "nope", "--out", str(out)], workdir / "cwd")
+    assert_one_line_error(proc.returncode, proc.stderr, ["physics", "'nope'", "kinematic"])
+    assert proc.stdout == ""
+    assert not out.exists()
+    assert snapshot(workdir) == before
+
+
+def test_subprocess_existing_out(workdir: Path) -> None:
+    before = snapshot(workdir)
+    proc = _subprocess(["run", "--physics", "kinematic", "--out", str(workdir / "existing")], workdir / "cwd")
+    assert_one_line_error(proc.returncode, proc.stderr, ["already exists"])
+    assert snapshot(workdir) == before
