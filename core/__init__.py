@@ -1,14 +1,44 @@
 """agrisim: robot arms photographing plants, with swappable backends.
 
-The public API re-exported here is all a user or plugin author needs::
+The public API, all importable from here::
 
-    from agrisim import RunConfig, build_config, run_episode, hookimpl, BackendSpec
+    from agrisim import build_config, Episode, run_episode      # run episodes from Python
+    from agrisim import hookimpl, BackendSpec                   # write a plugin
+
+``import agrisim`` stays light (a plugin importing ``hookimpl`` pulls in no robotics library);
+the episode machinery loads on first use.
 """
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING, Any
+
 from agrisim.registry import BackendSpec, hookimpl, make_plugin_manager
+
+if TYPE_CHECKING:
+    from agrisim.config import RunConfig, build_config, load_toml
+    from agrisim.episode import Episode, Run, RunSummary, SetpointResult, run_episode
 
 __version__ = "0.1.0"
 
-__all__ = ["BackendSpec", "hookimpl", "make_plugin_manager", "__version__"]
+_LAZY = {
+    "RunConfig": "agrisim.config",
+    "build_config": "agrisim.config",
+    "load_toml": "agrisim.config",
+    "Episode": "agrisim.episode",
+    "Run": "agrisim.episode",
+    "RunSummary": "agrisim.episode",
+    "SetpointResult": "agrisim.episode",
+    "run_episode": "agrisim.episode",
+}
+
+
+def __getattr__(name: str) -> Any:
+    if name in _LAZY:
+        import importlib
+
+        return getattr(importlib.import_module(_LAZY[name]), name)
+    raise AttributeError(f"module 'agrisim' has no attribute {name!r}")
+
+
+__all__ = ["BackendSpec", "hookimpl", "make_plugin_manager", "__version__", *_LAZY]

@@ -165,3 +165,14 @@ def test_cell_matches_the_paper():
     for arm in cell.arms:
         base = arm.world_T_base[:3, 3]
         assert abs(abs(base[0]) - 1.0) < 1e-12 and base[2] == 0.95
+
+
+def test_the_papers_routine_with_default_backends(tmp_path):
+    """The default run (pybullet physics, OMPL, 2 x 50 setpoints): at least 95 reached, each
+    within 0.05 mm, and pybullet saw no contact along any executed trajectory."""
+    episode = Episode(build_config({"output": {"out": str(tmp_path / "run"), "no_rrd": True}}))
+    run, summary = episode.run()
+    assert summary.setpoints == 100
+    assert summary.reached >= 95, [(r.frame, r.reason) for r in run.results if not r.reached]
+    assert all(r.ee_error_mm <= 0.05 for r in run.results if r.reached)
+    assert summary.collisions == 0 and not any(r.contacts for r in run.results)
