@@ -13,7 +13,7 @@ import math
 import sys
 from collections.abc import Mapping
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
@@ -53,6 +53,11 @@ class PhysicsChoice(BackendChoice):
 class PlannerChoice(BackendChoice):
     backend: str = "ompl"
     """Motion planner (``--planner``): ompl or direct, or a plugin's."""
+
+
+class RendererChoice(BackendChoice):
+    backend: str = "raycast"
+    """Renderer (``--renderer``): raycast or pybullet, or a plugin's."""
 
 
 class CellConfig(_Model):
@@ -181,15 +186,38 @@ class CameraConfig(_Model):
         return v
 
 
+class RenderConfig(_Model):
+    """Run-wide rendering settings, whichever renderer draws."""
+
+    seg_mode: Literal["texture", "repopa"] = "texture"
+    """``texture``: the paper's label texture with opacity thresholded; ``repopa``: opacity
+    ignored for the label pass (EasySynth's way), RGB and depth still cut out."""
+    labels: Literal["plant", "organs"] = "plant"
+    """One label for the whole plant, or one per organ where the species has them."""
+    shadow_samples: int = Field(1, ge=0, le=32)
+    """Shadow rays per pixel shared among the lights (the paper's Raytrace Samples); 0: none."""
+    supersample: int = Field(1, ge=1, le=4)
+    """RGB rays per pixel side (labels and depth stay exact at pixel centres)."""
+    hide_robots: bool = False
+    """Render without the arms (the paper's NeRF captures)."""
+
+
 class RunConfig(_Model):
     """Everything one episode needs. Defaults reproduce the paper's experiment."""
 
     seed: int = Field(0, ge=0, le=2**32 - 1)
     """Seed for IK restarts and sampling planners."""
+    plant: str = "indian_cress"
+    """Plant species (``agrisim plants``) or a glTF/GLB/OBJ file (``--plant``)."""
+    pcg_seed: int = Field(42, ge=0, le=2**32 - 1)
+    """Seed of the lab's clutter randomizer (the paper's PCG Seed, 42)."""
     physics: PhysicsChoice = PhysicsChoice()
     """Physics backend and per-backend options (``[physics.pybullet]``)."""
     planner: PlannerChoice = PlannerChoice()
     """Motion planner and per-backend options (``[planner.ompl]``)."""
+    renderer: RendererChoice = RendererChoice()
+    """Renderer and per-backend options (``[renderer.raycast]``)."""
+    render: RenderConfig = RenderConfig()
     cell: CellConfig = CellConfig()
     routine: RoutineConfig = RoutineConfig()
     camera: CameraConfig = CameraConfig()

@@ -14,6 +14,7 @@ from typing import Any
 import numpy as np
 
 from agrisim.cell import Cell
+from agrisim.scene import Plant, Scene
 
 Validity = Callable[[np.ndarray], bool]
 
@@ -177,12 +178,43 @@ class PlanningFailed(RuntimeError):
     """The planner found no path; the message is the reason recorded for the setpoint."""
 
 
+@dataclass
+class Frame:
+    """One camera's images (OpenCV pixel grid, H x W)."""
+
+    rgb: np.ndarray  # uint8 H x W x 3, sRGB
+    labels: np.ndarray  # uint8 H x W, label ids (0 = background)
+    depth: np.ndarray  # float32 H x W, planar z in metres, 0 where nothing was hit
+    instances: np.ndarray | None = None  # uint16 H x W leaf instance ids, 0 = none
+
+
 class Renderer(ABC):
-    """Renders a capture's images from the scene at the arms' current poses."""
+    """Draws the scene and the arms (at the poses it is given) through a pinhole camera.
+
+    Built once per run as ``factory(scene, cell, settings, options)``: ``scene`` is the
+    :class:`agrisim.scene.Scene` (room, plant, lights, label table), ``cell`` gives the arms'
+    URDFs (their visual meshes), ``settings`` the run-wide :class:`agrisim.config.RenderConfig`
+    (segmentation mode, shadow samples, ...) and ``options`` the backend's own options.
+    """
+
+    def __init__(self, scene: Scene, cell: Cell, settings: Any, options: Any) -> None:
+        self.scene = scene
+        self.cell = cell
+        self.settings = settings
+        self.options = options
 
     @abstractmethod
-    def render(self, capture: Capture) -> dict[str, np.ndarray]:
-        """``rgb``, ``labels`` and ``depth`` for ``capture.camera`` at ``capture.world_T_camera``."""
+    def render(
+        self,
+        camera: CameraModel,
+        world_T_camera: np.ndarray,
+        link_poses: Mapping[str, Mapping[str, np.ndarray]],
+    ) -> Frame:
+        """RGB, labels and depth for ``camera`` at ``world_T_camera`` (OpenCV optical frame);
+        ``link_poses[robot][link]`` is ``world_T_link`` of every arm link right now."""
+
+    def close(self) -> None:  # noqa: B027 - optional hook for backends holding resources
+        """Release resources."""
 
 
 class Reconstructor(ABC):
@@ -198,8 +230,12 @@ class Reconstructor(ABC):
 
 
 class PlantSpecies(ABC):
-    """A plant that can be built into the scene from a seed."""
+    """A plant that can be grown from a seed (``factory(options)``)."""
+
+    def __init__(self, options: Any) -> None:
+        self.options = options
 
     @abstractmethod
-    def build(self, seed: int) -> Any:
-        """The plant's geometry, textures and label table for ``seed``."""
+    def build(self, seed: int) -> Plant:
+        """The plant, in its own frame (origin at the centre of the soil surface, z up), with
+        its label table (organ labels where the species has them)."""

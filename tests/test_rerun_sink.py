@@ -26,7 +26,8 @@ from agrisim.config import build_config  # noqa: E402
 from agrisim.episode import Episode, Run, RunSummary, SetpointResult  # noqa: E402
 from agrisim.interfaces import Capture, JointTrajectory, Trajectory  # noqa: E402
 from agrisim.kinematics import ArmKinematics  # noqa: E402
-from agrisim.plugins.sinks import robot_meshes, rerun_sink  # noqa: E402
+from agrisim import robot_meshes  # noqa: E402
+from agrisim.plugins.sinks import rerun_sink  # noqa: E402
 from agrisim.plugins.sinks.rerun_sink import paths  # noqa: E402
 from agrisim.registry import make_plugin_manager  # noqa: E402
 from agrisim.setpoints import routine  # noqa: E402

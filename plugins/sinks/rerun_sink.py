@@ -41,7 +41,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from agrisim import BackendSpec, hookimpl
-from agrisim.plugins.sinks import robot_meshes
+from agrisim import robot_meshes
 
 if TYPE_CHECKING:
     import rerun as rr

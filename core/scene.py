@@ -1,0 +1,198 @@
+"""The visual scene as plain data: textured triangle meshes, materials, lights, labels.
+
+One backend-free model that plant generators and asset loaders produce and that every renderer,
+exporter and sink consumes (as :mod:`agrisim.cell` is for physics).
+
+Conventions
+-----------
+* Vertices in metres, in the frame the owner says (plants: plant frame, origin at the centre of
+  the soil surface, z up; static scene meshes: world).
+* UVs follow glTF: (0, 0) is the top-left corner of the texture image, u grows to the right,
+  v grows downwards. The texel of (u, v) in an H x W image is
+  ``(row, col) = (floor(v * H), floor(u * W))``, wrapped (textures repeat).
+* A material's ``albedo`` is sRGB RGBA uint8; its alpha carries the shape of cut-out cards.
+  ``labels`` is a uint8 image of label ids sampled *nearest* at the same UVs (the paper's label
+  texture); without one, every texel has the material's constant ``label``.
+* Label ids index the scene's :class:`LabelTable`; 0 is background.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Literal
+
+import numpy as np
+
+AlphaMode = Literal["OPAQUE", "MASK", "BLEND"]
+
+
+@dataclass
+class Material:
+    """How a set of triangles looks and is labelled."""
+
+    name: str
+    color: tuple[float, float, float, float] = (0.8, 0.8, 0.8, 1.0)
+    """Linear RGBA factor (multiplies the albedo texture; the colour itself without one)."""
+    albedo: np.ndarray | None = None
+    """H x W x 4 uint8 sRGB + alpha texture, or None."""
+    labels: np.ndarray | None = None
+    """H x W uint8 label-id texture, or None for the constant ``label``."""
+    label: int = 0
+    """Label id of every texel when there is no label texture."""
+    alpha_mode: AlphaMode = "OPAQUE"
+    """glTF alpha mode: OPAQUE ignores alpha; MASK and BLEND cut away texels below the cutoff
+    (a step, as the paper does, since blended edges would blend labels)."""
+    alpha_cutoff: float = 0.5
+    """Texels with alpha below this are holes (MASK/BLEND)."""
+    double_sided: bool = True
+    """Seen from both sides (leaf cards are)."""
+
+    def __post_init__(self) -> None:
+        if self.albedo is not None:
+            a = np.asarray(self.albedo)
+            if a.dtype != np.uint8 or a.ndim != 3 or a.shape[2] != 4 or min(a.shape[:2]) < 1:
+                raise ValueError(f"material {self.name!r}: albedo must be H x W x 4 uint8, got {a.dtype} {a.shape}")
+        if self.labels is not None:
+            lab = np.asarray(self.labels)
+            if lab.dtype != np.uint8 or lab.ndim != 2 or min(lab.shape) < 1:
+                raise ValueError(f"material {self.name!r}: labels must be H x W uint8, got {lab.dtype} {lab.shape}")
+        if not 0.0 <= self.alpha_cutoff <= 1.0:
+            raise ValueError(f"material {self.name!r}: alpha cutoff must be in [0, 1], got {self.alpha_cutoff}")
+
+    @property
+    def cuts(self) -> bool:
+        """Does opacity cut holes in this material?"""
+        return self.alpha_mode != "OPAQUE" and self.albedo is not None
+
+
+@dataclass
+class Mesh:
+    """Triangles with per-vertex UVs and one material per triangle."""
+
+    name: str
+    vertices: np.ndarray  # (N, 3) float64
+    faces: np.ndarray  # (M, 3) int32 vertex indices
+    materials: list[Material]
+    face_material: np.ndarray  # (M,) int32 index into ``materials``
+    uvs: np.ndarray | None = None  # (N, 2) float32, glTF convention
+    face_instance: np.ndarray | None = None  # (M,) uint16 leaf instance ids, 0 = none
+
+    def __post_init__(self) -> None:
+        self.vertices = np.ascontiguousarray(self.vertices, dtype=np.float64)
+        self.faces = np.ascontiguousarray(self.faces, dtype=np.int32)
+        self.face_material = np.ascontiguousarray(self.face_material, dtype=np.int32)
+        n, m = len(self.vertices), len(self.faces)
+        if self.vertices.ndim != 2 or self.vertices.shape[1] != 3:
+            raise ValueError(f"mesh {self.name!r}: vertices must be N x 3")
+        if self.faces.ndim != 2 or self.faces.shape[1] != 3:
+            raise ValueError(f"mesh {self.name!r}: faces must be M x 3")
+        if m and (self.faces.min() < 0 or self.faces.max() >= n):
+            raise ValueError(f"mesh {self.name!r}: face indices outside 0..{n - 1}")
+        if not np.all(np.isfinite(self.vertices)):
+            raise ValueError(f"mesh {self.name!r}: vertices must be finite")
+        if self.face_material.shape != (m,):
+            raise ValueError(f"mesh {self.name!r}: face_material must have one entry per face")
+        if m and (self.face_material.min() < 0 or self.face_material.max() >= len(self.materials)):
+            raise ValueError(f"mesh {self.name!r}: face_material indices outside the material list")
+        if self.uvs is not None:
+            self.uvs = np.ascontiguousarray(self.uvs, dtype=np.float32)
+            if self.uvs.shape != (n, 2) or not np.all(np.isfinite(self.uvs)):
+                raise ValueError(f"mesh {self.name!r}: uvs must be N x 2 and finite")
+        elif any(mat.albedo is not None or mat.labels is not None for mat in self.materials):
+            raise ValueError(f"mesh {self.name!r}: textured materials need uvs")
+        if self.face_instance is not None:
+            self.face_instance = np.ascontiguousarray(self.face_instance, dtype=np.uint16)
+            if self.face_instance.shape != (m,):
+                raise ValueError(f"mesh {self.name!r}: face_instance must have one entry per face")
+
+    def transformed(self, T: np.ndarray, name: str | None = None) -> Mesh:
+        """The same mesh with vertices mapped by the 4x4 pose ``T``."""
+        v = self.vertices @ T[:3, :3].T + T[:3, 3]
+        return Mesh(name or self.name, v, self.faces, self.materials, self.face_material, self.uvs, self.face_instance)
+
+    @property
+    def areas(self) -> np.ndarray:
+        """Area of every triangle, m^2."""
+        a, b, c = (self.vertices[self.faces[:, i]] for i in range(3))
+        return 0.5 * np.linalg.norm(np.cross(b - a, c - a), axis=1)
+
+
+@dataclass(frozen=True)
+class Label:
+    """One entry of the label table."""
+
+    id: int
+    name: str
+    color: tuple[int, int, int]  # sRGB 0..255, for labels_vis and viewers
+
+
+@dataclass
+class LabelTable:
+    """Label ids, names and colours of a run (0 = background)."""
+
+    labels: list[Label] = field(default_factory=lambda: [Label(0, "background", (0, 0, 0))])
+
+    def __post_init__(self) -> None:
+        ids = [lab.id for lab in self.labels]
+        if len(set(ids)) != len(ids) or not all(0 <= i <= 255 for i in ids):
+            raise ValueError(f"label ids must be unique and within 0..255, got {ids}")
+
+    def by_name(self, name: str) -> Label:
+        for lab in self.labels:
+            if lab.name == name:
+                return lab
+        raise KeyError(name)
+
+    def palette(self) -> np.ndarray:
+        """256 x 3 uint8: colour of every label id (black for unused ids)."""
+        out = np.zeros((256, 3), np.uint8)
+        for lab in self.labels:
+            out[lab.id] = lab.color
+        return out
+
+
+@dataclass
+class Light:
+    """A light: ``area`` lights are discs of ``radius`` facing ``direction`` (soft shadows);
+    ``spot`` lights are points with a cone (``cone_deg`` half angle)."""
+
+    name: str
+    kind: Literal["area", "spot", "point"]
+    position: np.ndarray
+    direction: np.ndarray  # unit vector the light faces
+    color: tuple[float, float, float] = (1.0, 1.0, 1.0)
+    intensity: float = 1.0  # radiant intensity scale, W/sr-like (renderer-relative)
+    radius: float = 0.0  # disc radius of area lights, m
+    cone_deg: float = 90.0  # half angle of the cone, degrees
+
+
+@dataclass
+class Plant:
+    """A plant asset: its mesh in the plant frame and the label table its materials use.
+
+    ``organs`` is True when the label table names several organs (``--labels organs``);
+    ``--labels plant`` maps every non-zero id to 1.
+    """
+
+    name: str
+    mesh: Mesh
+    labels: LabelTable
+    organs: bool = False
+    seed: int = 0
+
+
+@dataclass
+class Scene:
+    """Everything a renderer draws besides the arms: static meshes in world coordinates (room,
+    stands, table, pot, clutter, the plant placed in its pot), the lights, the label table."""
+
+    meshes: list[Mesh]
+    lights: list[Light]
+    labels: LabelTable
+    plant: str = "plant"  # name of the plant's mesh in ``meshes``
+
+    def mesh(self, name: str) -> Mesh:
+        for m in self.meshes:
+            if m.name == name:
+                return m
+        raise KeyError(name)

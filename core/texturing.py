@@ -1,0 +1,85 @@
+"""Texture lookups shared by renderers, exporters and metrics.
+
+UVs follow glTF (origin top-left, v down); lookups are *nearest* texel, wrapping, which is
+exactly how the paper samples its label texture (a label must never blend into another).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from agrisim.scene import Material, Mesh
+
+
+def texel_index(uv: np.ndarray, height: int, width: int) -> tuple[np.ndarray, np.ndarray]:
+    """(rows, cols) of the texels nearest ``uv`` (K x 2), wrapping outside [0, 1)."""
+    uv = np.asarray(uv, dtype=np.float64)
+    cols = np.floor(uv[:, 0] * width).astype(np.int64) % width
+    rows = np.floor(uv[:, 1] * height).astype(np.int64) % height
+    return rows, cols
+
+
+def sample_nearest(image: np.ndarray, uv: np.ndarray) -> np.ndarray:
+    """Texels of ``image`` (H x W or H x W x C) nearest each UV (K x 2)."""
+    rows, cols = texel_index(uv, image.shape[0], image.shape[1])
+    return image[rows, cols]
+
+
+def interpolate_uv(mesh: Mesh, faces: np.ndarray, bary: np.ndarray) -> np.ndarray:
+    """UVs at points given by face indices (K,) and barycentric (u, v) of Open3D/Embree
+    convention: point = (1 - u - v) * A + u * B + v * C."""
+    assert mesh.uvs is not None
+    tri = mesh.faces[faces]
+    w1, w2 = bary[:, 0:1], bary[:, 1:2]
+    uv = mesh.uvs
+    return (1.0 - w1 - w2) * uv[tri[:, 0]] + w1 * uv[tri[:, 1]] + w2 * uv[tri[:, 2]]
+
+
+def opaque(material: Material, uv: np.ndarray) -> np.ndarray:
+    """Does each UV land on a texel that is not cut away? (bool, K)"""
+    if not material.cuts:
+        return np.ones(len(uv), dtype=bool)
+    alpha = sample_nearest(material.albedo, uv)[:, 3]  # type: ignore[index]
+    # Compare in 8-bit: alpha_cutoff 0.5 keeps texels of 128 and more, as a GPU would.
+    return alpha.astype(np.float64) / 255.0 >= material.alpha_cutoff
+
+
+def label_at(material: Material, uv: np.ndarray) -> np.ndarray:
+    """Label id of each UV's texel (uint8, K)."""
+    if material.labels is None:
+        return np.full(len(uv), material.label, dtype=np.uint8)
+    return sample_nearest(material.labels, uv)
+
+
+def sample_surface(mesh: Mesh, count: int, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``count`` points uniformly by area: (points K x 3, faces K, barycentrics K x 2)."""
+    areas = mesh.areas
+    total = areas.sum()
+    if total <= 0:
+        raise ValueError(f"mesh {mesh.name!r} has no area")
+    faces = rng.choice(len(areas), size=count, p=areas / total)
+    r1, r2 = rng.random(count), rng.random(count)
+    s = np.sqrt(r1)
+    bary = np.column_stack([s * (1 - r2), s * r2])  # weights of B and C
+    tri = mesh.vertices[mesh.faces[faces]]
+    points = (1 - bary[:, :1] - bary[:, 1:]) * tri[:, 0] + bary[:, :1] * tri[:, 1] + bary[:, 1:] * tri[:, 2]
+    return points, faces, bary
+
+
+def opaque_samples(mesh: Mesh, faces: np.ndarray, bary: np.ndarray) -> np.ndarray:
+    """For surface samples (faces, barycentrics): is each on an opaque texel? (bool, K)"""
+    keep = np.ones(len(faces), dtype=bool)
+    if mesh.uvs is None:
+        return keep
+    uv = interpolate_uv(mesh, faces, bary)
+    mats = mesh.face_material[faces]
+    for i in np.unique(mats):
+        sel = mats == i
+        keep[sel] = opaque(mesh.materials[i], uv[sel])
+    return keep
+
+
+def cutaway_fraction(mesh: Mesh, samples: int = 200_000, seed: int = 0) -> float:
+    """Fraction of the mesh's area that opacity cuts away (Monte Carlo over the surface)."""
+    _, faces, bary = sample_surface(mesh, samples, np.random.default_rng(seed))
+    return float(1.0 - opaque_samples(mesh, faces, bary).mean())
