@@ -30,6 +30,7 @@ from agrisim.geometry import pose_error
 from agrisim.interfaces import Capture, CameraModel, JointTrajectory, PhysicsBackend, Planner, PlanningFailed, Trajectory
 from agrisim.kinematics import ArmKinematics
 from agrisim.planning import segment_is_valid
+from agrisim.scene import LabelTable, Scene
 from agrisim.registry import Registry, make_plugin_manager
 from agrisim.setpoints import Setpoint, routine
 from agrisim.timing import Limits, TimedPath, time_parametrize
@@ -87,6 +88,8 @@ class Run:
     backends: dict[str, str]
     started_at: str
     backend_options: dict[str, dict[str, Any]] = field(default_factory=dict)
+    scene: Scene | None = None  # what the renderer draws (None without a renderer)
+    labels: LabelTable | None = None  # the label table of the images
     run_id: str = field(default_factory=lambda: uuid.uuid4().hex)
     results: list[SetpointResult] = field(default_factory=list)
     wall_s: dict[str, float] = field(default_factory=dict)

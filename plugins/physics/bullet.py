@@ -17,6 +17,7 @@ from pydantic import BaseModel, ConfigDict, Field
 
 from agrisim import BackendSpec, hookimpl
 from agrisim.cell import Box, Cell, Cylinder
+from agrisim.geometry import quat_xyzw
 from agrisim.interfaces import Execution, JointTrajectory, PhysicsBackend
 from agrisim.quiet import native_output_silenced
 
@@ -43,25 +44,6 @@ class BulletOptions(BaseModel):
     clearance: float = Field(0.005, ge=0.0, le=0.2)
     """Distance below which planning queries count as a collision, m: room for the arm's
     tracking error, so executed motions stay collision-free."""
-
-
-def _quat_xyzw(R: np.ndarray) -> list[float]:
-    # Shepperd's method, robust for every rotation.
-    m = R
-    tr = np.trace(m)
-    if tr > 0:
-        s = np.sqrt(tr + 1.0) * 2
-        q = [(m[2, 1] - m[1, 2]) / s, (m[0, 2] - m[2, 0]) / s, (m[1, 0] - m[0, 1]) / s, 0.25 * s]
-    elif m[0, 0] > m[1, 1] and m[0, 0] > m[2, 2]:
-        s = np.sqrt(1.0 + m[0, 0] - m[1, 1] - m[2, 2]) * 2
-        q = [0.25 * s, (m[0, 1] + m[1, 0]) / s, (m[0, 2] + m[2, 0]) / s, (m[2, 1] - m[1, 2]) / s]
-    elif m[1, 1] > m[2, 2]:
-        s = np.sqrt(1.0 + m[1, 1] - m[0, 0] - m[2, 2]) * 2
-        q = [(m[0, 1] + m[1, 0]) / s, 0.25 * s, (m[1, 2] + m[2, 1]) / s, (m[0, 2] - m[2, 0]) / s]
-    else:
-        s = np.sqrt(1.0 + m[2, 2] - m[0, 0] - m[1, 1]) * 2
-        q = [(m[0, 2] + m[2, 0]) / s, (m[1, 2] + m[2, 1]) / s, 0.25 * s, (m[1, 0] - m[0, 1]) / s]
-    return [float(x) for x in q]
 
 
 class _World:
@@ -97,7 +79,7 @@ class _World:
                 baseMass=0,
                 baseCollisionShapeIndex=shape,
                 basePosition=ob.world_T[:3, 3].tolist(),
-                baseOrientation=_quat_xyzw(ob.world_T[:3, :3]),
+                baseOrientation=quat_xyzw(ob.world_T[:3, :3]),
             )
             self.bodies[ob.name] = body
             self.names[body] = ob.name
@@ -118,7 +100,7 @@ class _World:
                 body = c.loadURDF(
                     str(urdf),
                     basePosition=arm.world_T_base[:3, 3].tolist(),
-                    baseOrientation=_quat_xyzw(arm.world_T_base[:3, :3]),
+                    baseOrientation=quat_xyzw(arm.world_T_base[:3, :3]),
                     useFixedBase=True,
                     flags=flags,
                 )
