@@ -66,7 +66,8 @@ def _parser() -> argparse.ArgumentParser:
         help="any setting by its dotted name, e.g. physics.pybullet.position_gain=0.5",
     )
 
-    sub.add_parser("plugins", help="list every backend of every kind and where it comes from")
+    plugins = sub.add_parser("plugins", help="list every backend of every kind and where it comes from")
+    plugins.add_argument("--options", action="store_true", help="also list each backend's options")
     return p
 
 
@@ -156,6 +157,10 @@ def _cmd_plugins(args: argparse.Namespace) -> int:
             print(f"  {name:<{width}}  {spec.description}  [{spec.distribution}]")
             if spec.limits:
                 print(f"  {'':<{width}}  limits: {spec.limits}")
+            if args.options:
+                for field, info in spec.options_model.model_fields.items():
+                    doc = (info.description or "").replace("\n", " ")
+                    print(f"  {'':<{width}}    {kind}.{name}.{field} = {info.default!r}  {doc}")
     return 0
 
 
@@ -171,6 +176,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     except KeyboardInterrupt:
         sys.stderr.write(f"{PROG}: interrupted\n")
         return 130
+    except BrokenPipeError:  # output piped into `head` and the like
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 0
     except Exception as exc:  # an internal failure, not the user's input
         if os.environ.get("AGRISIM_DEBUG"):
             traceback.print_exc()

@@ -42,7 +42,7 @@ PROVIDER_HOOKS: dict[str, str] = {
 class NoOptions(BaseModel):
     """Options model for a backend that takes none."""
 
-    model_config = ConfigDict(extra="forbid")
+    model_config = ConfigDict(extra="forbid", use_attribute_docstrings=True)
 
 
 @dataclass(frozen=True)

@@ -309,15 +309,15 @@ def test_trace_plugins_reports_hook_calls(site: Path, monkeypatch, capsys) -> No
 
 
 def test_every_kind_is_discovered_from_a_distribution(site: Path, capsys) -> None:
-    """Renderers, reconstructors and plants have no built-in backend yet: a distribution
-    providing one of each shows up under its kind with its distribution."""
+    """A distribution providing a renderer, a reconstructor and a plant shows up under each
+    kind with its distribution."""
     source = """
         from agrisim import BackendSpec, hookimpl
         from agrisim.interfaces import PlantSpecies, Reconstructor, Renderer
 
         class FakeRenderer(Renderer):
-            def render(self, capture):
-                return {}
+            def render(self, camera, world_T_camera, link_poses):
+                return None
 
         class FakeReconstructor(Reconstructor):
             def integrate(self, capture):
@@ -344,10 +344,11 @@ def test_every_kind_is_discovered_from_a_distribution(site: Path, capsys) -> Non
     """
     make_dist(site, "agrisim-fakes", {"agrisim_fakes": source}, {"fakes": "agrisim_fakes"}, version="2.0")
     registry = Registry(make_plugin_manager())
+    construct = {"renderer": (None, None, None, None), "reconstructor": (), "plant": (None,)}
     for kind, name in (("renderer", "fake-render"), ("reconstructor", "fake-recon"), ("plant", "fake-plant")):
         spec = registry.get(kind, name)
         assert spec.distribution == "agrisim-fakes 2.0"
-        assert spec.factory() is not None
+        assert spec.factory(*construct[kind]) is not None
     code, out, _ = plugins_cli(capsys)
     assert code == 0
     assert "[agrisim-fakes 2.0]" in listed(out, "reconstructor")["fake-recon"]

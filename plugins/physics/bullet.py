@@ -29,7 +29,7 @@ with native_output_silenced():  # pybullet prints its build time on import
 class BulletOptions(BaseModel):
     """Options of the pybullet physics backend."""
 
-    model_config = ConfigDict(extra="forbid")
+    model_config = ConfigDict(extra="forbid", use_attribute_docstrings=True)
 
     rate: float = Field(240.0, ge=240.0, le=10000.0)
     """Simulation steps per second (at least 240 Hz)."""

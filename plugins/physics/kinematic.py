@@ -38,7 +38,7 @@ from agrisim.interfaces import Execution, JointTrajectory, PhysicsBackend
 class KinematicOptions(BaseModel):
     """Options of the kinematic (perfect-tracking) physics backend."""
 
-    model_config = ConfigDict(extra="forbid")
+    model_config = ConfigDict(extra="forbid", use_attribute_docstrings=True)
 
     rate: float = Field(240.0, gt=0.0, le=100000.0)
     """Samples per second of executed trajectories, Hz; every sample is collision-checked."""

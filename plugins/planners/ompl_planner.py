@@ -45,7 +45,7 @@ def _seed_once(seed: int) -> None:
 class OmplOptions(BaseModel):
     """Options of the OMPL planner."""
 
-    model_config = ConfigDict(extra="forbid")
+    model_config = ConfigDict(extra="forbid", use_attribute_docstrings=True)
 
     algorithm: str = "RRTConnect"
     """An OMPL geometric planner by name (see ``agrisim plugins``)."""

@@ -1,0 +1,109 @@
+"""The arms' visual geometry as agrisim meshes, one per link, in the link's frame.
+
+Every ``<visual>`` of the URDF (COLLADA/STL meshes through trimesh, boxes, cylinders, spheres) is
+baked with its ``link_T_visual`` and scale; each sub-mesh keeps its own flat colour (the UR10's
+COLLADA files colour their parts: dark joints, blue caps, grey tubes), else the URDF material's,
+else a neutral grey. A renderer places link ``L`` at ``link_poses[robot][L]`` (``world_T_link``).
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass
+from functools import lru_cache
+
+import numpy as np
+
+from agrisim import robot_meshes
+from agrisim.scene import Material, Mesh
+
+log = logging.getLogger(__name__)
+
+#: colour of visuals whose files and URDF give none (linear RGBA)
+DEFAULT_COLOR = (0.45, 0.45, 0.47, 1.0)
+#: the camera body added to the flange by agrisim.robot (linear RGBA)
+CAMERA_COLOR = (0.02, 0.02, 0.02, 1.0)
+
+
+def srgb_to_linear(c: np.ndarray) -> np.ndarray:
+    """sRGB components in 0..1 to linear."""
+    c = np.asarray(c, np.float64)
+    return np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4)
+
+
+@dataclass
+class LinkMesh:
+    """One link's visual triangles in its own frame."""
+
+    link: str
+    mesh: Mesh
+
+
+def _primitive(visual: robot_meshes.Visual):  # noqa: ANN202 - trimesh types stay lazy
+    import trimesh
+
+    if visual.kind == "box" and visual.size:
+        return trimesh.creation.box(extents=visual.size)
+    if visual.kind == "cylinder" and visual.radius and visual.length:
+        return trimesh.creation.cylinder(radius=visual.radius, height=visual.length, sections=32)
+    if visual.kind == "sphere" and visual.radius:
+        return trimesh.creation.icosphere(subdivisions=3, radius=visual.radius)
+    return None
+
+
+def _parts(visual: robot_meshes.Visual) -> list[tuple[np.ndarray, np.ndarray, tuple[float, float, float, float]]]:
+    """(vertices in the visual's frame, faces, linear RGBA) of each sub-mesh of one visual."""
+    urdf_color = tuple(float(x) for x in srgb_to_linear(visual.rgba[:3])) + (1.0,) if visual.rgba else None
+    if visual.kind != "mesh":
+        prim = _primitive(visual)
+        if prim is None:
+            return []
+        color = urdf_color or (CAMERA_COLOR if visual.link == "camera_link" else DEFAULT_COLOR)
+        return [(np.asarray(prim.vertices, float), np.asarray(prim.faces, np.int64), color)]  # type: ignore[list-item]
+    scene = robot_meshes.load_scene(visual.filename)  # type: ignore[arg-type]
+    out = []
+    scale = np.asarray(visual.scale, float)
+    for node in scene.graph.nodes_geometry:
+        T, name = scene.graph[node]
+        geom = scene.geometry[name]
+        if not hasattr(geom, "faces") or len(geom.faces) == 0:
+            continue
+        v = np.asarray(geom.vertices, float) @ T[:3, :3].T + T[:3, 3]
+        color = urdf_color or DEFAULT_COLOR
+        material = getattr(getattr(geom, "visual", None), "material", None)
+        main = getattr(material, "main_color", None)
+        if urdf_color is None and main is not None:
+            rgb = srgb_to_linear(np.asarray(main[:3], float) / 255.0)
+            color = (float(rgb[0]), float(rgb[1]), float(rgb[2]), 1.0)
+        out.append((v * scale, np.asarray(geom.faces, np.int64), color))
+    return out
+
+
+@lru_cache(maxsize=8)
+def arm_link_meshes(urdf: str) -> tuple[LinkMesh, ...]:
+    """The visual meshes of every link of ``urdf`` that has any, in the link's frame (cached per
+    URDF text: both arms of a cell share the work)."""
+    links: list[LinkMesh] = []
+    for link, visuals in robot_meshes.link_visuals(urdf).items():
+        verts, faces, fmat, materials = [], [], [], []
+        colors: dict[tuple[float, ...], int] = {}
+        n = 0
+        for visual in visuals:
+            try:
+                parts = _parts(visual)
+            except (OSError, ValueError) as exc:
+                log.warning("link %r: visual %s not loaded (%s); drawn without it", link, visual.filename, exc)
+                continue
+            for v, f, color in parts:
+                v = v @ visual.link_T_visual[:3, :3].T + visual.link_T_visual[:3, 3]
+                if color not in colors:
+                    colors[color] = len(materials)
+                    materials.append(Material(f"{link}/{len(materials)}", color=color, double_sided=True))
+                verts.append(v)
+                faces.append(f + n)
+                fmat.append(np.full(len(f), colors[color], np.int32))
+                n += len(v)
+        if materials:
+            mesh = Mesh(link, np.concatenate(verts), np.concatenate(faces), materials, np.concatenate(fmat))
+            links.append(LinkMesh(link, mesh))
+    return tuple(links)
