@@ -62,7 +62,7 @@ def draw_cylinder(ax, r, h, T, color, alpha) -> None:
 
 def main(out: Path) -> None:
     with tempfile.TemporaryDirectory() as tmp:
-        episode = Episode(build_config({"output": {"out": f"{tmp}/run", "no_rrd": True}}))
+        episode = Episode(build_config({"renderer": {"backend": "none"}, "output": {"out": f"{tmp}/run", "no_rrd": True}}))
         paths = Paths()
         episode.pm.register(paths)
         run, summary = episode.run()

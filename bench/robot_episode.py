@@ -77,6 +77,7 @@ def bench_episode(physics: str, planner: str) -> None:
         cfg = build_config({
             "physics": {"backend": physics},
             "planner": {"backend": planner},
+            "renderer": {"backend": "none"},
             "output": {"out": str(Path(tmp) / "run"), "no_rrd": True},
         })
         t0 = time.perf_counter()

@@ -44,6 +44,14 @@ def _parser() -> argparse.ArgumentParser:
 
     run = sub.add_parser("run", help="run one episode of the routine", description="Run one episode of the routine.")
     run.add_argument("--config", type=Path, metavar="TOML", help="configuration file; flags override it")
+    run.add_argument("--plant", metavar="NAME|PATH", help="species (agrisim plants) or a .glb/.gltf/.obj file")
+    run.add_argument("--seg-mode", choices=["texture", "repopa"], help="segmentation mode (default: texture)")
+    run.add_argument("--labels", choices=["plant", "organs"], help="one plant label, or one per organ (default: plant)")
+    run.add_argument("--renderer", metavar="NAME", help="renderer (default: raycast; none: robots only)")
+    run.add_argument("--shadow-samples", type=int, metavar="N", help="shadow rays per pixel, 0..32 (default: 1)")
+    run.add_argument("--supersample", type=int, metavar="S", help="S x S RGB rays per pixel, 1..4 (default: 1)")
+    run.add_argument("--hide-robots", action="store_true", default=None, help="render without the arms")
+    run.add_argument("--pcg-seed", type=int, metavar="N", help="seed of the lab clutter (default: 42)")
     run.add_argument("--physics", metavar="NAME", help="physics backend (default: pybullet)")
     run.add_argument("--planner", metavar="NAME", help="motion planner (default: ompl)")
     run.add_argument("--camera", metavar="PRESET", help="camera preset (default: rpi3-wide-1080p)")
@@ -93,6 +101,14 @@ def overrides_from_args(args: argparse.Namespace) -> dict[str, Any]:
     """The flags given on the command line, as a nested config dictionary."""
     out: dict[str, Any] = {}
     flat = {
+        "plant": args.plant,
+        "render.seg_mode": args.seg_mode,
+        "render.labels": args.labels,
+        "renderer.backend": args.renderer,
+        "render.shadow_samples": args.shadow_samples,
+        "render.supersample": args.supersample,
+        "render.hide_robots": args.hide_robots,
+        "pcg_seed": args.pcg_seed,
         "physics.backend": args.physics,
         "planner.backend": args.planner,
         "camera.preset": args.camera,

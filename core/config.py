@@ -209,6 +209,8 @@ class RunConfig(_Model):
     """Seed for IK restarts and sampling planners."""
     plant: str = "indian_cress"
     """Plant species (``agrisim plants``) or a glTF/GLB/OBJ file (``--plant``)."""
+    plants: dict[str, dict[str, Any]] = {}
+    """Options per plant species (``[plants.boxwood]``), validated by the species' own model."""
     pcg_seed: int = Field(42, ge=0, le=2**32 - 1)
     """Seed of the lab's clutter randomizer (the paper's PCG Seed, 42)."""
     physics: PhysicsChoice = PhysicsChoice()

@@ -25,12 +25,21 @@ import pluggy
 from agrisim.camera import preset
 from agrisim.cell import Cell, build_cell
 from agrisim.config import RunConfig, backend_options
-from agrisim.errors import OutputError
+from agrisim.errors import OutputError, UserError
 from agrisim.geometry import pose_error
-from agrisim.interfaces import Capture, CameraModel, JointTrajectory, PhysicsBackend, Planner, PlanningFailed, Trajectory
+from agrisim.interfaces import (
+    CameraModel,
+    Capture,
+    JointTrajectory,
+    PhysicsBackend,
+    Planner,
+    PlanningFailed,
+    Renderer,
+    Trajectory,
+)
 from agrisim.kinematics import ArmKinematics
 from agrisim.planning import segment_is_valid
-from agrisim.scene import LabelTable, Scene
+from agrisim.scene import LabelTable, Plant, Scene
 from agrisim.registry import Registry, make_plugin_manager
 from agrisim.setpoints import Setpoint, routine
 from agrisim.timing import Limits, TimedPath, time_parametrize
@@ -106,6 +115,7 @@ class Episode:
         self.config = config
         self.pm = pm if pm is not None else make_plugin_manager()
         self.registry = Registry(self.pm)
+        self._prep_wall: dict[str, float] = {}
         self.physics_spec = self.registry.get("physics", config.physics.backend)
         self.planner_spec = self.registry.get("planner", config.planner.backend)
         self.physics_options = backend_options(
@@ -118,10 +128,10 @@ class Episode:
             config.planner.options_for(self.planner_spec.name),
             f"planner {self.planner_spec.name!r}",
         )
+        self.out_dir = resolve_out_dir(config)  # before the slow parts: fail fast
         self.cell = build_cell(config.cell)
         self.setpoints = routine(self.cell, config.routine)
         self.camera = preset(config.camera.preset, config.camera.resolution)
-        self.out_dir = resolve_out_dir(config)
         self.kinematics = {arm.name: ArmKinematics(arm) for arm in self.cell.arms}
         m = config.motion
         self.limits = {
@@ -132,18 +142,43 @@ class Episode:
             )
             for name, k in self.kinematics.items()
         }
+        # Rendering needs a plant and the lab around it; a robot-only run (renderer "none")
+        # builds neither.
+        self.renderer_spec = None
+        self.scene: Scene | None = None
+        if config.renderer.backend != "none":
+            self.renderer_spec = self.registry.get("renderer", config.renderer.backend)
+            self.renderer_options = backend_options(
+                self.renderer_spec.options_model,
+                config.renderer.options_for(self.renderer_spec.name),
+                f"renderer {self.renderer_spec.name!r}",
+            )
+            with _timed(self._prep_wall, "plant"):
+                self.plant = resolve_plant(self.registry, config)
+            from agrisim.lab import build_scene
+
+            with _timed(self._prep_wall, "scene"):
+                self.scene = build_scene(
+                    self.cell, self.plant, pcg_seed=config.pcg_seed, labels=config.render.labels
+                )
 
     # ------------------------------------------------------------------ running
     def run(self, progress: Callable[[int, int], None] | None = None) -> tuple[Run, RunSummary]:
         """Run the episode; returns the run (with per-setpoint results) and its summary."""
         # Backends first: if one cannot be built, nothing has been written yet.
         physics: PhysicsBackend = self.physics_spec.factory(self.cell, self.physics_options)
+        renderer: Renderer | None = None
         try:
             planner: Planner = self.planner_spec.factory(self.planner_options)
+            if self.renderer_spec is not None:
+                renderer = self.renderer_spec.factory(self.scene, self.cell, self.config.render, self.renderer_options)
             prepare_out_dir(self.out_dir, self.config)
         except BaseException:
             physics.close()
+            if renderer is not None:
+                renderer.close()
             raise
+        self._renderer = renderer
         run = Run(
             config=self.config,
             cell=self.cell,
@@ -157,7 +192,13 @@ class Episode:
                 "planner": self.planner_options.model_dump(mode="json"),
             },
             started_at=_dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
+            scene=self.scene,
+            labels=self.scene.labels if self.scene is not None else None,
+            wall_s=dict(self._prep_wall),
         )
+        if self.renderer_spec is not None:
+            run.backends["renderer"] = self.renderer_spec.name
+            run.backend_options["renderer"] = self.renderer_options.model_dump(mode="json")
         self._physics, self._planner, self._run = physics, planner, run
         self._rng = np.random.default_rng(self.config.seed)
         try:
@@ -197,6 +238,8 @@ class Episode:
                 self.pm.hook.agrisim_run_finished(run=run, summary=summary)
             finally:
                 physics.close()
+                if renderer is not None:
+                    renderer.close()
                 for sink in sinks:
                     self.pm.unregister(sink)
         return run, summary
@@ -326,6 +369,10 @@ class Episode:
             self._run.results.append(res)
             self.pm.hook.agrisim_setpoint(run=self._run, robot=robot, result=res)
 
+    def _link_poses(self) -> dict[str, dict[str, np.ndarray]]:
+        """``world_T_link`` of every arm link where the physics has the arms now."""
+        return {r: k.link_poses(self._physics.joint_positions(r)) for r, k in self.kinematics.items()}
+
     def _execute(
         self,
         targets: dict[str, Setpoint],
@@ -374,8 +421,44 @@ class Episode:
                     world_T_camera=world_T_camera,
                     camera=self.camera,
                 )
+                if self._renderer is not None:
+                    with self._stage("render"):
+                        frame = self._renderer.render(self.camera, world_T_camera, self._link_poses())
+                    capture.images = {"rgb": frame.rgb, "labels": frame.labels, "depth": frame.depth}
+                    if frame.instances is not None:
+                        capture.images["instances"] = frame.instances
                 with self._stage("capture"):
                     self.pm.hook.agrisim_capture(run=self._run, capture=capture)
+
+
+@contextmanager
+def _timed(store: dict[str, float], name: str) -> Iterator[None]:
+    t0 = time.perf_counter()
+    try:
+        yield
+    finally:
+        store[name] = store.get(name, 0.0) + time.perf_counter() - t0
+
+
+PLANT_FILE_SUFFIXES = (".glb", ".gltf", ".obj")
+
+
+def resolve_plant(registry: Registry, config: RunConfig) -> Plant:
+    """The plant ``config.plant`` names: a registered species grown from ``config.seed``, or a
+    glTF/GLB/OBJ file."""
+    name = config.plant
+    species = registry.specs("plant")
+    if name in species:
+        spec = species[name]
+        options = backend_options(spec.options_model, config.plants.get(name, {}), f"plant {name!r}")
+        plant: Plant = spec.factory(options).build(config.seed)
+        return plant
+    if Path(name).suffix.lower() in PLANT_FILE_SUFFIXES or Path(name).exists():
+        from agrisim.assets import load_plant
+
+        return load_plant(Path(name))
+    available = ", ".join(species) or "none installed"
+    raise UserError(f"unknown plant {name!r}; species: {available}; or a .glb/.gltf/.obj file")
 
 
 # ---------------------------------------------------------------------- output directory

@@ -598,14 +598,14 @@ def _lights(cell: Cell, room: Room, target: np.ndarray, mats: _Materials) -> tup
         b.add(_disc(radius, 0.0, 24, up=False), panel, translation(pos[0], pos[1], room.height - 0.004))
         meshes.append(b.build(f"lamp_ceiling_{i}"))
     obstacles = {ob.name: ob for ob in cell.obstacles}
-    for i, arm in enumerate(cell.arms):
+    for arm in cell.arms:
         stand = obstacles.get(arm.stand)
         if not isinstance(stand, Box):
             continue
         centre = stand.world_T[:3, 3]
         toward = target[:2] - centre[:2]
         toward /= max(np.linalg.norm(toward), 1e-9)
-        lateral = np.array([-toward[1], toward[0]]) * (1.0 if i % 2 == 0 else -1.0)
+        lateral = np.array([-toward[1], toward[0]])  # the same hand for every stand
         xy = centre[:2] + toward * 0.35 * stand.size[0] + lateral * 0.3 * stand.size[1]
         pos = np.array([xy[0], xy[1], centre[2] + stand.size[2] / 2 + 0.12])
         direction = (target - pos) / np.linalg.norm(target - pos)

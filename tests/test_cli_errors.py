@@ -157,7 +157,7 @@ def test_unwritable_out(where: str, workdir: Path, capsys) -> None:
     out = parent / "run"
     before = snapshot(workdir)
     try:
-        code, stdout, err = run_cli(["run", "--physics", "kinematic", "--out", str(out)], capsys)
+        code, stdout, err = run_cli(["run", "--physics", "kinematic", "--renderer", "none", "--out", str(out)], capsys)
     finally:
         if parent.is_dir():
             parent.chmod(0o700)
@@ -168,7 +168,7 @@ def test_unwritable_out(where: str, workdir: Path, capsys) -> None:
 
 def test_out_is_a_file(workdir: Path, capsys) -> None:
     before = snapshot(workdir)
-    code, _, err = run_cli(["run", "--physics", "kinematic", "--out", str(workdir / "afile")], capsys)
+    code, _, err = run_cli(["run", "--physics", "kinematic", "--renderer", "none", "--out", str(workdir / "afile")], capsys)
     assert_one_line_error(code, err, ["--out", "afile", "not a directory"])
     assert snapshot(workdir) == before
 
@@ -176,7 +176,7 @@ def test_out_is_a_file(workdir: Path, capsys) -> None:
 def test_existing_out_needs_overwrite(workdir: Path, capsys) -> None:
     existing = workdir / "existing"
     before = snapshot(workdir)
-    code, _, err = run_cli(["run", "--physics", "kinematic", "--setpoints", "1x1", "--out", str(existing)], capsys)
+    code, _, err = run_cli(["run", "--physics", "kinematic", "--renderer", "none", "--setpoints", "1x1", "--out", str(existing)], capsys)
     assert_one_line_error(code, err, ["--out", "already exists", "--overwrite"])
     assert snapshot(workdir) == before  # contents and mtimes untouched
     assert (existing / "keep.txt").read_text() == "precious results\n"
@@ -214,6 +214,6 @@ def test_subprocess_unknown_backend(workdir: Path) -> None:
 
 def test_subprocess_existing_out(workdir: Path) -> None:
     before = snapshot(workdir)
-    proc = _subprocess(["run", "--physics", "kinematic", "--out", str(workdir / "existing")], workdir / "cwd")
+    proc = _subprocess(["run", "--physics", "kinematic", "--renderer", "none", "--out", str(workdir / "existing")], workdir / "cwd")
     assert_one_line_error(proc.returncode, proc.stderr, ["already exists"])
     assert snapshot(workdir) == before

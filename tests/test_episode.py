@@ -42,7 +42,11 @@ class Recorder:
 
 
 def _run(tmp_path, **overrides):
-    layer = {"routine": {"setpoints": "2x3"}, "output": {"out": str(tmp_path / "run"), "no_rrd": True}}
+    layer = {
+        "routine": {"setpoints": "2x3"},
+        "renderer": {"backend": "none"},
+        "output": {"out": str(tmp_path / "run"), "no_rrd": True},
+    }
     for key, value in overrides.items():
         layer.setdefault(key, {}).update(value) if isinstance(value, dict) else layer.__setitem__(key, value)
     episode = Episode(build_config(layer))
@@ -170,7 +174,9 @@ def test_cell_matches_the_paper():
 def test_the_papers_routine_with_default_backends(tmp_path):
     """The default run (pybullet physics, OMPL, 2 x 50 setpoints): at least 95 reached, each
     within 0.05 mm, and pybullet saw no contact along any executed trajectory."""
-    episode = Episode(build_config({"output": {"out": str(tmp_path / "run"), "no_rrd": True}}))
+    episode = Episode(
+        build_config({"renderer": {"backend": "none"}, "output": {"out": str(tmp_path / "run"), "no_rrd": True}})
+    )
     run, summary = episode.run()
     assert summary.setpoints == 100
     assert summary.reached >= 95, [(r.frame, r.reason) for r in run.results if not r.reached]

@@ -163,7 +163,7 @@ def test_run_with_the_example_planner(site: Path, tmp_path: Path, capsys) -> Non
     (the ``direct`` planner fails it), the waypoint planner's detour reaches it."""
     install_example(site)
     out = tmp_path / "run"
-    args = ["run", "--physics", "kinematic", "--planner", "waypoint", "--setpoints", "1x2", "--no-rrd"]
+    args = ["run", "--physics", "kinematic", "--planner", "waypoint", "--setpoints", "1x2", "--no-rrd", "--renderer", "none"]
     assert main([*args, "--out", str(out)]) == 0
     stdout = capsys.readouterr().out
     run = json.loads((out / "run.json").read_text())
@@ -403,6 +403,7 @@ def test_event_hooks_fire_in_order(site: Path, tmp_path: Path, monkeypatch) -> N
             "planner": {"backend": "direct"},
             "routine": {"setpoints": "1x1"},
             "cell": {"arms": 1},
+            "renderer": {"backend": "none"},
             "output": {"out": str(tmp_path / "run"), "no_rrd": True},
         }
     )

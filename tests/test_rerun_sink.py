@@ -116,6 +116,7 @@ def test_episode_recording_holds_robots_on_both_timelines(tmp_path: Path) -> Non
             "physics": {"backend": "kinematic"},
             "planner": {"backend": "direct"},
             "routine": {"setpoints": "2x2"},
+            "renderer": {"backend": "none"},
             "output": {"out": str(tmp_path / "run")},
         }
     )
