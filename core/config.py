@@ -202,6 +202,23 @@ class RenderConfig(_Model):
     """Render without the arms (the paper's NeRF captures)."""
 
 
+class PlantFileConfig(_Model):
+    """How a plant given as a file (``--plant PATH``) is read."""
+
+    label_texture: Path | None = None
+    """PNG of label ids or label colours at the albedo's UVs."""
+    material_labels: dict[str, str] | None = None
+    """Material-name pattern -> organ name (``{"Leaf*" = "leaf", "Bark" = "stem"}``)."""
+    alpha_cutoff: float | None = Field(None, ge=0.0, le=1.0)
+    """Cutoff for every MASK/BLEND material instead of the file's."""
+    up: Literal["y", "z"] | None = None
+    """The asset's up axis (glTF and OBJ default to y)."""
+    scale: float = Field(1.0, gt=0.0, le=1000.0)
+    """Multiplies the coordinates (0.01 for an asset in centimetres)."""
+    root: Path | None = None
+    """Directory the asset and the files it names must lie in (no escaping it)."""
+
+
 class RunConfig(_Model):
     """Everything one episode needs. Defaults reproduce the paper's experiment."""
 
@@ -209,6 +226,8 @@ class RunConfig(_Model):
     """Seed for IK restarts and sampling planners."""
     plant: str = "indian_cress"
     """Plant species (``agrisim plants``) or a glTF/GLB/OBJ file (``--plant``)."""
+    plant_file: PlantFileConfig = PlantFileConfig()
+    """Options for a plant read from a file."""
     plants: dict[str, dict[str, Any]] = {}
     """Options per plant species (``[plants.boxwood]``), validated by the species' own model."""
     pcg_seed: int = Field(42, ge=0, le=2**32 - 1)

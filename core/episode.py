@@ -22,6 +22,7 @@ from typing import Any
 import numpy as np
 import pluggy
 
+from agrisim.assets import FORMATS, load_plant
 from agrisim.camera import preset
 from agrisim.cell import Cell, build_cell
 from agrisim.config import RunConfig, backend_options
@@ -38,6 +39,7 @@ from agrisim.interfaces import (
     Trajectory,
 )
 from agrisim.kinematics import ArmKinematics
+from agrisim.lab import build_scene
 from agrisim.planning import segment_is_valid
 from agrisim.scene import LabelTable, Plant, Scene
 from agrisim.registry import Registry, make_plugin_manager
@@ -155,8 +157,6 @@ class Episode:
             )
             with _timed(self._prep_wall, "plant"):
                 self.plant = resolve_plant(self.registry, config)
-            from agrisim.lab import build_scene
-
             with _timed(self._prep_wall, "scene"):
                 self.scene = build_scene(
                     self.cell, self.plant, pcg_seed=config.pcg_seed, labels=config.render.labels
@@ -440,9 +440,6 @@ def _timed(store: dict[str, float], name: str) -> Iterator[None]:
         store[name] = store.get(name, 0.0) + time.perf_counter() - t0
 
 
-PLANT_FILE_SUFFIXES = (".glb", ".gltf", ".obj")
-
-
 def resolve_plant(registry: Registry, config: RunConfig) -> Plant:
     """The plant ``config.plant`` names: a registered species grown from ``config.seed``, or a
     glTF/GLB/OBJ file."""
@@ -453,10 +450,17 @@ def resolve_plant(registry: Registry, config: RunConfig) -> Plant:
         options = backend_options(spec.options_model, config.plants.get(name, {}), f"plant {name!r}")
         plant: Plant = spec.factory(options).build(config.seed)
         return plant
-    if Path(name).suffix.lower() in PLANT_FILE_SUFFIXES or Path(name).exists():
-        from agrisim.assets import load_plant
-
-        return load_plant(Path(name))
+    if Path(name).suffix.lower() in FORMATS or Path(name).exists():
+        f = config.plant_file
+        return load_plant(
+            Path(name),
+            label_texture=f.label_texture,
+            material_labels=f.material_labels,
+            alpha_cutoff=f.alpha_cutoff,
+            up=f.up,
+            scale=f.scale,
+            root=f.root,
+        )
     available = ", ".join(species) or "none installed"
     raise UserError(f"unknown plant {name!r}; species: {available}; or a .glb/.gltf/.obj file")
 

@@ -42,6 +42,10 @@ POT_WALL = 0.008
 POT_SEGMENTS = 48
 """Sides of the pot's polygon (a multiple of 4, so that its bounding box is the cylinder's)."""
 DRUM_SEGMENTS = 24
+CEILING_IRRADIANCE = 0.35
+"""Irradiance each ceiling light gives the plant (1 = white on white), renderer-relative."""
+STAND_IRRADIANCE = 0.3
+"""Irradiance each stand lamp gives the plant's side facing it."""
 PLANT_LABEL = Label(1, "plant", (0, 255, 0))
 """The single plant label of ``labels="plant"``."""
 NOT_DRAWN = ("floor", "plant_keepout")
@@ -332,7 +336,9 @@ def _ring(radius: float, n: int, seam: bool) -> np.ndarray:
     return xy
 
 
-def _cylinder_side(radius: float, z0: float, z1: float, n: int, *, inward: bool = False, u_repeats: float = 1.0) -> Part:
+def _cylinder_side(
+    radius: float, z0: float, z1: float, n: int, *, inward: bool = False, u_repeats: float = 1.0
+) -> Part:
     """The side of a z-aligned cylinder; u once (or ``u_repeats`` times) around, v from the top
     (0) to the bottom (1)."""
     xy = _ring(radius, n, seam=True)
@@ -441,7 +447,8 @@ def _room_meshes(room: Room, mats: _Materials) -> list[Mesh]:
     cx, cy = room.center
     hx, hy, H = room.size[0] / 2, room.size[1] / 2, room.height
     floor = _MeshBuilder()
-    floor.add(_quad((cx, cy, 0.0), (hx, 0, 0), (0, hy, 0), (2 * hx / 2.4, 2 * hy / 2.4)), mats.textured("floor_tiles", tex.floor_tiles()))
+    tiles = mats.textured("floor_tiles", tex.floor_tiles())
+    floor.add(_quad((cx, cy, 0.0), (hx, 0, 0), (0, hy, 0), (2 * hx / 2.4, 2 * hy / 2.4)), tiles)
     ceiling = _MeshBuilder()
     ceiling.add(
         _quad((cx, cy, H), (hx, 0, 0), (0, -hy, 0), (2 * hx / 1.2, 2 * hy / 1.2)),
@@ -538,7 +545,8 @@ def _drum(item: Item, mats: _Materials) -> Mesh:
     color = DRUM_COLORS[item.variant % len(DRUM_COLORS)]
     r = k.size[0] / 2
     b = _MeshBuilder()
-    b.add(_cylinder_side(r, 0.0, k.height, DRUM_SEGMENTS), mats.textured(f"drum_side_{item.variant}", tex.drum_side(color)))
+    side = mats.textured(f"drum_side_{item.variant}", tex.drum_side(color))
+    b.add(_cylinder_side(r, 0.0, k.height, DRUM_SEGMENTS), side)
     b.add(_disc(r, k.height, DRUM_SEGMENTS), mats.textured(f"drum_lid_{item.variant}", tex.drum_lid(color)))
     return b.build(f"drum_{item.index:03d}", item.world_T)
 
@@ -592,7 +600,9 @@ def _lights(cell: Cell, room: Room, target: np.ndarray, mats: _Materials) -> tup
         pos = np.array([target[0], target[1] + 0.9 * side, room.height - 0.02])
         down = np.array([0.0, 0.0, -1.0])
         lights.append(
-            Light(f"ceiling_{i}", "area", pos, down, (1.0, 0.97, 0.92), _intensity(np.pi * 0.5, pos, down, target), radius)
+            Light(
+                f"ceiling_{i}", "area", pos, down, (1.0, 0.97, 0.92), _intensity(CEILING_IRRADIANCE, pos, down, target), radius
+            )
         )
         b = _MeshBuilder()
         b.add(_disc(radius, 0.0, 24, up=False), panel, translation(pos[0], pos[1], room.height - 0.004))
@@ -607,10 +617,18 @@ def _lights(cell: Cell, room: Room, target: np.ndarray, mats: _Materials) -> tup
         toward /= max(np.linalg.norm(toward), 1e-9)
         lateral = np.array([-toward[1], toward[0]])  # the same hand for every stand
         xy = centre[:2] + toward * 0.35 * stand.size[0] + lateral * 0.3 * stand.size[1]
-        pos = np.array([xy[0], xy[1], centre[2] + stand.size[2] / 2 + 0.12])
+        pos = np.array([xy[0], xy[1], centre[2] + stand.size[2] / 2 + 0.2])
         direction = (target - pos) / np.linalg.norm(target - pos)
         lights.append(
-            Light(f"{arm.stand}_lamp", "area", pos, direction, (1.0, 1.0, 1.0), _intensity(np.pi * 0.4, pos, direction, target), 0.15)
+            Light(
+                f"{arm.stand}_lamp",
+                "area",
+                pos,
+                direction,
+                (1.0, 1.0, 1.0),
+                _intensity(STAND_IRRADIANCE, pos, direction, target),
+                0.15,
+            )
         )
     return lights, meshes
 
@@ -625,10 +643,10 @@ def build_scene(
 ) -> Scene:
     """The lab scene for ``cell`` with ``plant`` in its pot and the clutter of ``pcg_seed``.
 
-    Lights: ``intensity`` is the axial radiant intensity of a Lambertian disc (a surface at
-    distance d, angle theta off the light's axis and facing it receives
-    ``intensity * cos(theta) / d**2``), chosen so a white surface at the plant facing each light
-    gets about pi x 0.5 (ceiling) and pi x 0.4 (stand lamps) of irradiance.
+    Lights: ``intensity`` is the axial intensity of a Lambertian disc (a surface at distance d,
+    angle theta off the light's axis and facing it receives ``intensity * cos(theta) / d**2``,
+    where irradiance 1 makes a white surface white), chosen so that a surface at the plant facing
+    a light gets ``CEILING_IRRADIANCE`` or ``STAND_IRRADIANCE`` from it.
     """
     if labels not in ("plant", "organs"):
         raise ValueError(f"labels must be 'plant' or 'organs', got {labels!r}")

@@ -61,8 +61,9 @@ class Material:
 
     @property
     def cuts(self) -> bool:
-        """Does opacity cut holes in this material?"""
-        return self.alpha_mode != "OPAQUE" and self.albedo is not None
+        """Does opacity cut holes in this material? (glTF: alpha is the texture's alpha times
+        the colour factor's.)"""
+        return self.alpha_mode != "OPAQUE" and (self.albedo is not None or self.color[3] < 1.0)
 
 
 @dataclass

@@ -39,9 +39,12 @@ def opaque(material: Material, uv: np.ndarray) -> np.ndarray:
     """Does each UV land on a texel that is not cut away? (bool, K)"""
     if not material.cuts:
         return np.ones(len(uv), dtype=bool)
-    alpha = sample_nearest(material.albedo, uv)[:, 3]  # type: ignore[index]
-    # Compare in 8-bit: alpha_cutoff 0.5 keeps texels of 128 and more, as a GPU would.
-    return alpha.astype(np.float64) / 255.0 >= material.alpha_cutoff
+    factor = float(material.color[3])
+    if material.albedo is None:
+        return np.full(len(uv), factor >= material.alpha_cutoff)
+    # glTF: alpha = texture alpha x factor alpha; texture alpha 128/255 passes a 0.5 cutoff
+    alpha = sample_nearest(material.albedo, uv)[:, 3].astype(np.float64) / 255.0
+    return alpha * factor >= material.alpha_cutoff
 
 
 def label_at(material: Material, uv: np.ndarray) -> np.ndarray:

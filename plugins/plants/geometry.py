@@ -143,11 +143,11 @@ def strip_cards(
     per card, or shared) narrows the card to hug the drawn shape, as artists cut cards to save
     overdraw; UVs narrow with it.
 
-    Returns (vertices N x V x 3, faces F x 3, uvs N x V x 2, end points N x 3).
+    Returns (vertices N x V x 3, faces F x 3, uvs N x V x 2, centrelines N x segments+1 x 3).
     """
     base = np.asarray(base, float)
     n = len(base)
-    b = lambda x: np.broadcast_to(np.asarray(x, float), (n,))  # noqa: E731
+    b = lambda x: np.broadcast_to(np.asarray(x, float), (n,))
     az, elev, length = b(az), b(elev), b(length)
     bend, curl, roll, twist, fold = b(bend), b(curl), b(roll), b(twist), b(fold)
     rects = np.asarray(rects, float)
@@ -183,7 +183,7 @@ def strip_cards(
     t_uv = across[None, None, :] * hug_k[..., None]
     s_uv = np.broadcast_to(s[None, :, None], t_uv.shape)
     uv = tile_uv(rects, atlas_size, atlas_size, t_uv, s_uv)
-    return V.reshape(n, -1, 3), grid_faces(segments, 2), uv.reshape(n, -1, 2), P[:, -1]
+    return V.reshape(n, -1, 3), grid_faces(segments, 2), uv.reshape(n, -1, 2), P
 
 
 def plate_cards(
@@ -197,11 +197,14 @@ def plate_cards(
     cup: np.ndarray | float = 0.0,
     anchor: float = 0.5,
     cells: int = 2,
+    corner: float = 1.0,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Flat (slightly cupped) cards around ``centre`` facing ``normal``: peltate leaves, flower
     heads. ``size`` is the card's length (along ``s``); ``anchor`` is the ``s`` of the centre
     (0.5: centred, 0: the card grows from the centre). ``cup`` lifts the rim along the normal
-    (fraction of the size). A (cells+1)^2 vertex grid. Returns (vertices, faces, uvs)."""
+    (fraction of the size). A (cells+1)^2 vertex grid; ``corner`` < 1 pulls the four corner
+    vertices toward the middle (an octagonal card hugging a round leaf: at 0.78 a disc of
+    radius 0.47 card lengths still fits). Returns (vertices, faces, uvs)."""
     centre = np.asarray(centre, float)
     n = len(centre)
     size = np.broadcast_to(np.asarray(size, float), (n,))
@@ -213,10 +216,19 @@ def plate_cards(
     g = np.linspace(0.0, 1.0, cells + 1)
     S, T = np.meshgrid(g, 2 * g - 1, indexing="ij")  # rows along s, cols across t
     S, T = S.ravel(), T.ravel()
+    if corner != 1.0:
+        at_corner = (np.abs(T) == 1.0) & (np.abs(2 * S - 1) == 1.0)
+        T = np.where(at_corner, T * corner, T)
+        S = np.where(at_corner, 0.5 + (S - 0.5) * corner, S)
     x = T[None] * (0.5 * aspect * size)[:, None]
     y = (S[None] - anchor) * size[:, None]
     r2 = (x**2 + y**2) / np.maximum(size[:, None] ** 2, 1e-12)
-    V = centre[:, None] + x[..., None] * e1[:, None] + y[..., None] * e2[:, None] + (cup[:, None] * size[:, None] * r2)[..., None] * nrm[:, None]
+    V = (
+        centre[:, None]
+        + x[..., None] * e1[:, None]
+        + y[..., None] * e2[:, None]
+        + (cup[:, None] * size[:, None] * r2)[..., None] * nrm[:, None]
+    )
     uv = tile_uv(rects, atlas_size, atlas_size, np.broadcast_to(T, (n, len(T))), np.broadcast_to(S, (n, len(S))))
     return V, grid_faces(cells, cells), uv
 
@@ -254,7 +266,13 @@ def solid_leaves(
     lift = (1.0 - np.abs(t))[None] * (fold * width)[:, None]
     V = centre[:, None] + x[..., None] * e1[:, None] + y[..., None] * e2[:, None] + lift[..., None] * nrm[:, None]
     faces = np.stack([np.zeros(ring, int), 1 + np.arange(ring), 1 + (np.arange(ring) + 1) % ring], axis=1)
-    uv = tile_uv(np.asarray(rects, float), atlas_size, atlas_size, np.broadcast_to(t, (n, len(t))), np.broadcast_to(s, (n, len(s))))
+    uv = tile_uv(
+        np.asarray(rects, float),
+        atlas_size,
+        atlas_size,
+        np.broadcast_to(t, (n, len(t))),
+        np.broadcast_to(s, (n, len(s))),
+    )
     return V, faces, uv
 
 
@@ -273,7 +291,9 @@ def tubes(path: np.ndarray, radius: np.ndarray | float, sides: int = 6) -> tuple
     with parallel-transported frames (no twisting). Returns (vertices N x P*sides x 3, faces)."""
     path = np.asarray(path, float)
     n, p = path.shape[:2]
-    r = np.broadcast_to(np.asarray(radius, float).reshape((-1, 1) if np.ndim(radius) == 1 else np.shape(radius)), (n, p))
+    r = np.broadcast_to(
+        np.asarray(radius, float).reshape((-1, 1) if np.ndim(radius) == 1 else np.shape(radius)), (n, p)
+    )
     tan = np.gradient(path, axis=1)
     tan = unit(tan)
     ref = np.where(np.abs(tan[:, 0, 2:3]) > 0.9, np.array([1.0, 0.0, 0.0]), Z)

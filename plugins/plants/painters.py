@@ -101,7 +101,12 @@ def aglaonema_pattern(X, Y, hw, rgb, rng):
     band = np.abs(q - np.round(q))  # 0 on veins, 0.5 between
     n = value_noise(rng, X.shape, 6)
     rel = np.abs(X) / np.maximum(hw, 1e-6)
-    k = _smooth((band - 0.12) / 0.2) * _smooth((n - 0.35) / 0.2) * _smooth((0.85 - rel) / 0.15) * _smooth((rel - 0.08) / 0.1)
+    k = (
+        _smooth((band - 0.12) / 0.2)
+        * _smooth((n - 0.35) / 0.2)
+        * _smooth((0.85 - rel) / 0.15)
+        * _smooth((rel - 0.08) / 0.1)
+    )
     return mix(rgb, (0.62, 0.7, 0.58), 0.85 * k)
 
 
@@ -141,8 +146,8 @@ def cordate(label: int, colours: dict):
 
 def cordate_edge(th: np.ndarray) -> np.ndarray:
     tooth = np.abs(((th * 13 / (2 * np.pi)) % 1.0) - 0.5) * 2
-    notch = 1 - 0.55 * np.exp(-(((np.abs(th) - np.pi) / 0.32) ** 2))
-    return 0.47 * (0.9 + 0.1 * np.cos(th)) * notch * (1 - 0.035 * tooth)
+    notch = 1 - 0.5 * np.exp(-(((np.abs(th) - np.pi) / 0.3) ** 2))
+    return 0.48 * (0.95 + 0.05 * np.cos(th)) * notch * (1 - 0.03 * tooth)
 
 
 def cordate_anchor() -> float:
@@ -155,10 +160,10 @@ def lobed(label: int, colours: dict, lobes: float, aspect_hint: float = 0.5):
 
     def paint(X, Y, px, rng):
         half = X.max()
-        env = np.where(Y < 0.72, 0.35 + 0.6 * Y, np.sqrt(np.clip(1 - ((Y - 0.72) / 0.28) ** 2, 0, 1)))
+        env = np.where(Y < 0.72, 0.45 + 0.55 * Y, np.sqrt(np.clip(1 - ((Y - 0.72) / 0.28) ** 2, 0, 1)))
         env = env * np.clip(Y / 0.06, 0, 1)
         off = np.where(X < 0, 0.5, 0.0)
-        lob = 0.3 + 0.7 * np.abs(np.sin(np.pi * (lobes * Y / 0.72 + off))) ** 0.7
+        lob = 0.45 + 0.55 * np.abs(np.sin(np.pi * (lobes * Y / 0.72 + off))) ** 0.7
         lob = np.where(Y < 0.72, lob, 1.0)
         lob = np.maximum(lob, 0.12 / np.maximum(env, 1e-3))  # keep the rachis
         hw = np.clip(env * lob, 0, 1) * half * 0.96
@@ -231,7 +236,9 @@ def frond(
         f_rachis = np.minimum(rachis * (1.1 - 0.6 * Y) - ax, 0.995 - Y)
         cov = coverage(np.maximum(f_pinna, f_rachis), px) * (Y > 0.002)
         n = value_noise(rng, X.shape, 5)
-        rgb = mix(mix(colours["dark"], colours["base"], np.clip(2 * n, 0, 1)), colours["light"], np.clip(2 * n - 1, 0, 1))
+        rgb = mix(
+            mix(colours["dark"], colours["base"], np.clip(2 * n, 0, 1)), colours["light"], np.clip(2 * n - 1, 0, 1)
+        )
         rgb = mix(rgb, colours["light"], 0.35 * rel)  # lighter pinna tips
         vein = line_mask(d, 0.12 * pinna_width * sp) * (ll < length)
         rgb = mix(rgb, colours["vein"], 0.35 * vein)
@@ -258,14 +265,16 @@ def grass_blades(label: int, colours: dict, blades: int, width: float):
             w = width * rng.uniform(0.75, 1.25)
             cx = x0 + lean * Y + curve * Y**2
             rel = np.clip(Y / length, 0, 1)
-            hw = w * (1 - rel) ** 0.6 * np.clip(Y / 0.03, 0.4, 1)
+            hw = w * (1 - rel) ** 0.45 * np.clip(Y / 0.03, 0.4, 1)
             fi = np.where(Y < length, hw - np.abs(X - cx), -1.0)
             better = fi > f
             shade = np.where(better, np.clip(0.5 + (X - cx) / np.maximum(2 * hw, 1e-6), 0, 1) + 0.15 * i, shade)
             f = np.maximum(f, fi)
         cov = coverage(f, px) * (Y > 0.002)
         n = value_noise(rng, X.shape, 3)
-        rgb = mix(mix(colours["dark"], colours["base"], np.clip(2 * n, 0, 1)), colours["light"], np.clip(2 * n - 1, 0, 1))
+        rgb = mix(
+            mix(colours["dark"], colours["base"], np.clip(2 * n, 0, 1)), colours["light"], np.clip(2 * n - 1, 0, 1)
+        )
         rgb = mix(rgb, colours["tip"], _smooth((Y - 0.6) / 0.4) * 0.7)
         rgb = rgb * (0.85 + 0.2 * (shade % 1.0))[..., None]
         return cov, rgb, _full(X, label)
@@ -284,7 +293,9 @@ def petal(label: int, colours: dict, shape: Shape):
         hw = shape(Y) * half * 0.96
         cov = coverage(hw - np.abs(X), px) * (Y > 0.002) * (Y < 0.998)
         n = value_noise(rng, X.shape, 3)
-        rgb = mix(mix(colours["dark"], colours["base"], np.clip(2 * n, 0, 1)), colours["light"], np.clip(2 * n - 1, 0, 1))
+        rgb = mix(
+            mix(colours["dark"], colours["base"], np.clip(2 * n, 0, 1)), colours["light"], np.clip(2 * n - 1, 0, 1)
+        )
         stripe = line_mask(X, 0.02 + 0.04 * (1 - Y)) * _smooth((0.65 - Y) / 0.3)
         rgb = mix(rgb, colours["stripe"], 0.8 * stripe)
         rgb = mix(rgb, colours["throat"], _smooth((0.15 - Y) / 0.12))
@@ -296,7 +307,9 @@ def petal(label: int, colours: dict, shape: Shape):
     return paint
 
 
-def radial_flower(label: int, colours: dict, petals: int, *, petal_width: float = 0.55, centre: float = 0.15, rays: bool = False):
+def radial_flower(
+    label: int, colours: dict, petals: int, *, petal_width: float = 0.55, centre: float = 0.15, rays: bool = False
+):
     """A flower seen face on: ``petals`` rounded petals (or thin rays) around a centre disc."""
 
     def paint(X, Y, px, rng):
@@ -315,12 +328,45 @@ def radial_flower(label: int, colours: dict, petals: int, *, petal_width: float 
         f = np.maximum(f_p, centre * 0.47 - r)
         cov = coverage(f, px)
         n = value_noise(rng, X.shape, 4)
-        rgb = mix(mix(colours["dark"], colours["base"], np.clip(2 * n, 0, 1)), colours["light"], np.clip(2 * n - 1, 0, 1))
+        rgb = mix(
+            mix(colours["dark"], colours["base"], np.clip(2 * n, 0, 1)), colours["light"], np.clip(2 * n - 1, 0, 1)
+        )
         rgb = mix(rgb, colours["inner"], _smooth((0.25 - r / 0.47) / 0.25) * 0.8)
         if "guides" in colours:
             g = line_mask(delta * r, 0.003) * _smooth((0.6 - r / 0.47) / 0.3)
             rgb = mix(rgb, colours["guides"], g * 0.8)
         rgb = mix(rgb, colours["disc"], _smooth((centre * 0.47 - r) / 0.01))
         return cov, rgb, _full(X, label)
+
+    return paint
+
+
+def sprig(leaf_label: int, stem_label: int, colours: dict, twig_colour: tuple, pairs: int):
+    """A twig with ``pairs`` opposite pairs of small elliptic leaves (boxwood filler cards);
+    texels along the twig are labelled ``stem_label``, the rest ``leaf_label``."""
+
+    def paint(X, Y, px, rng):
+        half = X.max()
+        tw = 0.012 * (1.2 - 0.6 * Y)
+        f_twig = np.minimum(tw - np.abs(X), 0.9 - Y)
+        f_leaf = np.full(X.shape, -1.0)
+        L, W = 0.9 * half, 0.28 * half
+        for k in range(pairs):
+            y0 = 0.12 + 0.75 * k / max(pairs - 1, 1) * 0.95
+            for side in (-1.0, 1.0):
+                ang = side * rng.uniform(0.7, 1.1)  # leaf axis from +Y
+                lx, ly = X * np.cos(ang) - (Y - y0) * np.sin(ang), X * np.sin(ang) + (Y - y0) * np.cos(ang)
+                # ellipse from the twig outward along the rotated x axis
+                l = L * rng.uniform(0.8, 1.0)
+                e = np.sqrt(((side * lx - l / 2) / (l / 2)) ** 2 + (ly / W) ** 2)
+                f_leaf = np.maximum(f_leaf, (1 - e) * W)
+        tipx, tipy = X, Y - 0.93
+        e = np.sqrt((tipx / W) ** 2 + (tipy / 0.07) ** 2)
+        f_leaf = np.maximum(f_leaf, (1 - e) * W)
+        cov = coverage(np.maximum(f_twig, f_leaf), px)
+        rgb = leaf_colour(X, Y, rng, colours["base"], colours["light"], colours["dark"], None, None, 3)
+        rgb = np.where((f_twig > f_leaf)[..., None], np.asarray(twig_colour, float), rgb)
+        lab = np.where((f_twig > f_leaf) & (np.abs(X) < 2 * tw), stem_label, leaf_label).astype(np.uint8)
+        return cov, rgb, lab
 
     return paint

@@ -72,22 +72,24 @@ class Atlas:
         self.size = int(size)
         self.rgba = np.zeros((self.size, self.size, 4), np.uint8)
         self.labels = np.zeros((self.size, self.size), np.uint8)
-        self._row = PAD  # top of the current shelf
-        self._col = PAD
+        self._row = 0  # top of the current shelf
+        self._col = 0
         self._shelf = 0  # height of the current shelf
 
     def tile(self, height: float, width: float) -> Tile:
-        """Allocate a tile of ``height`` x ``width`` as fractions of the atlas size."""
-        h = max(8, int(round(height * self.size)))
-        w = max(8, int(round(width * self.size)))
-        if self._col + w + PAD > self.size:
-            self._row += self._shelf + PAD
-            self._col, self._shelf = PAD, 0
-        if self._row + h + PAD > self.size or w + 2 * PAD > self.size:
-            raise ValueError(f"atlas of {self.size} px is full (tile {h} x {w})")
-        t = Tile(self._row, self._col, h, w, self.size, self.size)
-        self._col += w + PAD
-        self._shelf = max(self._shelf, h)
+        """Allocate a cell of ``height`` x ``width`` (fractions of the atlas size); the tile is
+        the cell less a :data:`PAD` margin, so cells whose fractions sum to at most 1 fit at any
+        atlas size."""
+        ch = int(np.floor(height * self.size))
+        cw = int(np.floor(width * self.size))
+        if self._col + cw > self.size:
+            self._row += self._shelf
+            self._col, self._shelf = 0, 0
+        if self._row + ch > self.size or cw > self.size or min(ch, cw) - PAD < 8:
+            raise ValueError(f"atlas of {self.size} px is full or too small (cell {ch} x {cw})")
+        t = Tile(self._row + PAD // 2, self._col + PAD // 2, ch - PAD, cw - PAD, self.size, self.size)
+        self._col += cw
+        self._shelf = max(self._shelf, ch)
         return t
 
     def paint(self, tile: Tile, painter: Painter, rng: np.random.Generator) -> Tile:
@@ -157,9 +159,9 @@ def mix(a: np.ndarray | tuple, b: np.ndarray | tuple, k: np.ndarray) -> np.ndarr
     return a * (1 - k) + b * k
 
 
-def line_mask(dist: np.ndarray, width: float) -> np.ndarray:
+def line_mask(dist: np.ndarray, width: float | np.ndarray) -> np.ndarray:
     """Soft stroke of half-width ``width`` around ``dist == 0``."""
-    return np.clip(1.0 - np.abs(dist) / max(width, 1e-9), 0.0, 1.0)
+    return np.clip(1.0 - np.abs(dist) / np.maximum(width, 1e-9), 0.0, 1.0)
 
 
 def veins(X: np.ndarray, Y: np.ndarray, spacing: float, slope: float, width: float, start: float = 0.0) -> np.ndarray:
@@ -168,7 +170,9 @@ def veins(X: np.ndarray, Y: np.ndarray, spacing: float, slope: float, width: flo
     return line_mask((q - np.round(q)) * spacing, width) * (Y > start)
 
 
-def radial_veins(X: np.ndarray, Y: np.ndarray, cx: float, cy: float, count: int, width: float, phase: float = 0.0) -> np.ndarray:
+def radial_veins(
+    X: np.ndarray, Y: np.ndarray, cx: float, cy: float, count: int, width: float, phase: float = 0.0
+) -> np.ndarray:
     """Veins radiating from (cx, cy) (palmate and peltate leaves)."""
     dx, dy = X - cx, Y - cy
     r = np.hypot(dx, dy)

@@ -22,6 +22,7 @@ import numpy as np
 from PIL import Image
 
 from agrisim import BackendSpec, __version__, hookimpl
+from agrisim.assets import export_glb
 from agrisim.atomic import write_bytes, write_json
 from agrisim.episode import Run, RunSummary, SetpointResult
 from agrisim.interfaces import Capture
@@ -112,6 +113,9 @@ class DatasetSink:
 
     @hookimpl
     def agrisim_run_started(self, run: Run) -> None:
+        if run.scene is not None and run.labels is not None:
+            # the ground truth: the plant as placed in the world, with albedo and labels
+            export_glb(run.scene.mesh(run.scene.plant), self.out / "scene" / "plant.glb", run.labels)
         self._write(run)
 
     @hookimpl

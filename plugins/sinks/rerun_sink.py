@@ -48,6 +48,7 @@ if TYPE_CHECKING:
     import rerun.blueprint as rrb
 
     from agrisim.cell import Box, Cylinder
+    from agrisim.scene import Scene
     from agrisim.episode import Run, RunSummary, SetpointResult
     from agrisim.interfaces import Capture, Trajectory
 
@@ -102,6 +103,15 @@ class paths:  # noqa: N801 - a namespace of path builders, used like a module
     @staticmethod
     def obstacle(name: str) -> str:
         return f"world/cell/{name}"
+
+    @staticmethod
+    def scene_mesh(name: str, material: int) -> str:
+        """A static scene mesh (room, clutter, pot, the plant), one entity per material."""
+        return f"world/scene/{name}/{material}"
+
+    @staticmethod
+    def light(name: str) -> str:
+        return f"world/lights/{name}"
 
     @staticmethod
     def robot(robot: str) -> str:
@@ -341,6 +351,43 @@ class RerunSink:
             shape = rr.Cylinders3D(lengths=[ob.height], radii=[ob.radius], colors=[color], fill_mode=fill, labels=[ob.name], show_labels=False)
         self.rec.log(path, shape, static=True)
 
+    def _log_scene(self, scene: Scene) -> None:
+        """The scene's meshes with their albedo textures, and its lights, static."""
+        assert self.rec is not None
+        for mesh in scene.meshes:
+            for mi, material in enumerate(mesh.materials):
+                faces = mesh.faces[mesh.face_material == mi]
+                if not len(faces):
+                    continue
+                used, inverse = np.unique(faces, return_inverse=True)
+                kwargs: dict[str, Any] = {}
+                if material.albedo is not None and mesh.uvs is not None:
+                    kwargs["vertex_texcoords"] = mesh.uvs[used]
+                    kwargs["albedo_texture"] = np.ascontiguousarray(material.albedo[..., :3])
+                else:
+                    kwargs["albedo_factor"] = [int(round(255 * c)) for c in material.color[:3]]
+                self.rec.log(
+                    paths.scene_mesh(mesh.name, mi),
+                    rr.Mesh3D(
+                        vertex_positions=mesh.vertices[used].astype(np.float32),
+                        triangle_indices=inverse.reshape(-1, 3).astype(np.uint32),
+                        **kwargs,
+                    ),
+                    static=True,
+                )
+        for light in scene.lights:
+            origin = np.asarray(light.position, float)
+            self.rec.log(
+                paths.light(light.name),
+                rr.Arrows3D(
+                    origins=[origin],
+                    vectors=[0.3 * np.asarray(light.direction, float)],
+                    colors=[(255, 220, 120)],
+                    labels=[light.name],
+                ),
+                static=True,
+            )
+
     def _log_robot_geometry(self, robot: str) -> None:
         assert self.rec is not None
         for link, visuals in self.visuals[robot].items():
@@ -438,7 +485,13 @@ class RerunSink:
         rec.log(paths.WORLD, rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
         rec.log(paths.RUN_CONFIG, rr.TextDocument(_config_markdown(run), media_type=rr.MediaType.MARKDOWN), static=True)
         for ob in run.cell.obstacles:
-            self._log_obstacle(ob)
+            # With a rendered scene its meshes show the cell; only the virtual keep-out stays.
+            if run.scene is None or ob.name == "plant_keepout":
+                self._log_obstacle(ob)
+        if run.scene is not None:
+            self._log_scene(run.scene)
+        if run.labels is not None:
+            self.log_label_table({lab.id: (lab.name, lab.color) for lab in run.labels.labels})
         for arm in run.cell.arms:
             self._log_robot_geometry(arm.name)
         self._set_time(0, 0.0)
