@@ -1,4 +1,4 @@
-"""The ``agrisim`` command line: ``agrisim run`` and ``agrisim plugins``.
+"""The ``agrisim`` command line: ``agrisim run``, ``agrisim plants`` and ``agrisim plugins``.
 
 Bad input exits with status 2 and one line naming the problem; nothing is written. Internal
 failures exit 1 (``AGRISIM_DEBUG=1`` shows the traceback) with the run's partial results kept.
@@ -74,6 +74,8 @@ def _parser() -> argparse.ArgumentParser:
         help="any setting by its dotted name, e.g. physics.pybullet.position_gain=0.5",
     )
 
+    plants = sub.add_parser("plants", help="list the plant species: triangles, organs, area cut away by opacity")
+    plants.add_argument("--seed", type=int, default=0, metavar="N", help="seed to grow each species with (0)")
     plugins = sub.add_parser("plugins", help="list every backend of every kind and where it comes from")
     plugins.add_argument("--options", action="store_true", help="also list each backend's options")
     return p
@@ -180,12 +182,36 @@ def _cmd_plugins(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_plants(args: argparse.Namespace) -> int:
+    from agrisim.registry import Registry, make_plugin_manager
+    from agrisim.texturing import cutaway_fraction
+
+    if args.seed < 0:
+        raise UserError(f"--seed must be 0 or more, got {args.seed}")
+    registry = Registry(make_plugin_manager())
+    specs = registry.specs("plant")
+    if not specs:
+        print("no plant species installed")
+        return 0
+    width = max(len(n) for n in specs)
+    print(f"{'species':<{width}}  {'triangles':>9}  {'cut away':>8}  labels  [distribution]")
+    for name, spec in specs.items():
+        plant = spec.factory(spec.options_model()).build(args.seed)
+        organs = ", ".join(lab.name for lab in plant.labels.labels if lab.id)
+        cut = cutaway_fraction(plant.mesh, samples=100_000)
+        print(f"{name:<{width}}  {len(plant.mesh.faces):>9,}  {cut:>7.1%}  {organs}  [{spec.distribution}]")
+    print("cut away: share of the plant's surface area that opacity removes (what RepOpa labels wrongly)")
+    return 0
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``agrisim`` console script."""
     args = _parser().parse_args(argv)
     try:
         if args.command == "run":
             return _cmd_run(args)
+        if args.command == "plants":
+            return _cmd_plants(args)
         return _cmd_plugins(args)
     except UserError as exc:
         _fail(str(exc))

@@ -96,6 +96,9 @@ class RoutineConfig(_Model):
     """Polar angle range from the zenith, degrees (paper: pi/5 .. 3pi/7)."""
     theta_deg: tuple[float, float] = (180.0 / 19.0, 18.0 * 180.0 / 19.0)
     """Azimuth range of each arm's half, degrees (paper: pi/19 .. 18pi/19)."""
+    aim_height: float = Field(0.2, ge=-0.5, le=1.0)
+    """Cameras look at this point above the hemisphere centre, m: the plant's middle rather
+    than the pot's centre, so plants up to 0.4 m stay in view (0: the pot's centre)."""
     csv: Path | None = None
     """CSV of camera poses (columns x, y, z, roll, pitch, yaw; optional robot) instead."""
 

@@ -31,13 +31,15 @@ def hemisphere(cell: Cell, cfg: RoutineConfig) -> dict[str, list[Setpoint]]:
     """The paper's routine: per arm, L levels x C columns on its half of the hemisphere.
 
     ``phi`` is the polar angle from the zenith, ``theta`` the azimuth across the arm's half
-    (0..pi spans the half facing that arm). Levels run top to bottom and columns alternate
+    (0..pi spans the half facing that arm). Cameras look at the point ``aim_height`` above the
+    centre (the plant's middle rather than its pot). Levels run top to bottom and columns alternate
     direction (snake order), so consecutive setpoints are neighbours.
     """
     levels, columns = parse_grid(cfg.setpoints)
     phis = np.radians(np.linspace(*cfg.phi_deg, levels))
     thetas = np.radians(np.linspace(*cfg.theta_deg, columns))
     center = cell.plant_center
+    aim = np.array([0.0, 0.0, cfg.aim_height])
     out: dict[str, list[Setpoint]] = {}
     for arm in cell.arms:
         # Azimuth 0..pi is turned so that the half faces the arm's base.
@@ -49,7 +51,7 @@ def hemisphere(cell: Cell, cfg: RoutineConfig) -> dict[str, list[Setpoint]]:
             for theta in row:
                 azimuth = facing - np.pi / 2 + theta
                 direction = np.array([np.sin(phi) * np.cos(azimuth), np.sin(phi) * np.sin(azimuth), np.cos(phi)])
-                points.append(look_at(center + cfg.radius * direction, center))
+                points.append(look_at(center + cfg.radius * direction, center + aim))
         out[arm.name] = [Setpoint(arm.name, k, T) for k, T in enumerate(points)]
     return out
 

@@ -135,7 +135,7 @@ def test_arms_take_turns_when_moving_together_would_collide(tmp_path, monkeypatc
 
     monkeypatch.setattr(K, "arms_in_collision", lambda self, configs: True)
     episode, run, summary, recorder = _run(
-        tmp_path, physics={"backend": "kinematic"}, planner={"backend": "direct"}, routine={"setpoints": "1x2"}
+        tmp_path, physics={"backend": "kinematic"}, planner={"backend": "ompl"}, routine={"setpoints": "1x2"}
     )
     assert summary.reached == 4
     spans = {(tr.robot, tr.setpoint): (tr.executed.t[0], tr.executed.t[-1]) for tr in recorder.trajectories}

@@ -21,8 +21,9 @@ def test_hemisphere_matches_the_paper(cell):
             T = sp.world_T_camera
             d = T[:3, 3] - c
             assert abs(np.linalg.norm(d) - 0.5) < 1e-12
-            # the camera looks at the plant centre, image up towards world up
-            np.testing.assert_allclose(T[:3, 2], -d / np.linalg.norm(d), atol=1e-12)
+            # the camera looks at the aim point above the centre, image up towards world up
+            to_aim = c + np.array([0.0, 0.0, 0.2]) - T[:3, 3]
+            np.testing.assert_allclose(T[:3, 2], to_aim / np.linalg.norm(to_aim), atol=1e-12)
             assert T[2, 1] < 0  # optical y (down in the image) points down in the world
             np.testing.assert_allclose(T[:3, :3] @ T[:3, :3].T, np.eye(3), atol=1e-12)
             # every setpoint lies on its arm's half of the hemisphere

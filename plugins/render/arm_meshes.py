@@ -79,22 +79,44 @@ def _parts(visual: robot_meshes.Visual) -> list[tuple[np.ndarray, np.ndarray, tu
     return out
 
 
+def _decimate(v: np.ndarray, f: np.ndarray, target: int) -> tuple[np.ndarray, np.ndarray]:
+    """Quadric edge-collapse decimation to about ``target`` triangles (Open3D)."""
+    import open3d as o3d
+
+    mesh = o3d.geometry.TriangleMesh(o3d.utility.Vector3dVector(v), o3d.utility.Vector3iVector(f.astype(np.int32)))
+    mesh = mesh.simplify_quadric_decimation(max(int(target), 4))
+    mesh.remove_degenerate_triangles()
+    mesh.remove_unreferenced_vertices()
+    return np.asarray(mesh.vertices, float), np.asarray(mesh.triangles, np.int64)
+
+
 @lru_cache(maxsize=8)
-def arm_link_meshes(urdf: str) -> tuple[LinkMesh, ...]:
+def arm_link_meshes(urdf: str, max_triangles: int = 0) -> tuple[LinkMesh, ...]:
     """The visual meshes of every link of ``urdf`` that has any, in the link's frame (cached per
-    URDF text: both arms of a cell share the work)."""
-    links: list[LinkMesh] = []
+    URDF text: both arms of a cell share the work).
+
+    ``max_triangles`` > 0 decimates the arm to about that many triangles in all, each part
+    keeping its share (quadric edge collapse keeps the silhouette; parts stay separate, so
+    colours keep their borders).
+    """
+    loaded: list[tuple[str, robot_meshes.Visual, list]] = []
     for link, visuals in robot_meshes.link_visuals(urdf).items():
+        for visual in visuals:
+            try:
+                loaded.append((link, visual, _parts(visual)))
+            except (OSError, ValueError) as exc:
+                log.warning("link %r: visual %s not loaded (%s); drawn without it", link, visual.filename, exc)
+    total = sum(len(f) for _, _, parts in loaded for _, f, _ in parts)
+    ratio = max_triangles / total if 0 < max_triangles < total else 1.0
+    links: list[LinkMesh] = []
+    for link in dict.fromkeys(name for name, _, _ in loaded):
         verts, faces, fmat, materials = [], [], [], []
         colors: dict[tuple[float, ...], int] = {}
         n = 0
-        for visual in visuals:
-            try:
-                parts = _parts(visual)
-            except (OSError, ValueError) as exc:
-                log.warning("link %r: visual %s not loaded (%s); drawn without it", link, visual.filename, exc)
-                continue
+        for _, visual, parts in (x for x in loaded if x[0] == link):
             for v, f, color in parts:
+                if ratio < 1.0 and len(f) > 200:
+                    v, f = _decimate(v, f, len(f) * ratio)
                 v = v @ visual.link_T_visual[:3, :3].T + visual.link_T_visual[:3, 3]
                 if color not in colors:
                     colors[color] = len(materials)

@@ -1,0 +1,212 @@
+"""Direct lighting at surface points: the scene's lights as arrays, Lambert, sampled shadows.
+
+Units are renderer-relative: a light of ``intensity`` I at distance r lights a surface facing it
+with irradiance ``I / r^2``, times its colour and
+
+* ``area``: the cosine between its ``direction`` and the way to the point (a Lambertian disc of
+  ``radius`` facing ``direction``; shadow rays aim at uniform points on the disc);
+* ``spot``: its cone, full inside 90% of ``cone_deg`` and fading smoothly to 0 at the edge;
+* ``point``: 1 in every direction.
+
+Shadows: ``samples`` rays per point are shared among the lights, each picking a light with
+probability proportional to its unshadowed contribution there (stratified, so every light gets its
+share of the rays, and a point no shadow reaches carries no noise), then one of 1024 points
+spread evenly over that light's disc. Optionally adaptive: after a few samples, only points whose
+samples disagree (penumbrae) get the rest.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+
+from agrisim.scene import Light
+
+F32 = np.float32
+#: shadow rays stop this fraction of their length short of the light (a lamp's own housing
+#: must not shadow it): ``occluded`` tests the segment up to ``SHADOW_TFAR`` of its length
+SHADOW_TFAR = 1.0 - 1e-3
+#: points per area light that shadow rays aim at
+DISC_POINTS = 1024
+
+
+def _dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    return np.einsum("ij,ij->i", a, b)
+
+
+class LightTable:
+    """The scene's lights as arrays, and their irradiance at surface points."""
+
+    def __init__(self, lights: list[Light]) -> None:
+        self.n = len(lights)
+        self.kind = [light.kind for light in lights]
+        self.position = np.array([np.asarray(li.position, np.float64) for li in lights], F32).reshape(-1, 3)
+        d = np.array([np.asarray(li.direction, np.float64) for li in lights]).reshape(-1, 3)
+        norm = np.linalg.norm(d, axis=1, keepdims=True)
+        d = d / np.where(norm > 0, norm, 1.0)
+        self.direction = d.astype(F32)
+        self.color = np.array([li.color for li in lights], F32).reshape(-1, 3)
+        self.luminance = self.color.mean(axis=1)
+        #: colour per unit of the scalar weight (which uses the mean of the colour)
+        self.tint = (self.color / np.maximum(self.luminance, 1e-12)[:, None]).astype(F32)
+        #: all lights the same colour: irradiance is a scalar times that colour
+        self.uniform = bool(self.n == 0 or np.allclose(self.tint, self.tint[0]))
+        self.power = np.array([li.intensity for li in lights], F32) * self.luminance
+        self.radius = np.array([li.radius if li.kind == "area" else 0.0 for li in lights], F32)
+        cone = np.radians([min(max(li.cone_deg, 0.0), 180.0) for li in lights])
+        self.cos_outer = np.cos(cone).astype(F32)
+        self.cos_inner = np.cos(0.9 * cone).astype(F32)
+        # An orthonormal basis of each disc, for points on area lights.
+        e1 = np.cross(d, np.array([0.0, 0.0, 1.0]))
+        small = np.linalg.norm(e1, axis=1) < 1e-6
+        e1[small] = np.cross(d[small], np.array([1.0, 0.0, 0.0]))
+        e1 /= np.maximum(np.linalg.norm(e1, axis=1, keepdims=True), 1e-12)
+        e2 = np.cross(d, e1)
+        # Points where shadow rays aim: DISC_POINTS per light, uniform on area discs (a golden-
+        # angle spiral: stratified, no clumps), all at the position for spot and point lights.
+        k = np.arange(DISC_POINTS) + 0.5
+        r = np.sqrt(k / DISC_POINTS)[:, None]
+        phi = (k * np.pi * (3.0 - np.sqrt(5.0)))[:, None]
+        pts = [
+            np.asarray(li.position, np.float64) + self.radius[i] * r * (np.cos(phi) * e1[i] + np.sin(phi) * e2[i])
+            for i, li in enumerate(lights)
+        ]
+        self.targets = (np.concatenate(pts) if pts else np.zeros((0, 3))).astype(F32)
+
+    def weights(self, p: np.ndarray, n: np.ndarray) -> np.ndarray:
+        """Unshadowed scalar irradiance (L x K) of each light at points ``p`` (K x 3) with unit
+        normals ``n`` (from the centre of area lights; the mean of each light's colour)."""
+        w = np.empty((self.n, len(p)), F32)
+        for i in range(self.n):
+            lv = self.position[i] - p
+            r2 = _dot(lv, lv)
+            np.maximum(r2, F32(1e-12), out=r2)
+            cos_s = _dot(n, lv)  # x r
+            np.maximum(cos_s, 0.0, out=cos_s)
+            cos_e = np.einsum("ij,j->i", lv, -self.direction[i])  # x r (einsum: no BLAS threads)
+            if self.kind[i] == "area":
+                np.maximum(cos_e, 0.0, out=cos_e)
+                cos_s *= cos_e
+                r2 *= r2
+            else:
+                inv_r = 1.0 / np.sqrt(r2)
+                cos_s *= inv_r
+                if self.kind[i] == "spot":
+                    cos_e *= inv_r
+                    width = max(self.cos_inner[i] - self.cos_outer[i], 1e-6)
+                    x = np.clip((cos_e - self.cos_outer[i]) / width, 0.0, 1.0)
+                    cos_s *= x * x * (3.0 - 2.0 * x)
+            np.divide(cos_s, r2, out=w[i])
+            w[i] *= self.power[i]
+        return w
+
+    def irradiance(
+        self,
+        p: np.ndarray,
+        n: np.ndarray,
+        samples: int,
+        rng: np.random.Generator,
+        occluded: Callable[[np.ndarray], np.ndarray],
+        offset: float,
+        adaptive_after: int = 0,
+    ) -> np.ndarray:
+        """Irradiance (K x 3) at points ``p`` with normals ``n`` from all lights, with ``samples``
+        shadow rays per point (0: no shadows). ``occluded(rays)`` answers whether each ray
+        (K x 6: origin, origin-to-light segment) is blocked before ``SHADOW_TFAR``; shadow rays
+        start ``offset`` m off the surface along ``n``.
+
+        Sample j picks its light in stratum j of the points' light distribution (strata visited
+        in an order that spreads the first ones out), so each light gets its share of the rays.
+        With ``adaptive_after`` A (0 < A < samples), points where each light sampled so far was
+        either always seen or never after A samples take that answer (each light's unshadowed
+        irradiance times its visibility, no noise) and only the others (penumbrae) get the rest.
+        """
+        k = len(p)
+        out = np.zeros((k, 3), F32)
+        if not self.n:
+            return out
+        w = self.weights(p, n)
+        if samples <= 0:
+            if self.uniform:
+                return np.multiply(w.sum(axis=0)[:, None], self.tint[0], dtype=F32)
+            for i in range(self.n):
+                out += w[i][:, None] * self.tint[i]
+            return out
+        cum = np.cumsum(w, axis=0)
+        total = cum[-1]
+        lit = np.flatnonzero(total > 0)
+        if not len(lit):
+            return out
+        every = len(lit) == k
+        if not every:
+            cum, total = cum[:, lit], total[lit]
+        m = len(lit)
+        rays = np.empty((m, 6), F32)  # origins stay, segments change per sample
+        np.multiply(n if every else np.take(n, lit, axis=0), F32(offset), out=rays[:, :3])
+        rays[:, :3] += p if every else np.take(p, lit, axis=0)
+        acc = np.zeros(m if self.uniform else (m, 3), F32)  # sum of tint x visibility
+        adaptive = 0 < adaptive_after < samples
+        if adaptive:  # per light: samples taken and samples that saw it
+            seen = np.zeros((self.n, m), np.int16)
+            tried = np.zeros((self.n, m), np.int16)
+        active = None  # all points
+        rays_a = rays
+        total_a = total
+        for j, stratum in enumerate(_progressive_order(samples)):
+            if adaptive and j == adaptive_after:
+                # Points where every light sampled was always seen or never: those answers are
+                # final (lights not sampled yet count as seen as often as the others were).
+                mixed = ((seen > 0) & (seen < tried)).any(axis=0)
+                settled = np.flatnonzero(~mixed)
+                vis = seen[:, settled].astype(F32) / np.maximum(tried[:, settled], 1)
+                frac = seen[:, settled].sum(axis=0) / np.maximum(tried[:, settled].sum(axis=0), 1)
+                vis = np.where(tried[:, settled] > 0, vis, frac)
+                lit_by = np.diff(cum[:, settled], axis=0, prepend=0.0) * vis  # each light's weight x seen
+                early = (settled, lit_by.sum(axis=0) if self.uniform else np.einsum("lk,lc->kc", lit_by, self.tint))
+                active = np.flatnonzero(mixed)
+                if not len(active):
+                    break
+                cum, total_a, rays_a = cum[:, active], total[active], np.take(rays, active, axis=0)
+            ma = len(total_a)
+            light = np.zeros(ma, np.intp)
+            if self.n > 1:
+                u = (rng.random(ma, dtype=F32) + F32(stratum)) * (total_a / F32(samples))
+                for i in range(self.n - 1):
+                    light += u >= cum[i]
+            which = light * DISC_POINTS + rng.integers(0, DISC_POINTS, ma, dtype=np.intp)
+            np.subtract(np.take(self.targets, which, axis=0), rays_a[:, :3], out=rays_a[:, 3:])
+            visible = ~occluded(rays_a)
+            contribution = visible if self.uniform else np.take(self.tint, light, axis=0) * visible[:, None]
+            if active is None:
+                acc += contribution
+                if adaptive:
+                    cols = np.arange(ma)
+                    tried[light, cols] += 1
+                    seen[light, cols] += visible
+            else:
+                acc[active] += contribution
+        result = acc * (total / F32(samples)) if self.uniform else acc * (total / F32(samples))[:, None]
+        if adaptive and j >= adaptive_after:
+            result[early[0]] = early[1]
+        if self.uniform:
+            result = result[:, None] * self.tint[0]
+        if every:
+            return result.astype(F32, copy=False)
+        out[lit] = result
+        return out
+
+
+def _progressive_order(n: int) -> list[int]:
+    """The strata 0..n-1 in an order whose every prefix is spread out (by the base-2 radical
+    inverse of each stratum's index)."""
+
+    def radical_inverse(i: int) -> float:
+        r, f = 0.0, 0.5
+        while i:
+            r += f * (i & 1)
+            i >>= 1
+            f *= 0.5
+        return r
+
+    return sorted(range(n), key=radical_inverse)
