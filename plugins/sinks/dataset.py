@@ -11,6 +11,7 @@ atomically; a frame is listed in ``run.json`` only once all its files exist.
 from __future__ import annotations
 
 import io
+from concurrent.futures import Future, ThreadPoolExecutor
 import platform
 import sys
 from dataclasses import asdict
@@ -25,7 +26,7 @@ from agrisim import BackendSpec, __version__, hookimpl
 from agrisim.assets import export_glb
 from agrisim.atomic import write_bytes, write_json
 from agrisim.episode import Run, RunSummary, SetpointResult
-from agrisim.interfaces import Capture
+from agrisim.interfaces import CameraModel, Capture
 
 #: distributions whose versions a run records
 VERSIONED = (
@@ -62,10 +63,16 @@ def depth_to_mm(depth: np.ndarray) -> np.ndarray:
     return np.clip(mm, 0, 65535).astype(np.uint16)
 
 
-def write_png(path: Path, image: np.ndarray) -> None:
-    """A PNG of a uint8 (grey or RGB) or uint16 (grey) image, written atomically."""
+def write_png(path: Path, image: np.ndarray, palette: np.ndarray | None = None) -> None:
+    """A PNG of a uint8 (grey or RGB) or uint16 (grey) image, written atomically; with a
+    ``palette`` (256 x 3 uint8) a uint8 image is written as an indexed-colour PNG."""
     buffer = io.BytesIO()
-    Image.fromarray(np.ascontiguousarray(image)).save(buffer, format="PNG", compress_level=1)
+    if palette is not None:
+        im = Image.fromarray(np.ascontiguousarray(image, dtype=np.uint8), mode="P")
+        im.putpalette(np.asarray(palette, np.uint8).ravel().tolist())
+    else:
+        im = Image.fromarray(np.ascontiguousarray(image))
+    im.save(buffer, format="PNG", compress_level=1)
     write_bytes(path, buffer.getvalue())
 
 
@@ -78,13 +85,21 @@ def _result_row(r: SetpointResult) -> dict[str, Any]:
 
 
 class DatasetSink:
-    """Writes ``run.json`` and ``cameras.json`` under the run's output directory."""
+    """Writes the run's files under its output directory.
+
+    Images are encoded and written by one background thread (PNG encoding releases the GIL),
+    so the next frame renders meanwhile. A frame enters ``cameras.json`` and ``run.json``'s
+    ``frames_complete`` only once all its files are on disk.
+    """
 
     def __init__(self, run: Run) -> None:
         self.out = run.out_dir
         self.frames: dict[str, dict[str, Any]] = {}
         self.status = "running"
         self.summary: dict[str, Any] | None = None
+        self.camera: CameraModel | None = None
+        self._writer = ThreadPoolExecutor(max_workers=1, thread_name_prefix="agrisim-dataset")
+        self._pending: list[tuple[Future[None], str, dict[str, Any]]] = []
 
     def _run_json(self, run: Run) -> dict[str, Any]:
         return {
@@ -108,7 +123,37 @@ class DatasetSink:
             "summary": self.summary,
         }
 
+    def _collect(self, wait: bool = False) -> bool:
+        """Move frames whose files are written into the index; True if any moved."""
+        moved = False
+        still = []
+        for future, frame, entry in self._pending:
+            if wait or future.done():
+                future.result()  # a failed write fails the run here, not silently
+                self.frames[frame] = entry
+                moved = True
+            else:
+                still.append((future, frame, entry))
+        self._pending = still
+        if moved:
+            self._write_cameras()
+        return moved
+
+    def _write_cameras(self) -> None:
+        cam = self.camera
+        if cam is None:
+            return
+        write_json(
+            self.out / "cameras.json",
+            {
+                "convention": "OpenCV (x right, y down, z forward); pixel centres at integer coordinates",
+                "intrinsics": {"width": cam.width, "height": cam.height, "K": cam.K.tolist(), "hfov_deg": cam.hfov_deg},
+                "frames": dict(sorted(self.frames.items())),
+            },
+        )
+
     def _write(self, run: Run) -> None:
+        self._collect()
         write_json(self.out / "run.json", self._run_json(run))
 
     @hookimpl
@@ -122,50 +167,44 @@ class DatasetSink:
     def agrisim_setpoint(self, run: Run, robot: str, result: SetpointResult) -> None:
         self._write(run)
 
-    def _write_images(self, run: Run, capture: Capture) -> None:
-        images = capture.images
-        name = f"{capture.frame}.png"
-        if "rgb" in images:
-            write_png(self.out / "rgb" / name, images["rgb"])
-        if "labels" in images:
-            write_png(self.out / "labels" / name, images["labels"])
-            palette = run.labels.palette() if run.labels is not None else None
-            if palette is not None:
-                write_png(self.out / "labels_vis" / name, palette[images["labels"]])
-        if "depth" in images:
-            write_png(self.out / "depth" / name, depth_to_mm(images["depth"]))
-        if images.get("instances") is not None:
-            write_png(self.out / "instances" / name, images["instances"].astype(np.uint16))
-
     @hookimpl
     def agrisim_capture(self, run: Run, capture: Capture) -> None:
-        self._write_images(run, capture)
-        self.frames[capture.frame] = {
+        self.camera = capture.camera
+        palette = run.labels.palette() if run.labels is not None else None
+        entry = {
             "robot": capture.robot,
             "setpoint": capture.setpoint,
             "sim_time": round(capture.sim_time, 6),
             "world_T_camera": np.round(capture.world_T_camera, 12).tolist(),
         }
-        cam = capture.camera
-        write_json(
-            self.out / "cameras.json",
-            {
-                "convention": "OpenCV (x right, y down, z forward); pixel centres at integer coordinates",
-                "intrinsics": {
-                    "width": cam.width,
-                    "height": cam.height,
-                    "K": cam.K.tolist(),
-                    "hfov_deg": cam.hfov_deg,
-                },
-                "frames": dict(sorted(self.frames.items())),
-            },
-        )
+        future = self._writer.submit(write_frame, self.out, capture.frame, dict(capture.images), palette)
+        self._pending.append((future, capture.frame, entry))
+        self._collect()
 
     @hookimpl
     def agrisim_run_finished(self, run: Run, summary: RunSummary) -> None:
-        self.status = summary.status
-        self.summary = summary.to_dict()
-        self._write(run)
+        try:
+            self._collect(wait=True)
+        finally:
+            self._writer.shutdown(wait=True)
+            self.status = summary.status
+            self.summary = summary.to_dict()
+            write_json(self.out / "run.json", self._run_json(run))
+
+
+def write_frame(out: Path, frame: str, images: dict[str, np.ndarray], palette: np.ndarray | None) -> None:
+    """One frame's image files (rgb, labels, labels_vis, depth, instances), each atomic."""
+    name = f"{frame}.png"
+    if "rgb" in images:
+        write_png(out / "rgb" / name, images["rgb"])
+    if "labels" in images:
+        write_png(out / "labels" / name, images["labels"])
+        if palette is not None:
+            write_png(out / "labels_vis" / name, images["labels"], palette=palette)
+    if "depth" in images:
+        write_png(out / "depth" / name, depth_to_mm(images["depth"]))
+    if images.get("instances") is not None:
+        write_png(out / "instances" / name, images["instances"].astype(np.uint16))
 
 
 @hookimpl
