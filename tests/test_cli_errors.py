@@ -29,6 +29,7 @@ def workdir(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
     (tmp_path / "unknown_key.toml").write_text("[routine]\nsetpoints = '1x1'\nbogus = 1\n")
     (tmp_path / "rrd_both.toml").write_text("[output]\nrrd = 'x.rrd'\nno_rrd = true\n")
     (tmp_path / "afile").write_text("a regular file\n")
+    (tmp_path / "garbage.glb").write_bytes(b"this is not a glTF file at all")
     (tmp_path / "existing").mkdir()
     (tmp_path / "existing" / "keep.txt").write_text("precious results\n")
     (tmp_path / "cwd").mkdir()
@@ -119,6 +120,20 @@ CASES = [
     pytest.param(["--config", "{tmp}/rrd_both.toml"], ["--rrd", "--no-rrd"], id="rrd-and-no-rrd-in-config"),
     pytest.param(["--set", "output.resume=true"], ["unknown setting 'output.resume'"], id="resume-not-yet-a-setting"),
     pytest.param(["--nope"], ["--nope"], id="unknown-flag"),
+    pytest.param(["--plant", "nope"], ["unknown plant 'nope'", "boxwood", ".glb"], id="unknown-species"),
+    pytest.param(["--plant", "{tmp}/garbage.glb"], ["garbage.glb"], id="unreadable-asset"),
+    pytest.param(["--plant", "{tmp}/missing.obj"], ["missing.obj"], id="missing-asset"),
+    pytest.param(["--shadow-samples", "33"], ["render.shadow_samples", "32"], id="shadow-samples-too-many"),
+    pytest.param(["--shadow-samples", "-1"], ["render.shadow_samples"], id="shadow-samples-negative"),
+    pytest.param(["--resolution", "0x0"], ["resolution", "0x0"], id="resolution-zero"),
+    pytest.param(["--set", "plant_file.alpha_cutoff=1.5"], ["plant_file.alpha_cutoff", "1"], id="alpha-cutoff-above-1"),
+    pytest.param(["--seg-mode", "paint"], ["--seg-mode", "texture", "repopa"], id="unknown-seg-mode"),
+    pytest.param(["--renderer", "nope"], ["renderer", "'nope'", "raycast"], id="unknown-renderer"),
+    pytest.param(
+        ["--renderer", "pybullet", "--labels", "organs", "--plant", "hydrangea"],
+        ["pybullet", "--labels plant"],
+        id="pybullet-renderer-has-no-organs",
+    ),
 ]
 
 
