@@ -21,11 +21,12 @@ from typing import Any
 
 import numpy as np
 import pluggy
+from pydantic import BaseModel
 
 from agrisim.assets import FORMATS, load_plant
 from agrisim.camera import preset
 from agrisim.cell import Cell, build_cell
-from agrisim.config import RunConfig, backend_options
+from agrisim.config import BackendChoice, RunConfig, backend_options
 from agrisim.errors import OutputError, UserError
 from agrisim.geometry import pose_error
 from agrisim.interfaces import (
@@ -42,7 +43,7 @@ from agrisim.kinematics import ArmKinematics
 from agrisim.lab import build_scene
 from agrisim.planning import segment_is_valid
 from agrisim.scene import LabelTable, Plant, Scene
-from agrisim.registry import Registry, make_plugin_manager
+from agrisim.registry import BackendSpec, Registry, make_plugin_manager
 from agrisim.setpoints import Setpoint, routine
 from agrisim.timing import Limits, TimedPath, time_parametrize
 
@@ -118,18 +119,8 @@ class Episode:
         self.pm = pm if pm is not None else make_plugin_manager()
         self.registry = Registry(self.pm)
         self._prep_wall: dict[str, float] = {}
-        self.physics_spec = self.registry.get("physics", config.physics.backend)
-        self.planner_spec = self.registry.get("planner", config.planner.backend)
-        self.physics_options = backend_options(
-            self.physics_spec.options_model,
-            config.physics.options_for(self.physics_spec.name),
-            f"physics backend {self.physics_spec.name!r}",
-        )
-        self.planner_options = backend_options(
-            self.planner_spec.options_model,
-            config.planner.options_for(self.planner_spec.name),
-            f"planner {self.planner_spec.name!r}",
-        )
+        self.physics_spec, self.physics_options = self._backend("physics", config.physics)
+        self.planner_spec, self.planner_options = self._backend("planner", config.planner)
         self.out_dir = resolve_out_dir(config)  # before the slow parts: fail fast
         self.cell = build_cell(config.cell)
         self.setpoints = routine(self.cell, config.routine)
@@ -149,18 +140,19 @@ class Episode:
         self.renderer_spec = None
         self.scene: Scene | None = None
         if config.renderer.backend != "none":
-            self.renderer_spec = self.registry.get("renderer", config.renderer.backend)
-            self.renderer_options = backend_options(
-                self.renderer_spec.options_model,
-                config.renderer.options_for(self.renderer_spec.name),
-                f"renderer {self.renderer_spec.name!r}",
-            )
+            self.renderer_spec, self.renderer_options = self._backend("renderer", config.renderer)
             with _timed(self._prep_wall, "plant"):
                 self.plant = resolve_plant(self.registry, config)
             with _timed(self._prep_wall, "scene"):
                 self.scene = build_scene(
                     self.cell, self.plant, pcg_seed=config.pcg_seed, labels=config.render.labels
                 )
+
+    def _backend(self, kind: str, choice: BackendChoice) -> tuple[BackendSpec, BaseModel]:
+        """The chosen backend of ``kind`` and its options, validated by its own model."""
+        spec = self.registry.get(kind, choice.backend)
+        options = backend_options(spec.options_model, choice.options_for(spec.name), f"{kind} backend {spec.name!r}")
+        return spec, options
 
     # ------------------------------------------------------------------ running
     def run(self, progress: Callable[[int, int], None] | None = None) -> tuple[Run, RunSummary]:
