@@ -7,6 +7,8 @@ value is analytic or recomputed independently with Open3D and :mod:`agrisim.text
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import open3d as o3d
 import pytest
@@ -16,6 +18,7 @@ from agrisim.camera import from_fov
 from agrisim.config import RenderConfig
 from agrisim.interfaces import CameraModel
 from agrisim.scene import Label, LabelTable, Light, Material, Mesh, Scene
+from agrisim.plugins.render.materials import SRGB_TO_LINEAR, MaterialTable
 from agrisim.plugins.render.raycast import RaycastOptions, RaycastRenderer
 
 CAMERA = from_fov(60.0, 160, 120)
@@ -328,6 +331,31 @@ def test_single_sided_back_faces_are_culled(cell):
     assert frame.depth[60, 80] == pytest.approx(2.2, abs=1e-5)
 
 
+def test_bilinear_albedo_wraps_like_a_direct_lookup():
+    """The packed albedo table (linear, colour factor applied, padded for bilinear lookups)
+    gives what a direct bilinear lookup in linear light with wrapped texel indices gives, also
+    at the texture's edges and for UVs outside [0, 1); untextured materials give their colour."""
+    rng = np.random.default_rng(3)
+    texture = rng.integers(0, 256, (5, 7, 4), dtype=np.uint8)
+    mats = MaterialTable()
+    textured = mats.add(Material("t", color=(0.5, 1.0, 0.25, 1.0), albedo=texture))
+    plain = mats.add(Material("plain", color=(0.2, 0.4, 0.6, 1.0)))
+    mats.finish()
+    uv = rng.uniform(-2.0, 3.0, (2000, 2)).astype(np.float32)
+    uv[:4] = [[0.0, 0.0], [1.0, 1.0], [0.999, 0.5], [-0.001, 0.2]]
+    linear = SRGB_TO_LINEAR[texture[..., :3]].astype(np.float64) * (0.5, 1.0, 0.25)
+    f = uv.astype(np.float64) * (7, 5) - 0.5
+    x0, y0 = np.floor(f).astype(int).T
+    ax, ay = (f - np.floor(f)).T[..., None]
+    x1, y1, x0, y0 = (x0 + 1) % 7, (y0 + 1) % 5, x0 % 7, y0 % 5
+    expected = (linear[y0, x0] * (1 - ax) + linear[y0, x1] * ax) * (1 - ay) + (
+        linear[y1, x0] * (1 - ax) + linear[y1, x1] * ax
+    ) * ay
+    np.testing.assert_allclose(mats.albedo(uv, np.full(len(uv), textured)), expected, atol=2e-6)
+    got = mats.albedo(uv, np.full(len(uv), plain))
+    np.testing.assert_array_equal(got, np.broadcast_to(np.float32([0.2, 0.4, 0.6]), got.shape))
+
+
 # ------------------------------------------------------------------------------ shading
 
 
@@ -446,3 +474,29 @@ def test_arms_are_drawn_at_their_link_poses(cell, kin):
     moved = dict(poses, r1=kin["r1"].link_poses(q))
     other = renderer(scene, cell, shadow_samples=0, hide_robots=False).render(CAMERA, T, moved)
     assert ((other.depth > 0) != (seen.depth > 0)).mean() > 0.01
+
+
+def test_arms_merged_with_the_scene_or_apart_give_the_same_images(cell, kin):
+    """``merge_limit`` only decides how the arms are cast (one Embree scene with the static
+    meshes, or one of their own whose nearer hits win): the same labels and depth, and the
+    same RGB but for rounding (the arms' shadows on a cut-out card and a floor included)."""
+    poses = {a.name: kin[a.name].link_poses(np.array(a.home)) for a in cell.arms}
+    elbow = poses["r1"]["forearm_link"][:3, 3]
+    scene = shadow_scene(True)
+    for mesh in scene.meshes:
+        mesh.vertices = mesh.vertices + [elbow[0], elbow[1], 0.0]
+    light = dataclasses.replace(scene.lights[0], position=elbow + [0.0, 0.0, 1.5])
+    scene = Scene(scene.meshes, [light], scene.labels, plant="plant")
+    T = look_at(elbow + np.array([0.3, -1.8, 0.9]), [elbow[0], elbow[1], 0.3])
+    apart, merged, hidden = (
+        renderer(scene, cell, RaycastOptions(merge_limit=limit), shadow_samples=2, hide_robots=hide).render(
+            CAMERA, T, poses
+        )
+        for limit, hide in ((0, False), (10**6, False), (0, True))
+    )
+    assert (apart.labels > 0).mean() > 0.005  # the card
+    assert (apart.depth != hidden.depth).mean() > 0.01  # an arm ...
+    assert (apart.rgb != hidden.rgb).any(-1).mean() > 0.05  # ... and its shadow
+    np.testing.assert_array_equal(apart.labels, merged.labels)
+    np.testing.assert_array_equal(apart.depth, merged.depth)
+    assert np.abs(apart.rgb.astype(int) - merged.rgb).max() <= 1

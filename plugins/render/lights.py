@@ -17,7 +17,7 @@ samples disagree (penumbrae) get the rest.
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 
 import numpy as np
 
@@ -29,10 +29,10 @@ F32 = np.float32
 SHADOW_TFAR = 1.0 - 1e-3
 #: points per area light that shadow rays aim at
 DISC_POINTS = 1024
-
-
-def _dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    return np.einsum("ij,ij->i", a, b)
+#: points whose per-point arithmetic runs together (here and in the renderer): the scratch
+#: arrays of a chunk stay in cache, and each numpy call still does enough work that the two
+#: worker threads, which hand the GIL to each other between calls, are seldom kept waiting
+CHUNK = 1 << 15
 
 
 class LightTable:
@@ -74,19 +74,31 @@ class LightTable:
         ]
         self.targets = (np.concatenate(pts) if pts else np.zeros((0, 3))).astype(F32)
 
-    def weights(self, p: np.ndarray, n: np.ndarray) -> np.ndarray:
-        """Unshadowed scalar irradiance (L x K) of each light at points ``p`` (K x 3) with unit
-        normals ``n`` (from the centre of area lights; the mean of each light's colour)."""
-        w = np.empty((self.n, len(p)), F32)
+    def weights(self, p: np.ndarray, n: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
+        """Unshadowed scalar irradiance (L x K) of each light at points ``p`` (3 x K, one row per
+        coordinate) with unit normals ``n`` (3 x K) (from the centre of area lights; the mean of
+        each light's colour).
+
+        Coordinates come as rows, not as K x 3, and every step writes into a scratch buffer:
+        each is then one pass of a vector loop over K floats, which for the few thousand points
+        of a renderer's chunk stay in cache (this is the renderer's busiest numpy code)."""
+        k = p.shape[1]
+        w = np.empty((self.n, k), F32) if out is None else out
+        lv = np.empty((3, k), F32)  # point -> light (centre)
+        prod = np.empty((3, k), F32)
+        r2, cos_s, cos_e = np.empty(k, F32), np.empty(k, F32), np.empty(k, F32)
         for i in range(self.n):
-            lv = self.position[i] - p
-            r2 = _dot(lv, lv)
+            np.subtract(self.position[i][:, None], p, out=lv)
+            np.multiply(lv, lv, out=prod)
+            np.sum(prod, axis=0, out=r2)
             np.maximum(r2, F32(1e-12), out=r2)
-            cos_s = _dot(n, lv)  # x r
-            np.maximum(cos_s, 0.0, out=cos_s)
-            cos_e = np.einsum("ij,j->i", lv, -self.direction[i])  # x r (einsum: no BLAS threads)
+            np.multiply(n, lv, out=prod)
+            np.sum(prod, axis=0, out=cos_s)  # x r
+            np.maximum(cos_s, F32(0.0), out=cos_s)
+            np.multiply(lv, -self.direction[i][:, None], out=prod)
+            np.sum(prod, axis=0, out=cos_e)  # x r
             if self.kind[i] == "area":
-                np.maximum(cos_e, 0.0, out=cos_e)
+                np.maximum(cos_e, F32(0.0), out=cos_e)
                 cos_s *= cos_e
                 r2 *= r2
             else:
@@ -103,53 +115,61 @@ class LightTable:
 
     def irradiance(
         self,
-        p: np.ndarray,
-        n: np.ndarray,
+        w: np.ndarray,
+        origins: np.ndarray | None,
         samples: int,
         rng: np.random.Generator,
         occluded: Callable[[np.ndarray], np.ndarray],
-        offset: float,
         adaptive_after: int = 0,
     ) -> np.ndarray:
-        """Irradiance (K x 3) at points ``p`` with normals ``n`` from all lights, with ``samples``
-        shadow rays per point (0: no shadows). ``occluded(rays)`` answers whether each ray
-        (K x 6: origin, origin-to-light segment) is blocked before ``SHADOW_TFAR``; shadow rays
-        start ``offset`` m off the surface along ``n``.
+        """Irradiance (3 x K: rows of R, G and B) at points whose unshadowed :meth:`weights` are
+        ``w`` (L x K; overwritten), with ``samples`` shadow rays per point (0: no shadows).
+        Shadow rays start at ``origins`` (3 x K, just off each surface); ``occluded(rays)``
+        answers whether each ray (M x 6: origin, origin-to-light segment) is blocked before
+        ``SHADOW_TFAR``.
 
         Sample j picks its light in stratum j of the points' light distribution (strata visited
         in an order that spreads the first ones out), so each light gets its share of the rays.
         With ``adaptive_after`` A (0 < A < samples), points where each light sampled so far was
         either always seen or never after A samples take that answer (each light's unshadowed
         irradiance times its visibility, no noise) and only the others (penumbrae) get the rest.
+
+        The random numbers of a sample are drawn for all its points at once (the stream does not
+        depend on chunking); the arithmetic around them runs chunk by chunk (``CHUNK`` points),
+        as large temporaries cost page faults as well as cache misses.
         """
-        k = len(p)
-        out = np.zeros((k, 3), F32)
+        k = w.shape[1]
         if not self.n:
-            return out
-        w = self.weights(p, n)
+            return np.zeros((3, k), F32)
         if samples <= 0:
             if self.uniform:
-                return np.multiply(w.sum(axis=0)[:, None], self.tint[0], dtype=F32)
+                return np.multiply(self.tint[0][:, None], w.sum(axis=0), dtype=F32)
+            out = np.zeros((3, k), F32)
             for i in range(self.n):
-                out += w[i][:, None] * self.tint[i]
+                out += self.tint[i][:, None] * w[i]
             return out
-        cum = np.cumsum(w, axis=0)
+        cum = w
+        for i in range(1, self.n):  # cumulative over the lights (np.cumsum along axis 0 is slow)
+            cum[i] += cum[i - 1]
         total = cum[-1]
-        lit = np.flatnonzero(total > 0)
+        lit = np.flatnonzero(total > 0)  # the points any light reaches: the others stay black
         if not len(lit):
-            return out
+            return np.zeros((3, k), F32)
         every = len(lit) == k
         if not every:
-            cum, total = cum[:, lit], total[lit]
+            cum, total = np.take(cum, lit, axis=1), total[lit]
         m = len(lit)
         rays = np.empty((m, 6), F32)  # origins stay, segments change per sample
-        np.multiply(n if every else np.take(n, lit, axis=0), F32(offset), out=rays[:, :3])
-        rays[:, :3] += p if every else np.take(p, lit, axis=0)
-        acc = np.zeros(m if self.uniform else (m, 3), F32)  # sum of tint x visibility
+        for x in range(3):  # column by column: long loops (a K x 3 op loops over threes)
+            rays[:, x] = origins[x] if every else np.take(origins[x], lit)
         adaptive = 0 < adaptive_after < samples
         if adaptive:  # per light: samples taken and samples that saw it
             seen = np.zeros((self.n, m), np.int16)
             tried = np.zeros((self.n, m), np.int16)
+        # Sum of tint x visibility: a scalar per point when all lights have one colour, else
+        # rows of R, G and B (the channels of the same points stay together in memory).
+        acc = np.zeros(m if self.uniform else (3, m), F32)
+        tint_rows = np.ascontiguousarray(self.tint.T)
         active = None  # all points
         rays_a = rays
         total_a = total
@@ -163,38 +183,76 @@ class LightTable:
                 frac = seen[:, settled].sum(axis=0) / np.maximum(tried[:, settled].sum(axis=0), 1)
                 vis = np.where(tried[:, settled] > 0, vis, frac)
                 lit_by = np.diff(cum[:, settled], axis=0, prepend=0.0) * vis  # each light's weight x seen
-                early = (settled, lit_by.sum(axis=0) if self.uniform else np.einsum("lk,lc->kc", lit_by, self.tint))
+                early = (settled, lit_by.sum(axis=0) if self.uniform else np.einsum("lk,lc->ck", lit_by, self.tint))
                 active = np.flatnonzero(mixed)
                 if not len(active):
                     break
-                cum, total_a, rays_a = cum[:, active], total[active], np.take(rays, active, axis=0)
+                cum, total_a, rays_a = np.take(cum, active, axis=1), total[active], np.take(rays, active, axis=0)
             ma = len(total_a)
-            light = np.zeros(ma, np.intp)
-            if self.n > 1:
-                u = (rng.random(ma, dtype=F32) + F32(stratum)) * (total_a / F32(samples))
-                for i in range(self.n - 1):
-                    light += u >= cum[i]
-            which = light * DISC_POINTS + rng.integers(0, DISC_POINTS, ma, dtype=np.intp)
-            np.subtract(np.take(self.targets, which, axis=0), rays_a[:, :3], out=rays_a[:, 3:])
+            u = rng.random(ma, dtype=F32) if self.n > 1 else None
+            pick = rng.integers(0, DISC_POINTS, ma, dtype=np.intp)  # a point on the light
+            light = np.zeros(ma, np.uint8 if self.n < 256 else np.intp)  # (small: cheap to count into)
+            for c in chunks(ma):
+                lc = light[c]
+                if u is not None:
+                    uc = u[c]
+                    uc += F32(stratum)
+                    uc *= total_a[c] / F32(samples)
+                    for i in range(self.n - 1):
+                        lc += uc >= cum[i, c]
+                which = lc.astype(np.intp)
+                which *= DISC_POINTS
+                which += pick[c]
+                target = np.take(self.targets, which, axis=0)
+                rc = rays_a[c]
+                for x in range(3):  # column by column: long loops (a K x 3 op loops over threes)
+                    np.subtract(target[:, x], rc[:, x], out=rc[:, 3 + x])
             visible = ~occluded(rays_a)
-            contribution = visible if self.uniform else np.take(self.tint, light, axis=0) * visible[:, None]
-            if active is None:
-                acc += contribution
-                if adaptive:
-                    cols = np.arange(ma)
-                    tried[light, cols] += 1
-                    seen[light, cols] += visible
-            else:
-                acc[active] += contribution
-        result = acc * (total / F32(samples)) if self.uniform else acc * (total / F32(samples))[:, None]
+            if active is None and adaptive:
+                cols = np.arange(ma)
+                tried[light, cols] += 1
+                seen[light, cols] += visible
+            if self.uniform:
+                if active is None:
+                    acc += visible
+                else:
+                    acc[active] += visible
+                continue
+            for c in chunks(ma):
+                contribution = np.take(tint_rows, light[c], axis=1)
+                contribution *= visible[c]
+                if active is None:
+                    acc[:, c] += contribution
+                else:
+                    acc[:, active[c]] += contribution
+        acc *= total / F32(samples)
         if adaptive and j >= adaptive_after:
-            result[early[0]] = early[1]
+            if self.uniform:
+                acc[early[0]] = early[1]
+            else:
+                acc[:, early[0]] = early[1]
         if self.uniform:
-            result = result[:, None] * self.tint[0]
+            if not every:  # back to all points (1-D scatters: fast, unlike scattering rows)
+                acc = _spread(acc, lit, k)
+            return np.multiply(self.tint[0][:, None], acc, dtype=F32)
         if every:
-            return result.astype(F32, copy=False)
-        out[lit] = result
+            return acc
+        out = np.zeros((3, k), F32)
+        for x in range(3):
+            out[x, lit] = acc[x]
         return out
+
+
+def chunks(n: int) -> Iterator[slice]:
+    """Slices of ``range(n)``, ``CHUNK`` long (the last one shorter)."""
+    return (slice(i, min(i + CHUNK, n)) for i in range(0, n, CHUNK))
+
+
+def _spread(values: np.ndarray, index: np.ndarray, k: int) -> np.ndarray:
+    """A length-``k`` array of zeros with ``values`` at ``index``."""
+    out = np.zeros(k, values.dtype)
+    out[index] = values
+    return out
 
 
 def _progressive_order(n: int) -> list[int]:

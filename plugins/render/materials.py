@@ -1,11 +1,17 @@
 """Materials packed for vectorised lookups at ray hits.
 
-Every material's albedo and label textures go into two flat buffers, so that the texels of hits on
-any mix of materials are one gather: ``index = offset[m] + row * width[m] + col``. Untextured
-materials get a 1 x 1 texture (white albedo, their constant label). The texel arithmetic is that of
-:func:`agrisim.texturing.texel_index` (float64 product, floor, wrap) and opacity is compared in
-8 bits as :func:`agrisim.texturing.opaque` does, so a renderer using this table labels exactly
-the texels the core's functions name.
+Every material's albedo and label textures go into flat buffers, so that the texels of hits on
+any mix of materials are one gather: ``index = offset[m] + row * stride[m] + col``. The texel
+arithmetic for labels and opacity is that of :func:`agrisim.texturing.texel_index` (float64
+product, floor, wrap) and opacity is compared in 8 bits as :func:`agrisim.texturing.opaque` does,
+so a renderer using this table labels exactly the texels the core's functions name.
+
+Albedo is stored ready to shade: linear float32 RGB, already multiplied by the material's colour
+factor (one copy per texture and colour), each texture padded with a wrapped copy of its first
+column and row, so the four texels of a bilinear lookup are ``i, i + 1, i + stride, i + stride +
+1`` with no wrapping per hit. An untextured material gets a 1 x 1 texture of its colour (alpha
+255), so every hit takes the same path. Label textures are stored as they are (one byte a texel;
+an unlabelled material gets its constant label as a 1 x 1 texture).
 """
 
 from __future__ import annotations
@@ -26,11 +32,29 @@ def alpha_threshold(material: Material) -> int:
     """Smallest 8-bit texture alpha that ``material`` keeps (0 when opacity cuts nothing; 256
     when it keeps nothing). glTF: alpha is the texel's times the colour factor's, compared with
     the same float operations as :func:`agrisim.texturing.opaque`; an untextured material reads
-    the table's white texel (alpha 255)."""
+    a white texel (alpha 255)."""
     if not material.cuts:
         return 0
     ok = np.arange(256, dtype=np.float64) / 255.0 * float(material.color[3]) >= material.alpha_cutoff
     return int(np.argmax(ok)) if ok.any() else 256
+
+
+def _corner(u: np.ndarray, size: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Bilinear lookup along one axis: (first texel, as float32 in [0, size), weight of the next).
+
+    The texel is ``floor(u * size - 0.5)`` wrapped; the wrap is float arithmetic (``x - floor(x
+    / size) * size`` is exact for texel numbers below 2**24: the quotient of an exact multiple is
+    exact, any other is at least 1 / size from an integer) because integer ``%`` costs several
+    times more."""
+    f = u * size
+    f -= F32(0.5)
+    x = np.floor(f)
+    f -= x  # weight of the next texel
+    q = x / size
+    np.floor(q, out=q)
+    q *= size
+    x -= q
+    return x, f
 
 
 class MaterialTable:
@@ -39,27 +63,26 @@ class MaterialTable:
 
     def __init__(self) -> None:
         self.materials: list[Material] = []
-        self._alb: list[np.ndarray] = [np.full((1, 4), 255, np.uint8)]  # shared white texel
-        self._alb_size = 1
+        self._alb: list[tuple[np.ndarray | None, np.ndarray]] = []  # (texture or None, colour)
+        self._alb_size = 0
+        self._alb_at: dict[tuple, int] = {}  # (id(texture), colour) -> offset
         self._lab: list[np.ndarray] = []
         self._lab_size = 0
-        self._alb_at: dict[int, int] = {}
         self._lab_at: dict[int, tuple[int, int]] = {}  # id(texture) -> (offset, most common non-zero)
         self._const_at: dict[int, int] = {}
         self._rows: list[tuple] = []
 
     def add(self, m: Material) -> int:
-        """Index of ``m`` in the table (textures shared between materials are stored once)."""
-        if m.albedo is not None:
-            key = id(m.albedo)
-            if key not in self._alb_at:
-                self._alb_at[key] = self._alb_size
-                flat = np.ascontiguousarray(m.albedo).reshape(-1, 4)
-                self._alb.append(flat)
-                self._alb_size += len(flat)
-            alb = (self._alb_at[key], *m.albedo.shape[:2])
-        else:
-            alb = (0, 1, 1)
+        """Index of ``m`` in the table (textures shared between materials of the same colour are
+        stored once)."""
+        colour = np.asarray(m.color, np.float64)[:3].astype(F32)
+        h, w = m.albedo.shape[:2] if m.albedo is not None else (1, 1)
+        key = (id(m.albedo) if m.albedo is not None else None, colour.tobytes())
+        if key not in self._alb_at:
+            self._alb_at[key] = self._alb_size
+            self._alb.append((m.albedo, colour))
+            self._alb_size += (h + 1) * (w + 1)
+        alb = (self._alb_at[key], h, w)
         if m.labels is not None:
             key = id(m.labels)
             if key not in self._lab_at:
@@ -79,44 +102,58 @@ class MaterialTable:
                 self._lab_size += 1
             lab, common = (self._const_at[m.label], 1, 1), int(m.label)
         self.materials.append(m)
-        self._rows.append((alb, lab, alpha_threshold(m), common, m.double_sided, m.color, m.albedo is not None))
+        self._rows.append((alb, lab, alpha_threshold(m), common, m.double_sided))
         return len(self.materials) - 1
 
     def finish(self) -> None:
         rows = self._rows
-        flat = np.concatenate(self._alb)
-        self.alb_rgb = np.ascontiguousarray(flat[:, :3])
-        self.alb_alpha = np.ascontiguousarray(flat[:, 3])
+        # Albedo: linear light x colour factor, each texture padded by a wrapped column and row.
+        self.alb_rgb = np.empty((max(self._alb_size, 1), 3), F32)
+        self.alb_alpha = np.full(max(self._alb_size, 1), 255, np.uint8)
+        off = 0
+        for texture, colour in self._alb:
+            if texture is None:
+                self.alb_rgb[off : off + 4] = colour
+                off += 4
+                continue
+            h, w = texture.shape[:2]
+            padded = np.asarray(texture)[np.arange(h + 1) % h][:, np.arange(w + 1) % w].reshape(-1, 4)
+            n = len(padded)
+            np.multiply(SRGB_TO_LINEAR[padded[:, :3]], colour, out=self.alb_rgb[off : off + n])
+            self.alb_alpha[off : off + n] = padded[:, 3]
+            off += n
         self.lab_flat = np.concatenate(self._lab) if self._lab else np.zeros(1, np.uint8)
         col = lambda i, j, dtype: np.array([r[i][j] for r in rows], dtype)  # noqa: E731
         self.alb_off, self.alb_h, self.alb_w = col(0, 0, np.int64), col(0, 1, np.int64), col(0, 2, np.int64)
+        self.alb_stride = self.alb_w + 1
+        self.alb_hf, self.alb_wf = self.alb_h.astype(F32), self.alb_w.astype(F32)
         self.lab_off, self.lab_h, self.lab_w = col(1, 0, np.int64), col(1, 1, np.int64), col(1, 2, np.int64)
         self.threshold = np.array([r[2] for r in rows], np.int16)
         self.fallback = np.array([r[3] for r in rows], np.uint8)
         self.double_sided = np.array([r[4] for r in rows], bool)
-        self.color = np.array([r[5] for r in rows], np.float64).reshape(-1, 4)[:, :3].astype(F32)
-        self.has_albedo = np.array([r[6] for r in rows], bool)
         self.cuts = self.threshold > 0
         #: hits on these materials pass on to what lies behind when opaque() says no / back-facing
         self.special = self.cuts | ~self.double_sided
         self.cutting = bool(self.cuts.any())
         self.culling = bool((~self.double_sided).any())
-        # Where UVs are needed at all: textured materials (untextured ones read their 1x1 texels).
-        self.textured = np.array([r[0][1] * r[0][2] > 1 or r[1][1] * r[1][2] > 1 for r in rows], bool)
+        del self._alb, self._lab
 
     @staticmethod
-    def _index(uv: np.ndarray, off: np.ndarray, h: np.ndarray, w: np.ndarray, mat: np.ndarray) -> np.ndarray:
-        # Same arithmetic as agrisim.texturing.texel_index (float64 product, floor, wrap).
+    def _index(uv, off, h, w, stride, mat) -> np.ndarray:  # noqa: ANN001
+        """Flat index of the nearest texel of each hit in a buffer of textures at ``off`` with
+        ``stride`` texels per row. Same arithmetic as agrisim.texturing.texel_index (float64
+        product, floor, wrap)."""
         wm, hm = np.take(w, mat), np.take(h, mat)
         cols = np.floor(uv[:, 0].astype(np.float64) * wm).astype(np.int64) % wm
         rows = np.floor(uv[:, 1].astype(np.float64) * hm).astype(np.int64) % hm
-        rows *= wm
+        rows *= np.take(stride, mat)
         rows += cols
         rows += np.take(off, mat)
         return rows
 
     def albedo_index(self, uv: np.ndarray, mat: np.ndarray) -> np.ndarray:
-        return self._index(uv, self.alb_off, self.alb_h, self.alb_w, mat)
+        """Index in :attr:`alb_rgb` / :attr:`alb_alpha` of the nearest texel of each hit."""
+        return self._index(uv, self.alb_off, self.alb_h, self.alb_w, self.alb_stride, mat)
 
     def opaque(self, uv: np.ndarray, mat: np.ndarray) -> np.ndarray:
         """Is each hit on a texel that opacity keeps? (materials that do not cut: always)"""
@@ -126,54 +163,59 @@ class MaterialTable:
 
     def label(self, uv: np.ndarray, mat: np.ndarray) -> np.ndarray:
         """Label texel (nearest) of each hit."""
-        return np.take(self.lab_flat, self._index(uv, self.lab_off, self.lab_h, self.lab_w, mat))
+        return np.take(self.lab_flat, self._index(uv, self.lab_off, self.lab_h, self.lab_w, self.lab_w, mat))
 
-    def albedo(self, uv: np.ndarray, mat: np.ndarray, bilinear: bool = True) -> np.ndarray:
-        """Linear RGB albedo (K x 3 float32): colour factor times the sRGB texture, if any,
-        sampled nearest or bilinearly (in linear light; on cut-out cards weighted by alpha, so
-        the colour of cut-away texels never bleeds into a leaf's edge)."""
-        out = np.take(self.color, mat, axis=0)
-        sel = np.flatnonzero(np.take(self.has_albedo, mat))
-        if not len(sel):
-            return out
-        uv, mat = np.take(uv, sel, axis=0), mat[sel]
+    def albedo(
+        self, uv: np.ndarray, mat: np.ndarray, bilinear: bool = True, out: np.ndarray | None = None
+    ) -> np.ndarray:
+        """Linear RGB albedo (K x 3 float32, into ``out`` if given): colour factor times the sRGB
+        texture, if any, sampled nearest or bilinearly (in linear light; on cut-out cards
+        weighted by alpha, so the colour of cut-away texels never bleeds into a leaf's edge).
+        ``uv`` may be anything on untextured materials."""
         if not bilinear:
-            out[sel] *= SRGB_TO_LINEAR[np.take(self.alb_rgb, self.albedo_index(uv, mat), axis=0)]
-            return out
-        w, h, off = np.take(self.alb_w, mat), np.take(self.alb_h, mat), np.take(self.alb_off, mat)
-        fx = uv[:, 0] * w.astype(F32) - F32(0.5)
-        fy = uv[:, 1] * h.astype(F32) - F32(0.5)
-        x0, y0 = np.floor(fx), np.floor(fy)
-        ax, ay = (fx - x0)[:, None], (fy - y0)[:, None]
-        x0 = x0.astype(np.int64) % w
-        y0 = y0.astype(np.int64) % h
-        x1 = x0 + 1
-        x1[x1 == w] = 0
-        y1 = y0 + 1
-        y1[y1 == h] = 0
-        y0 *= w
-        y0 += off
-        y1 *= w
-        y1 += off
-        corners = ((y0 + x0, (1 - ax) * (1 - ay)), (y0 + x1, ax * (1 - ay)), (y1 + x0, (1 - ax) * ay), (y1 + x1, ax * ay))
+            return np.take(self.alb_rgb, self.albedo_index(uv, mat), axis=0, out=out)
+        x0, ax = _corner(uv[:, 0], np.take(self.alb_wf, mat))
+        y0, ay = _corner(uv[:, 1], np.take(self.alb_hf, mat))
+        stride = np.take(self.alb_stride, mat)
+        i00 = y0.astype(np.int64)
+        i00 *= stride
+        i00 += x0.astype(np.int64)
+        i00 += np.take(self.alb_off, mat)
+        i01 = i00 + stride
+        # mode="clip": absurd UVs (beyond 2**24 texels) read some texel instead of raising
+        c00, c10, c01, c11 = (np.take(self.alb_rgb, i, axis=0, mode="clip") for i in (i00, i00 + 1, i01, i01 + 1))
+        # Lerp in x along both rows, then in y (exact on constant textures: untextured materials).
+        # The weights repeated to K x 3: products with a K x 1 column loop over threes (slow).
+        wx = np.repeat(ax, 3).reshape(-1, 3)
+        c10 -= c00
+        c10 *= wx
+        c10 += c00
+        c11 -= c01
+        c11 *= wx
+        c11 += c01
+        c11 -= c10
+        c11 *= np.repeat(ay, 3).reshape(-1, 3)
+        out = np.add(c10, c11, out=out)
         cut = np.flatnonzero(np.take(self.cuts, mat))
-        if len(cut):  # alpha-weighted: only kept texels give their colour
-            weights = []
-            for index, weight in corners:
-                weight = weight.copy()
-                keep = np.take(self.alb_alpha, index[cut]) >= np.take(self.threshold, mat[cut])
-                weight[cut] *= keep[:, None]
-                weights.append(weight)
-            total = sum(weights)
-            empty = total[:, 0] <= 0  # (no kept corner: the hit's own texel decides)
-            total[empty] = 1.0
-            corners = tuple((c[0], wt / total) for c, wt in zip(corners, weights))
-            if empty.any():
-                nearest = SRGB_TO_LINEAR[np.take(self.alb_rgb, self.albedo_index(uv[empty], mat[empty]), axis=0)]
-        color = np.zeros((len(sel), 3), F32)
-        for index, weight in corners:
-            color += SRGB_TO_LINEAR[np.take(self.alb_rgb, index, axis=0)] * weight
-        if len(cut) and empty.any():
-            color[empty] = nearest
-        out[sel] *= color
+        if len(cut):
+            out[cut] = self._alpha_weighted(uv[cut], mat[cut], i00[cut], stride[cut], ax[cut, None], ay[cut, None])
         return out
+
+    def _alpha_weighted(self, uv, mat, i00, stride, ax, ay) -> np.ndarray:  # noqa: ANN001
+        """Bilinear albedo on cut-out cards: only texels that opacity keeps give their colour
+        (weights renormalised); where none of the four does, the hit's own (nearest) texel."""
+        threshold = np.take(self.threshold, mat)
+        corners = ((i00, (1 - ax) * (1 - ay)), (i00 + 1, ax * (1 - ay)), (i00 + stride, (1 - ax) * ay))
+        corners += ((i00 + stride + 1, ax * ay),)
+        weights = []
+        for index, weight in corners:
+            weights.append(weight * (np.take(self.alb_alpha, index, mode="clip") >= threshold)[:, None])
+        total = sum(weights)
+        empty = total[:, 0] <= 0  # (no kept corner: the hit's own texel decides)
+        total[empty] = 1.0
+        color = np.zeros((len(mat), 3), F32)
+        for (index, _), weight in zip(corners, weights):
+            color += np.take(self.alb_rgb, index, axis=0, mode="clip") * (weight / total)
+        if empty.any():
+            color[empty] = np.take(self.alb_rgb, self.albedo_index(uv[empty], mat[empty]), axis=0)
+        return color

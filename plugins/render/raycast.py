@@ -37,7 +37,13 @@ Performance: Open3D casts on all cores but holds the GIL; everything between the
 vectorised float32 numpy on tiles of whole image rows (``tile_pixels``), run by ``workers``
 threads (numpy releases the GIL). Every ray cast is batched (a tile's rays, then the ever fewer
 rays going on past cut-out texels), so Python never loops over pixels. With more than
-``adaptive_after`` shadow samples, only penumbra pixels get them all.
+``adaptive_after`` shadow samples, only penumbra pixels get them all. Since casting and numpy
+take turns (the GIL), a view costs about the casts' time plus half the numpy time, so the
+per-pixel numpy is kept lean: shading runs in chunks of ``lights.CHUNK`` pixels (their
+temporaries stay in cache), points and normals are stored as rows (3 x K: numpy loops over
+K x 3 arrays three elements at a time), and textures are pre-converted to linear float32 and
+padded for bilinear lookups (:mod:`agrisim.plugins.render.materials`). On the lab at 1080p a
+view's ~2M primary and ~2M shadow rays take about half of its time in Embree.
 """
 
 from __future__ import annotations
@@ -63,7 +69,7 @@ with native_output_silenced():
     import open3d as o3d
 
 from agrisim.plugins.render.arm_meshes import arm_link_meshes
-from agrisim.plugins.render.lights import SHADOW_TFAR, LightTable
+from agrisim.plugins.render.lights import SHADOW_TFAR, LightTable, chunks
 from agrisim.plugins.render.materials import MaterialTable
 
 F32 = np.float32
@@ -101,9 +107,12 @@ class RaycastOptions(BaseModel):
     arm_triangles: int = Field(30000, ge=0, le=10_000_000)
     """Triangles per arm after quadric decimation of its visual meshes (0: as loaded; the UR10's
     have 116k). Fewer make the per-frame rebuild of the posed arms cheaper."""
-    merge_limit: int = Field(500_000, ge=0, le=100_000_000)
+    merge_limit: int = Field(10_000, ge=0, le=100_000_000)
     """Static scenes of up to this many triangles are rebuilt with the posed arms into one Embree
-    scene (one cast per ray instead of two); larger ones stay in a scene of their own."""
+    scene (one cast per ray instead of two); larger ones stay in a scene of their own (measured
+    in the lab at 1080p: merging saves ~8% with a 2k-triangle plant and costs ~10% with a 62k
+    one, whose rebuild per pose takes longer and whose shadow rays blocked by the arms would
+    walk the plant's cut-out texels too)."""
     threads: int = Field(0, ge=0, le=1024)
     """Embree threads per ray batch (0: all cores)."""
     workers: int = Field(0, ge=0, le=64)
@@ -178,7 +187,8 @@ class _Arm:
 @dataclass
 class _Hits:
     """Per ray: the surface kept (opaque, facing), and for repopa the first surface of any
-    opacity. ``mat`` and ``uv`` are valid where ``face >= 0`` (uv where the material is textured)."""
+    opacity. ``mat`` and ``uv`` are valid where ``face >= 0`` (uv matters where the material is
+    textured)."""
 
     t: np.ndarray  # (K,) float32 distance in ray-direction units from the rays' origins; inf: miss
     face: np.ndarray  # (K,) int64 global face index, -1: miss
@@ -257,9 +267,10 @@ class RaycastRenderer(Renderer):
         mats.finish()
         self.mats = mats
         cat = np.concatenate
-        self.face_mat = cat(face_mat) if face_mat else np.zeros(1, np.int32)
+        self.face_mat = (cat(face_mat) if face_mat else np.zeros(1)).astype(np.intp)  # index arrays: no casts in take
         self.face_uv = (cat(face_uv) if face_uv else np.zeros((1, 3, 2), F32)).reshape(-1, 6)
-        self.face_normal = cat(face_normal) if face_normal else np.zeros((1, 3), F32)
+        # (3, faces): the shading code works on coordinates as rows (see LightTable.weights)
+        self.face_normal = np.ascontiguousarray((cat(face_normal) if face_normal else np.zeros((1, 3), F32)).T)
         self.face_inst = cat(face_inst) if face_inst else np.zeros(1, np.uint16)
         self._static_scene = _Traceable(static, _offsets(geom_offset), mats.cutting) if self.n_static else None
         self._scenes: list[_Traceable] = [self._static_scene] if self._static_scene else []
@@ -300,7 +311,7 @@ class RaycastRenderer(Renderer):
                 # einsum, not @: OpenBLAS's spinning threads would slow Embree's down
                 verts[link.v0 : link.v0 + len(link.vertices)] = np.einsum("ij,kj->ik", link.vertices, R) + t
                 f = arm.face0 + link.f0
-                self.face_normal[f : f + len(link.normals)] = np.einsum("ij,kj->ik", link.normals, R)
+                self.face_normal[:, f : f + len(link.normals)] = np.einsum("kj,ij->ki", R, link.normals)
             offsets[int(scene.add_triangles(_tensor(verts), arm.faces))] = arm.face0
         if merge:
             self._scenes = [_Traceable(scene, _offsets(offsets), self.mats.cutting)]
@@ -320,9 +331,11 @@ class RaycastRenderer(Renderer):
             g = r["geometry_ids"].numpy()
             if t is None:
                 t, bary = tt, r["primitive_uvs"].numpy()
-                hit = g != INVALID
-                face = np.take(sc.offset, np.where(hit, g, 0)) + r["primitive_ids"].numpy()
-                face[~hit] = -1
+                face = np.take(sc.offset, g, mode="clip")  # (misses' INVALID ids clip: fixed below)
+                face += r["primitive_ids"].numpy()
+                miss = g == INVALID
+                if miss.any():
+                    face[miss] = -1
                 continue
             nearer = np.flatnonzero(tt < t)
             if len(nearer):
@@ -336,31 +349,28 @@ class RaycastRenderer(Renderer):
 
     def _uv(self, face: np.ndarray, bary: np.ndarray) -> np.ndarray:
         """UVs at hits: the arithmetic of agrisim.texturing.interpolate_uv, operation for
-        operation in float32 (so the same texels), on pre-gathered corner UVs."""
-        tri = np.take(self.face_uv, face, axis=0)  # (K, 6): u0 v0 u1 v1 u2 v2
-        w1, w2 = bary[:, 0], bary[:, 1]
-        w0 = F32(1.0) - w1 - w2
+        operation in float32 (so the same texels), on pre-gathered corner UVs, chunk by chunk."""
         uv = np.empty((len(face), 2), F32)
-        for j in range(2):
-            c = uv[:, j]
-            np.multiply(w0, tri[:, j], out=c)
-            c += w1 * tri[:, 2 + j]
-            c += w2 * tri[:, 4 + j]
+        for c in chunks(len(face)):
+            tri = np.take(self.face_uv, face[c], axis=0)  # (chunk, 6): u0 v0 u1 v1 u2 v2
+            w1, w2 = bary[c, 0], bary[c, 1]
+            w0 = F32(1.0) - w1
+            w0 -= w2
+            term = np.empty_like(w0)
+            for j in range(2):
+                out = uv[c, j]
+                np.multiply(w0, tri[:, j], out=out)
+                out += np.multiply(w1, tri[:, 2 + j], out=term)
+                out += np.multiply(w2, tri[:, 4 + j], out=term)
         return uv
 
-    def _surface(self, face: np.ndarray, bary: np.ndarray, valid: np.ndarray | None = None):  # noqa: ANN202
-        """(material, uv) of hits; uv only where the material is textured (0 elsewhere)."""
-        mat = np.take(self.face_mat, face)
-        need = np.take(self.mats.textured, mat)
-        if valid is not None:
-            need &= valid
-        uv = np.zeros((len(face), 2), F32)
-        sel = np.flatnonzero(need)
-        if len(sel) == len(face):
-            uv = self._uv(face, bary)
-        elif len(sel):
-            uv[sel] = self._uv(face[sel], np.take(bary, sel, axis=0))
-        return mat, uv
+    def _surface(self, face: np.ndarray, bary: np.ndarray):  # noqa: ANN202
+        """(material, uv) of hits (``face`` >= 0; entries of misses are meaningless).
+
+        UVs are interpolated on every hit, textured or not: nearly all hits need them, and
+        picking the others out would cost more than it saves (untextured materials read 1 x 1
+        textures, whatever the UV)."""
+        return np.take(self.face_mat, face), self._uv(face, bary)
 
     def _passes(self, face, mat, uv, d, valid=None):  # noqa: ANN001, ANN202
         """(passes, culled): does each ray go on past its hit (a cut-out texel or a culled back
@@ -376,7 +386,7 @@ class RaycastRenderer(Renderer):
             m = mat[sel]
             p = ~mats.opaque(np.take(uv, sel, axis=0), m)
             if mats.culling:
-                facing = _dot(np.take(self.face_normal, face[sel], axis=0), np.take(d, sel, axis=0))
+                facing = _dot(np.take(self.face_normal, face[sel], axis=1).T, np.take(d, sel, axis=0))
                 back = ~np.take(mats.double_sided, m) & (facing > 0)
                 culled[sel] = back
                 p |= back
@@ -388,7 +398,7 @@ class RaycastRenderer(Renderer):
         nor a culled back face; with ``raw`` also the first of any opacity (repopa's labels)."""
         t, face, bary = self._cast_rays(rays)
         valid = face >= 0
-        mat, uv = self._surface(face, bary, valid)
+        mat, uv = self._surface(face, bary)
         out = _Hits(t, face, bary, mat, uv)
         mats = self.mats
         if not (mats.cutting or mats.culling):
@@ -448,18 +458,15 @@ class RaycastRenderer(Renderer):
         k = len(rays)
         occ = np.zeros(k, bool)
         eps = F32(self.options.epsilon)
-        for sc in sorted(self._scenes, key=lambda sc: sc.cuts):  # opaque scenes first: cheap
-            idx = np.flatnonzero(~occ)
-            if not len(idx):
-                break
-            sub = rays if len(idx) == k else np.take(rays, idx, axis=0)
-            blocked = sc.scene.test_occlusions(_tensor(sub), tfar=SHADOW_TFAR, nthreads=self.threads).numpy()
+        for sc in sorted(self._scenes, key=lambda sc: sc.cuts):  # opaque scenes first: no walks
+            # Each scene tests all rays: cheaper than gathering those still open (most are).
+            blocked = sc.scene.test_occlusions(_tensor(rays), tfar=SHADOW_TFAR, nthreads=self.threads).numpy()
             if not sc.cuts:
-                occ[idx] = blocked
+                occ |= blocked
                 continue
             # Blocked, perhaps only by cut-out texels: walk along the segment surface by surface.
-            sel = np.flatnonzero(blocked)
-            idx, sub = idx[sel], np.take(sub, sel, axis=0)
+            idx = np.flatnonzero(blocked & ~occ)
+            sub = np.take(rays, idx, axis=0)
             for _ in range(self.options.max_layers):
                 if not len(idx):
                     break
@@ -467,13 +474,15 @@ class RaycastRenderer(Renderer):
                 t = r["t_hit"].numpy()
                 g = r["geometry_ids"].numpy()
                 hit = (g != INVALID) & (t < SHADOW_TFAR)
-                face = np.take(sc.offset, np.where(hit, g, 0)) + r["primitive_ids"].numpy()
+                face = np.take(sc.offset, g, mode="clip")  # (misses: INVALID ids clip, masked by hit)
+                face += r["primitive_ids"].numpy()
                 face[~hit] = 0
-                mat, uv = self._surface(face, r["primitive_uvs"].numpy(), hit)
+                mat = np.take(self.face_mat, face)
                 cut = np.take(self.mats.cuts, mat) & hit
                 sel = np.flatnonzero(cut)
-                if len(sel):
-                    cut[sel] = ~self.mats.opaque(np.take(uv, sel, axis=0), mat[sel])
+                if len(sel):  # UVs only where opacity may let light through
+                    uv = self._uv(face[sel], np.take(r["primitive_uvs"].numpy(), sel, axis=0))
+                    cut[sel] = ~self.mats.opaque(uv, mat[sel])
                 occ[idx[hit & ~cut]] = True
                 go = np.flatnonzero(cut)
                 idx, sub, t = idx[go], np.take(sub, go, axis=0), t[go]
@@ -494,31 +503,58 @@ class RaycastRenderer(Renderer):
             return np.zeros((k, 3), F32)
         every = len(sel) == k
         pick = (lambda a: a) if every else (lambda a: np.take(a, sel, axis=0))  # noqa: E731 - no copy if all hit
-        face, d, mat, uv = pick(hits.face), pick(rays[:, 3:]), pick(hits.mat), pick(hits.uv)
-        albedo = self.mats.albedo(uv, mat, self.options.texture_filter == "bilinear")
-        p = pick(rays[:, :3]) + pick(hits.t)[:, None] * d
-        n = np.take(self.face_normal, face, axis=0)
-        n *= np.where(_dot(n, d) > 0, F32(-1.0), F32(1.0))[:, None]  # the side the camera sees
-        irradiance = self.lights.irradiance(
-            p, n, samples, rng, self._occluded, self.options.epsilon, self.options.adaptive_after
-        )
+        face, t, mat, uv, rays = pick(hits.face), pick(hits.t), pick(hits.mat), pick(hits.uv), pick(rays)
+        m = len(face)
+        lights = self.lights
+        bilinear = self.options.texture_filter == "bilinear"
+        eps = F32(self.options.epsilon)
+        albedo = np.empty((m, 3), F32)
+        w = np.empty((lights.n, m), F32)  # unshadowed irradiance of each light
+        origins = np.empty((3, m), F32) if samples > 0 and lights.n else None  # of shadow rays
+        # Per-point work in chunks of some thousand points, whose scratch arrays stay in cache.
+        # Points and normals as rows (3 x chunk), filled column by column of the rays: numpy
+        # ops over arrays laid out differently (or over K x 3) loop over threes, several times
+        # slower.
+        for c in chunks(m):
+            self.mats.albedo(uv[c], mat[c], bilinear, out=albedo[c])
+            if not lights.n:
+                continue
+            r, tc = rays[c], t[c]
+            p = np.empty((3, len(tc)), F32)
+            back = np.zeros(len(tc), F32)  # n . d > 0: the camera sees the back
+            n = np.take(self.face_normal, face[c], axis=1)
+            for j in range(3):
+                np.multiply(r[:, 3 + j], tc, out=p[j])
+                back += n[j] * r[:, 3 + j]
+                p[j] += r[:, j]
+            np.negative(n, out=n, where=back > 0)  # the side the camera sees
+            lights.weights(p, n, out=w[:, c])
+            if origins is not None:  # off the surface, towards the side seen
+                np.multiply(n, eps, out=origins[:, c])
+                origins[:, c] += p
+        irradiance = lights.irradiance(w, origins, samples, rng, self._occluded, self.options.adaptive_after)
         irradiance += F32(self.options.ambient)
-        albedo *= irradiance
+        for c in range(3):  # channel by channel: irradiance comes as rows
+            albedo[:, c] *= irradiance[c]
         if every:
             return albedo
         out = np.zeros((k, 3), F32)
         out[sel] = albedo
         return out
 
-    def _encode(self, linear: np.ndarray) -> np.ndarray:
-        """Linear RGB -> sRGB uint8 (exposure, tone map, a fine lookup table)."""
-        x = linear * F32(self.options.exposure)
-        if self.options.tonemap == "reinhard":
-            x /= 1.0 + x
-        x *= F32(ENCODE_STEPS)
-        np.clip(x, 0.0, F32(ENCODE_STEPS), out=x)
-        x += F32(0.5)
-        return LINEAR_TO_SRGB8[x.astype(np.int32)]
+    def _encode(self, linear: np.ndarray, out: np.ndarray) -> None:
+        """Linear RGB -> sRGB uint8 into ``out`` (exposure, tone map, a fine lookup table);
+        ``linear`` is overwritten."""
+        for c in chunks(len(linear)):  # small temporaries
+            x = linear[c]
+            if self.options.exposure != 1.0:
+                x *= F32(self.options.exposure)
+            if self.options.tonemap == "reinhard":
+                x /= 1.0 + x
+            x *= F32(ENCODE_STEPS)
+            np.clip(x, 0.0, F32(ENCODE_STEPS), out=x)
+            x += F32(0.5)
+            np.take(LINEAR_TO_SRGB8, x.astype(np.intp), out=out[c], mode="clip")  # (clip: not buffered)
 
     # --------------------------------------------------------------------------- render
     def _pixel_grid(self, camera: CameraModel) -> tuple[np.ndarray, np.ndarray]:
@@ -544,11 +580,13 @@ class RaycastRenderer(Renderer):
         from the near plane, with directions of unit camera z (so t is planar depth)."""
         R, c, near = T[:3, :3], T[:3, 3], self.options.near
         rays = np.empty((len(y), len(x), 6), F32)
-        for j in range(3):  # component by component: long inner loops
-            d = rays[..., 3 + j]
+        d = np.empty((len(y), len(x)), F32)
+        for j in range(3):  # component by component: long inner loops, one strided write each
             np.add((x * R[j, 0]).astype(F32)[None, :], (y * R[j, 1] + R[j, 2]).astype(F32)[:, None], out=d)
-            np.multiply(d, F32(near), out=rays[..., j])
-            rays[..., j] += F32(c[j])
+            rays[..., 3 + j] = d
+            d *= F32(near)
+            d += F32(c[j])
+            rays[..., j] = d
         return rays.reshape(-1, 6)
 
     def _labels(self, hits: _Hits, out: dict[str, np.ndarray]) -> None:
@@ -581,7 +619,9 @@ class RaycastRenderer(Renderer):
         rays = self._rays(x, y, T)
         hits = self._trace(rays, raw=self.seg_mode == "repopa")
         hit = hits.face >= 0
-        out["depth"][:] = np.where(hit, hits.t + F32(self.options.near), F32(0.0))
+        np.add(hits.t, F32(self.options.near), out=out["depth"])
+        if not hit.all():
+            out["depth"][~hit] = 0.0
         self._labels(hits, out)
         s, n = self.supersample, self.shadow_samples
         if s == 1:
@@ -599,10 +639,9 @@ class RaycastRenderer(Renderer):
                     count += sub_hits.face >= 0
             hit = count > 0
             linear *= F32(1.0 / (s * s))
-        rgb = self._encode(linear)
+        self._encode(linear, out["rgb"])
         if not hit.all():
-            rgb[~hit] = np.asarray(self.options.background, np.uint8)
-        out["rgb"][:] = rgb
+            out["rgb"][~hit] = np.asarray(self.options.background, np.uint8)
 
     def render(
         self,
