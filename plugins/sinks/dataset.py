@@ -25,6 +25,7 @@ from PIL import Image
 from agrisim import BackendSpec, __version__, hookimpl
 from agrisim.assets import export_glb
 from agrisim.atomic import write_bytes, write_json
+from agrisim.encoding import depth_to_mm
 from agrisim.episode import Run, RunSummary, SetpointResult
 from agrisim.interfaces import CameraModel, Capture
 
@@ -55,12 +56,6 @@ def package_versions() -> dict[str, str]:
         except metadata.PackageNotFoundError:
             continue
     return out
-
-
-def depth_to_mm(depth: np.ndarray) -> np.ndarray:
-    """Metres (float, 0 = no hit) to uint16 millimetres, rounded; beyond 65.535 m saturates."""
-    mm = np.rint(np.asarray(depth, np.float64) * 1000.0)
-    return np.clip(mm, 0, 65535).astype(np.uint16)
 
 
 def write_png(path: Path, image: np.ndarray, palette: np.ndarray | None = None) -> None:
@@ -98,6 +93,7 @@ class DatasetSink:
         self.status = "running"
         self.summary: dict[str, Any] | None = None
         self.camera: CameraModel | None = None
+        self.versions = package_versions()  # once: run.json is rewritten after every setpoint
         self._writer = ThreadPoolExecutor(max_workers=1, thread_name_prefix="agrisim-dataset")
         self._pending: list[tuple[Future[None], str, dict[str, Any]]] = []
 
@@ -111,7 +107,7 @@ class DatasetSink:
             "backends": run.backends,
             "backend_options": run.backend_options,
             "config": run.config.model_dump(mode="json"),
-            "versions": package_versions(),
+            "versions": self.versions,
             "labels": [
                 {"id": lab.id, "name": lab.name, "color": list(lab.color)} for lab in run.labels.labels
             ]

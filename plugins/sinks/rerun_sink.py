@@ -41,6 +41,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from agrisim import BackendSpec, hookimpl
+from agrisim.encoding import depth_to_mm
 from agrisim import robot_meshes
 
 if TYPE_CHECKING:
@@ -575,8 +576,7 @@ class RerunSink:
         if depth is not None:
             # Millimetres in uint16 (as the dataset's depth PNGs): half the size of float32 metres
             # and far more compressible; 1 mm steps are invisible at the cell's scale.
-            mm = np.clip(np.round(np.asarray(depth, float) * 1000.0), 0, 65535).astype(np.uint16)
-            self.rec.log(paths.camera_image(robot, "depth"), rr.DepthImage(mm, meter=1000.0))
+            self.rec.log(paths.camera_image(robot, "depth"), rr.DepthImage(depth_to_mm(depth), meter=1000.0))
 
     def log_label_table(self, table: Mapping[int, tuple[str, Sequence[int]]]) -> None:
         """The label ids' names and colours (``id -> (name, rgb)``) for every camera's
