@@ -14,7 +14,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any, NoReturn
 
-from agrisim.config import build_config, load_toml
+from agrisim.config import RunConfig, build_config, load_toml
 from agrisim.errors import UserError
 
 if sys.version_info >= (3, 11):
@@ -66,6 +66,12 @@ def _parser() -> argparse.ArgumentParser:
     rec.add_argument("--no-rrd", action="store_true", default=None, help="write no Rerun recording")
     run.add_argument("--spawn", action="store_true", default=None, help="stream to a spawned Rerun viewer")
     run.add_argument("--overwrite", action="store_true", default=None, help="replace an existing --out")
+    run.add_argument(
+        "--resume",
+        action="store_true",
+        default=None,
+        help="continue the unfinished run in --out with its saved configuration",
+    )
     run.add_argument(
         "--set",
         action="append",
@@ -124,6 +130,7 @@ def overrides_from_args(args: argparse.Namespace) -> dict[str, Any]:
         "output.no_rrd": args.no_rrd,
         "output.spawn": args.spawn,
         "output.overwrite": args.overwrite,
+        "output.resume": args.resume,
     }
     for key, value in flat.items():
         if value is not None:
@@ -140,8 +147,12 @@ def _cmd_run(args: argparse.Namespace) -> int:
     from agrisim.episode import Episode
     from agrisim.progress import EpisodeProgress
 
-    base = load_toml(args.config) if args.config else {}
-    config = build_config(base, overrides_from_args(args))
+    overrides = overrides_from_args(args)
+    if args.resume:
+        config = _resume_config(args, overrides)
+    else:
+        base = load_toml(args.config) if args.config else {}
+        config = build_config(base, overrides)
     episode = Episode(config)  # validates everything; nothing is written before run()
     with EpisodeProgress() as progress:
         run, summary = episode.run(progress=progress.update)
@@ -159,6 +170,20 @@ def _cmd_run(args: argparse.Namespace) -> int:
     print(f"simulated {summary.sim_time:.1f} s; wall time: {stages}")
     print(f"output: {run.out_dir}" + (f"  recording: {rrd}" if rrd else ""))
     return 0
+
+
+def _resume_config(args: argparse.Namespace, overrides: dict[str, Any]) -> RunConfig:
+    """The saved configuration of the run in --out, with only output flags applied."""
+    from agrisim.episode import saved_run
+
+    if args.overwrite:
+        raise UserError("--overwrite and --resume exclude each other")
+    if args.out is None:
+        raise UserError("--resume needs --out DIR: the run to continue")
+    if args.config is not None or set(overrides) - {"output"}:
+        raise UserError("--resume continues the run's saved configuration: give only --out and output options")
+    saved = saved_run(args.out)["config"]
+    return build_config(saved, {"output": {**overrides["output"], "overwrite": False}})
 
 
 def _cmd_plugins(args: argparse.Namespace) -> int:

@@ -163,9 +163,13 @@ class OutputConfig(_Model):
     """Stream to a Rerun viewer spawned for the run."""
     overwrite: bool = False
     """Replace an existing output directory."""
+    resume: bool = False
+    """Continue an interrupted run in the output directory with its saved configuration."""
 
     @model_validator(mode="after")
     def _exclusive(self) -> OutputConfig:
+        if self.overwrite and self.resume:
+            raise ValueError("--overwrite and --resume exclude each other")
         if self.no_rrd and self.rrd is not None:
             raise ValueError("--rrd and --no-rrd exclude each other")
         return self

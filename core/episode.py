@@ -9,6 +9,7 @@ reason and the run goes on.
 from __future__ import annotations
 
 import datetime as _dt
+import json
 import os
 import shutil
 import time
@@ -122,6 +123,11 @@ class Episode:
         self.physics_spec, self.physics_options = self._backend("physics", config.physics)
         self.planner_spec, self.planner_options = self._backend("planner", config.planner)
         self.out_dir = resolve_out_dir(config)  # before the slow parts: fail fast
+        # --resume replays the episode deterministically (the robot side is cheap) and renders
+        # only the frames that are not complete on disk yet.
+        self.done_frames: set[str] = set()
+        if config.output.resume:
+            self.done_frames = set(saved_run(self.out_dir).get("frames_complete") or [])
         self.cell = build_cell(config.cell)
         self.setpoints = routine(self.cell, config.routine)
         self.camera = preset(config.camera.preset, config.camera.resolution)
@@ -413,7 +419,9 @@ class Episode:
                     world_T_camera=world_T_camera,
                     camera=self.camera,
                 )
-                if self._renderer is not None:
+                if capture.frame in self.done_frames:
+                    capture.replayed = True
+                elif self._renderer is not None:
                     with self._stage("render"):
                         frame = self._renderer.render(self.camera, world_T_camera, self._link_poses())
                     capture.images = {"rgb": frame.rgb, "labels": frame.labels, "depth": frame.depth}
@@ -467,6 +475,9 @@ def resolve_out_dir(config: RunConfig) -> Path:
         stamp = _dt.datetime.now().strftime("%Y%m%d-%H%M%S")
         out = Path("runs") / stamp
     out = out.expanduser()
+    if config.output.resume:
+        saved_run(out)  # raises unless there is an unfinished run to continue
+        return out
     if out.exists():
         if not out.is_dir():
             raise OutputError(f"--out {out} exists and is not a directory")
@@ -481,6 +492,22 @@ def resolve_out_dir(config: RunConfig) -> Path:
     if not parent.is_dir() or not os.access(parent, os.W_OK | os.X_OK):
         raise OutputError(f"--out {out} is not writable ({parent} does not allow creating files)")
     return out
+
+
+def saved_run(out: Path) -> dict[str, Any]:
+    """The ``run.json`` of an unfinished run in ``out`` (for ``--resume``)."""
+    path = out / "run.json"
+    if not path.is_file():
+        raise OutputError(f"--resume: {out} holds no run.json, so it is not an agrisim run to continue")
+    try:
+        doc = json.loads(path.read_text())
+    except (OSError, ValueError) as exc:
+        raise OutputError(f"--resume: cannot read {path}: {exc}") from None
+    if not isinstance(doc, dict) or not isinstance(doc.get("config"), dict):
+        raise OutputError(f"--resume: {path} holds no run configuration")
+    if doc.get("status") == "complete":
+        raise OutputError(f"--resume: the run in {out} is complete; nothing to continue")
+    return doc
 
 
 def prepare_out_dir(out: Path, config: RunConfig) -> None:

@@ -92,6 +92,8 @@ class Capture:
     world_T_camera: np.ndarray
     camera: CameraModel
     images: dict[str, np.ndarray] = field(default_factory=dict)
+    #: a frame already complete on disk from before ``--resume``: replayed, not rendered
+    replayed: bool = False
 
 
 # ---------------------------------------------------------------------------- backends

@@ -39,7 +39,7 @@ def test_direct_planner_returns_the_line_when_free():
     np.testing.assert_allclose(path, [START, START + 0.5])
 
 
-@pytest.mark.parametrize("algorithm", ["RRTConnect", "PRM", "KPIECE1"])
+@pytest.mark.parametrize("algorithm", ["RRTConnect", "PRM", "RRT"])
 def test_ompl_goes_round_the_wall(algorithm):
     planner = OmplPlanner(OmplOptions(algorithm=algorithm, time=1.0))
     path = planner.plan(START, GOAL, outside_wall, LOWER, UPPER, 0, 0.02)

@@ -173,6 +173,10 @@ class DatasetSink:
             "sim_time": round(capture.sim_time, 6),
             "world_T_camera": np.round(capture.world_T_camera, 12).tolist(),
         }
+        if capture.replayed:  # complete on disk from before --resume: nothing to write again
+            self.frames[capture.frame] = entry
+            self._write_cameras()
+            return
         future = self._writer.submit(write_frame, self.out, capture.frame, dict(capture.images), palette)
         self._pending.append((future, capture.frame, entry))
         self._collect()

@@ -1,0 +1,83 @@
+"""--resume: an interrupted run continued ends with the same files as an uninterrupted one."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+
+from agrisim.cli import main
+from agrisim.config import build_config
+from agrisim.episode import Episode
+
+ARGS = {
+    "plant": "coltsfoot",
+    "render": {"shadow_samples": 2},
+    "physics": {"backend": "kinematic"},
+    "routine": {"setpoints": "1x3"},
+    "camera": {"resolution": "160x90"},
+}
+
+
+def _run(out: Path) -> None:
+    Episode(build_config(ARGS, {"output": {"out": str(out), "no_rrd": True}})).run()
+
+
+def _files(root: Path) -> dict[str, bytes]:
+    return {str(p.relative_to(root)): p.read_bytes() for p in sorted(root.rglob("*.png"))}
+
+
+def _interrupt(out: Path, keep: int) -> list[str]:
+    """Make ``out`` look like a run stopped after ``keep`` frames: later frames' files gone,
+    run.json saying interrupted."""
+    doc = json.loads((out / "run.json").read_text())
+    frames = sorted(doc["frames_complete"])
+    lost = frames[keep:]
+    for frame in lost:
+        for png in out.rglob(f"{frame}.png"):
+            png.unlink()
+    doc["status"] = "interrupted"
+    doc["frames_complete"] = frames[:keep]
+    doc["results"] = doc["results"][:keep]
+    (out / "run.json").write_text(json.dumps(doc))
+    return lost
+
+
+def test_resume_gives_the_uninterrupted_files(tmp_path, capsys):
+    _run(tmp_path / "whole")
+    _run(tmp_path / "cut")
+    lost = _interrupt(tmp_path / "cut", keep=2)
+    assert lost and not any((tmp_path / "cut" / "rgb" / f"{f}.png").exists() for f in lost)
+    kept = {f: (tmp_path / "cut" / "rgb" / f).stat().st_mtime_ns for f in ("r1_000.png",)}
+
+    assert main(["run", "--resume", "--out", str(tmp_path / "cut"), "--no-rrd"]) == 0
+    assert _files(tmp_path / "cut") == _files(tmp_path / "whole")
+    # frames complete before the interruption were not written again
+    assert (tmp_path / "cut" / "rgb" / "r1_000.png").stat().st_mtime_ns == kept["r1_000.png"]
+    whole = json.loads((tmp_path / "whole" / "run.json").read_text())
+    cut = json.loads((tmp_path / "cut" / "run.json").read_text())
+    assert cut["status"] == "complete"
+    assert cut["frames_complete"] == whole["frames_complete"]
+    for a, b in zip(whole["results"], cut["results"], strict=True):
+        assert (a["frame"], a["reached"], a["ee_error_mm"], a["sim_time"]) == (b["frame"], b["reached"], b["ee_error_mm"], b["sim_time"])
+    assert json.loads((tmp_path / "cut" / "cameras.json").read_text()) == json.loads(
+        (tmp_path / "whole" / "cameras.json").read_text()
+    )
+
+
+def test_a_complete_run_is_not_resumed(tmp_path, capsys):
+    _run(tmp_path / "done")
+    with pytest.raises(SystemExit) as exc:
+        main(["run", "--resume", "--out", str(tmp_path / "done")])
+    assert exc.value.code == 2
+    assert "complete; nothing to continue" in capsys.readouterr().err
+
+
+def test_resume_refuses_a_changed_configuration(tmp_path, capsys):
+    _run(tmp_path / "cut")
+    _interrupt(tmp_path / "cut", keep=1)
+    with pytest.raises(SystemExit) as exc:
+        main(["run", "--resume", "--out", str(tmp_path / "cut"), "--plant", "boxwood"])
+    assert exc.value.code == 2
+    assert "saved configuration" in capsys.readouterr().err
