@@ -20,9 +20,15 @@ START = np.array([-2.0, 0, 0, 0, 0, 0])
 GOAL = np.array([2.0, 0, 0, 0, 0, 0])
 
 
-def outside_wall(q: np.ndarray) -> bool:
-    """A slab across joint 0 with a gap only where joint 1 is above 1.5."""
-    return not (abs(q[0]) < 0.3 and q[1] < 1.5)
+def outside_wall(q: np.ndarray, margin: float = 0.0) -> bool:
+    """A slab across joint 0 with a gap only where joint 1 is above 1.5 (grown by ``margin``)."""
+    return not (abs(q[0]) < 0.3 + margin and q[1] < 1.5 + margin)
+
+
+def outside_grown_wall(q: np.ndarray) -> bool:
+    # Paths are checked at a 0.02 rad step: a wall grown by that step keeps the continuous
+    # path clear of the true wall, which the test then checks finely.
+    return outside_wall(q, margin=0.02)
 
 
 def _dense_check(path: np.ndarray, valid, step: float) -> bool:
@@ -42,11 +48,11 @@ def test_direct_planner_returns_the_line_when_free():
 @pytest.mark.parametrize("algorithm", ["RRTConnect", "PRM", "RRT"])
 def test_ompl_goes_round_the_wall(algorithm):
     planner = OmplPlanner(OmplOptions(algorithm=algorithm, time=1.0))
-    path = planner.plan(START, GOAL, outside_wall, LOWER, UPPER, 0, 0.02)
+    path = planner.plan(START, GOAL, outside_grown_wall, LOWER, UPPER, 0, 0.02)
     np.testing.assert_allclose(path[0], START)
     np.testing.assert_allclose(path[-1], GOAL)
     assert len(path) > 2
-    assert _dense_check(path, outside_wall, 0.02)
+    assert _dense_check(path, outside_wall, 0.002)
     assert max(q[1] for q in path) > 1.5  # it went through the gap
 
 
