@@ -295,11 +295,16 @@ class Episode:
         # joint limits forbid, say); another often lies on a free straight line. Candidates
         # with a free straight line go first, nearest first; a few are tried before giving up.
         valid = self._valid(sp.robot)
+        candidates = [ik.q, *ik.alternatives][: m.ik_candidates]
         with self._stage("plan"):
-            candidates = sorted(
-                [ik.q, *ik.alternatives][: m.ik_candidates],
-                key=lambda g: not segment_is_valid(q_now, g, valid, m.collision_check_step),
+            # Only up to the first free line: checking every candidate's line would repeat,
+            # per setpoint, work the planner does anyway.
+            free = next(
+                (i for i, g in enumerate(candidates) if segment_is_valid(q_now, g, valid, m.collision_check_step)),
+                None,
             )
+        if free:
+            candidates.insert(0, candidates.pop(free))
         reasons = []
         path = None
         for goal in candidates:

@@ -6,6 +6,14 @@ from collections.abc import Callable
 
 import numpy as np
 
+from agrisim.interfaces import PlanningFailed
+
+
+def require_within_limits(goal: np.ndarray, lower: np.ndarray, upper: np.ndarray) -> None:
+    """Raise :class:`PlanningFailed` when ``goal`` lies outside the joint limits."""
+    if np.any(goal < lower) or np.any(goal > upper):
+        raise PlanningFailed("goal outside the joint limits")
+
 
 def segment_samples(a: np.ndarray, b: np.ndarray, resolution: float) -> np.ndarray:
     """Configurations from ``a`` to ``b`` (both included) no more than ``resolution`` apart in

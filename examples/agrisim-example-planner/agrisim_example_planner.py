@@ -26,7 +26,7 @@ from pydantic import BaseModel, ConfigDict, Field
 
 from agrisim import BackendSpec, hookimpl
 from agrisim.interfaces import Planner, PlanningFailed, Validity
-from agrisim.planning import segment_is_valid
+from agrisim.planning import require_within_limits, segment_is_valid
 
 __version__ = "0.1.0"
 
@@ -84,8 +84,7 @@ class WaypointPlanner(Planner):
         o = self.options
         if max(o.lift_joint, o.elbow_joint) >= len(start):
             raise PlanningFailed(f"the arm has {len(start)} joints; lift/elbow joint index out of range")
-        if np.any(goal < lower) or np.any(goal > upper):
-            raise PlanningFailed("goal outside the joint limits")
+        require_within_limits(goal, lower, upper)
         if not is_valid(goal):
             raise PlanningFailed("the goal configuration is in collision")
         if segment_is_valid(start, goal, is_valid, resolution):

@@ -6,7 +6,7 @@ import numpy as np
 
 from agrisim import BackendSpec, hookimpl
 from agrisim.interfaces import Planner, PlanningFailed, Validity
-from agrisim.planning import segment_is_valid
+from agrisim.planning import require_within_limits, segment_is_valid
 from agrisim.registry import NoOptions
 
 
@@ -23,8 +23,7 @@ class DirectPlanner(Planner):
         seed: int,
         resolution: float,
     ) -> np.ndarray:
-        if np.any(goal < lower) or np.any(goal > upper):
-            raise PlanningFailed("goal outside the joint limits")
+        require_within_limits(goal, lower, upper)
         if not segment_is_valid(start, goal, is_valid, resolution):
             raise PlanningFailed("the straight joint-space line is blocked by a collision")
         return np.array([start, goal], float)

@@ -12,7 +12,7 @@ from pydantic import BaseModel, ConfigDict, Field, field_validator
 
 from agrisim import BackendSpec, hookimpl
 from agrisim.interfaces import Planner, PlanningFailed, Validity
-from agrisim.planning import path_is_valid, segment_is_valid
+from agrisim.planning import path_is_valid, require_within_limits, segment_is_valid
 from agrisim.quiet import silence_native_output_at_exit
 
 from ompl import base as ob  # noqa: E402  (after agrisim imports: keeps the import order stable)
@@ -93,8 +93,7 @@ class OmplPlanner(Planner):
         resolution: float,
     ) -> np.ndarray:
         start, goal = np.asarray(start, float), np.asarray(goal, float)
-        if np.any(goal < lower) or np.any(goal > upper):
-            raise PlanningFailed("goal outside the joint limits")
+        require_within_limits(goal, lower, upper)
         if self.options.try_direct and segment_is_valid(start, goal, is_valid, resolution):
             return np.array([start, goal])
         if not is_valid(start):
