@@ -1172,6 +1172,8 @@ def _labels_from_texture(
     real = _locate(Path(label_texture), root, lshown, base=root)
     img = _decode_image(_read_bytes(real, lshown), lshown)
     ids, entries = _label_ids(img, lshown, label_names or {})
+    if not any(i != 0 for i, _, _ in entries):
+        raise AssetError(f"{lshown}: the label texture holds only background (0); it labels nothing as plant")
     out = []
     for i, mat in enumerate(raw.materials):
         if mat.albedo is not None and mat.albedo.shape[:2] != ids.shape:
@@ -1262,7 +1264,9 @@ def _check_geometry(shown: str, v: np.ndarray, faces: np.ndarray) -> None:
     if len(faces) == 0:
         raise AssetError(f"{shown}: no triangles")
     a, b, c = (v[faces[:, i]] for i in range(3))
-    if not np.any(np.linalg.norm(np.cross(b - a, c - a), axis=1) > 0):
+    with np.errstate(over="ignore", invalid="ignore"):  # absurd sizes are refused later, by size
+        area = np.linalg.norm(np.cross(b - a, c - a), axis=1)
+    if not np.any(area > 0):
         raise AssetError(f"{shown}: every triangle is degenerate (zero area)")
 
 

@@ -38,6 +38,22 @@ def write_bytes(path: Path, data: bytes) -> None:
         raise
 
 
+def is_partial(path: Path) -> bool:
+    """Is ``path`` the temporary file of a write that never finished (the process was killed)?"""
+    name = Path(path).name
+    return name.startswith(".") and ".tmp" in name
+
+
+def remove_partial(root: Path) -> int:
+    """Delete temporary files of unfinished writes under ``root``; returns how many."""
+    count = 0
+    for path in Path(root).rglob(".*"):
+        if path.is_file() and is_partial(path):
+            path.unlink(missing_ok=True)
+            count += 1
+    return count
+
+
 def write_json(path: Path, obj: Any) -> None:
     """Pretty JSON, written atomically."""
     write_bytes(path, (json.dumps(obj, indent=2, default=_default) + "\n").encode())

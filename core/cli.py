@@ -15,7 +15,7 @@ from pathlib import Path
 from typing import Any, NoReturn
 
 from agrisim.config import RunConfig, build_config, load_toml
-from agrisim.errors import UserError
+from agrisim.errors import BackendFailure, UserError
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -45,6 +45,7 @@ def _parser() -> argparse.ArgumentParser:
     run = sub.add_parser("run", help="run one episode of the routine", description="Run one episode of the routine.")
     run.add_argument("--config", type=Path, metavar="TOML", help="configuration file; flags override it")
     run.add_argument("--plant", metavar="NAME|PATH", help="species (agrisim plants) or a .glb/.gltf/.obj file")
+    run.add_argument("--plant-age", type=float, metavar="DAYS", help="age of a growing plant (helios:*), days")
     run.add_argument("--seg-mode", choices=["texture", "repopa"], help="segmentation mode (default: texture)")
     run.add_argument("--labels", choices=["plant", "organs"], help="one plant label, or one per organ (default: plant)")
     run.add_argument("--renderer", metavar="NAME", help="renderer (default: raycast; none: robots only)")
@@ -54,6 +55,7 @@ def _parser() -> argparse.ArgumentParser:
     run.add_argument("--pcg-seed", type=int, metavar="N", help="seed of the lab clutter (default: 42)")
     run.add_argument("--physics", metavar="NAME", help="physics backend (default: pybullet)")
     run.add_argument("--planner", metavar="NAME", help="motion planner (default: ompl)")
+    run.add_argument("--recon", metavar="NAME", help="reconstructor (default: pointcloud; none: no reconstruction)")
     run.add_argument("--camera", metavar="PRESET", help="camera preset (default: rpi3-wide-1080p)")
     run.add_argument("--resolution", metavar="WxH", help="image size (default: the preset's 1920x1080)")
     run.add_argument("--setpoints", metavar="LxC", help="L levels x C columns per arm (default: 5x10)")
@@ -84,7 +86,68 @@ def _parser() -> argparse.ArgumentParser:
     plants.add_argument("--seed", type=int, default=0, metavar="N", help="seed to grow each species with (0)")
     plugins = sub.add_parser("plugins", help="list every backend of every kind and where it comes from")
     plugins.add_argument("--options", action="store_true", help="also list each backend's options")
+    recon = sub.add_parser(
+        "recon",
+        help="rebuild a run's reconstruction and metrics from its files",
+        description="Rebuild the reconstruction (clouds/) and metrics.json of a complete run from its images.",
+    )
+    recon.add_argument("run_dir", type=Path, metavar="RUN_DIR", help="a complete run's output directory")
+    recon.add_argument("--recon", metavar="NAME", help="reconstructor (default: the run's own)")
+    recon.add_argument("--out", type=Path, metavar="DIR", help="write clouds/ and metrics.json here (default: RUN_DIR)")
+    recon.add_argument("--overwrite", action="store_true", help="replace existing clouds and metrics.json")
+    recon.add_argument(
+        "--set",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="recon.* or metrics.* settings, e.g. recon.tsdf.voxel_size=0.003",
+    )
+    export = sub.add_parser(
+        "export",
+        help="export a run directory to another tool's format",
+        description="Export a run directory: nerfstudio writes RUN_DIR/transforms.json and RUN_DIR/masks/.",
+    )
+    export.add_argument("format", choices=["nerfstudio"], help="the format: nerfstudio (transforms.json)")
+    export.add_argument("run_dir", type=Path, metavar="RUN_DIR", help="a run's output directory (agrisim run --out)")
+    compare = sub.add_parser(
+        "compare",
+        help="the paper's Table 2: every plant in both segmentation modes, episodes on Ray",
+        description="Run every plant in both segmentation modes (texture, repopa) as Ray tasks, each into "
+        "OUT/<plant>/<seg_mode>, and write the paper's Table 2 with accuracy: OUT/table.md, table.csv, chart.png.",
+    )
+    compare.add_argument("--plants", metavar="A,B,...", help="species or plant files (default: the ten species)")
+    compare.add_argument("--seg-modes", metavar="M,...", help="segmentation modes (default: texture,repopa)")
+    compare.add_argument("--workers", type=int, metavar="N", help="episodes at a time (default: one per CPU)")
+    compare.add_argument(
+        "--ray-address", metavar="ADDR", help="join this Ray cluster (HOST:PORT or auto; default: a local Ray)"
+    )
+    compare.add_argument("--out", type=Path, metavar="DIR", help="output directory (default: runs/compare-<timestamp>)")
+    compare.add_argument("--overwrite", action="store_true", help="replace an existing --out")
+    compare.add_argument("--resume", action="store_true", help="continue the compare in --out: complete runs are kept")
+    compare.add_argument("--recordings", action="store_true", help="also write each episode's recording.rrd")
+    compare.add_argument("--config", type=Path, metavar="TOML", help="configuration file shared by the episodes")
+    for flag, meta, kind, text in _COMPARE_EPISODE_FLAGS:
+        compare.add_argument(flag, metavar=meta, type=kind, help=text)
+    compare.add_argument(
+        "--set", action="append", default=[], metavar="KEY=VALUE", help="any setting by its dotted name"
+    )
     return p
+
+
+#: the episode options `compare` passes on (as `agrisim run` has them)
+_COMPARE_EPISODE_FLAGS: list[tuple[str, str, Any, str]] = [
+    ("--labels", "plant|organs", str, "one plant label, or one per organ (default: plant)"),
+    ("--renderer", "NAME", str, "renderer (default: raycast)"),
+    ("--shadow-samples", "N", int, "shadow rays per pixel, 0..32 (default: 1)"),
+    ("--physics", "NAME", str, "physics backend (default: pybullet)"),
+    ("--planner", "NAME", str, "motion planner (default: ompl)"),
+    ("--recon", "NAME", str, "reconstructor (default: pointcloud)"),
+    ("--camera", "PRESET", str, "camera preset (default: rpi3-wide-1080p)"),
+    ("--resolution", "WxH", str, "image size (default: the preset's 1920x1080)"),
+    ("--setpoints", "LxC", str, "L levels x C columns per arm (default: 5x10)"),
+    ("--seed", "N", int, "seed for IK restarts and planners (default: 0)"),
+    ("--pcg-seed", "N", int, "seed of the lab clutter (default: 42)"),
+]
 
 
 def _set(tree: dict[str, Any], dotted: str, value: Any) -> None:
@@ -110,6 +173,7 @@ def overrides_from_args(args: argparse.Namespace) -> dict[str, Any]:
     out: dict[str, Any] = {}
     flat = {
         "plant": args.plant,
+        "plant_age": args.plant_age,
         "render.seg_mode": args.seg_mode,
         "render.labels": args.labels,
         "renderer.backend": args.renderer,
@@ -119,6 +183,7 @@ def overrides_from_args(args: argparse.Namespace) -> dict[str, Any]:
         "pcg_seed": args.pcg_seed,
         "physics.backend": args.physics,
         "planner.backend": args.planner,
+        "recon.backend": args.recon,
         "camera.preset": args.camera,
         "camera.resolution": args.resolution,
         "routine.setpoints": args.setpoints,
@@ -135,12 +200,17 @@ def overrides_from_args(args: argparse.Namespace) -> dict[str, Any]:
     for key, value in flat.items():
         if value is not None:
             _set(out, key, value)
-    for item in args.set:
+    _apply_sets(out, args.set)
+    return out
+
+
+def _apply_sets(tree: dict[str, Any], items: Sequence[str]) -> None:
+    """``--set KEY=VALUE`` items into a nested config dictionary."""
+    for item in items:
         key, sep, value = item.partition("=")
         if not sep or not key.strip():
             raise UserError(f"--set expects KEY=VALUE, got {item!r}")
-        _set(out, key.strip(), _parse_value(value.strip()))
-    return out
+        _set(tree, key.strip(), _parse_value(value.strip()))
 
 
 def _cmd_run(args: argparse.Namespace) -> int:
@@ -154,6 +224,8 @@ def _cmd_run(args: argparse.Namespace) -> int:
         base = load_toml(args.config) if args.config else {}
         config = build_config(base, overrides)
     episode = Episode(config)  # validates everything; nothing is written before run()
+    for note in getattr(getattr(episode, "plant", None), "notes", []):
+        print(f"plant: {note}")
     with EpisodeProgress() as progress:
         run, summary = episode.run(progress=progress.update)
     rrd = None
@@ -169,6 +241,27 @@ def _cmd_run(args: argparse.Namespace) -> int:
     stages = ", ".join(f"{k} {v:.1f} s" for k, v in summary.wall_s.items())
     print(f"simulated {summary.sim_time:.1f} s; wall time: {stages}")
     print(f"output: {run.out_dir}" + (f"  recording: {rrd}" if rrd else ""))
+    return 0
+
+
+def _cmd_recon(args: argparse.Namespace) -> int:
+    from agrisim.progress import EpisodeProgress
+    from agrisim.reconstruct import reconstruct_saved_run
+
+    overrides: dict[str, Any] = {}
+    if args.recon:
+        _set(overrides, "recon.backend", args.recon)
+    _apply_sets(overrides, args.set)
+    with EpisodeProgress("views") as progress:
+        out, metrics = reconstruct_saved_run(args.run_dir, overrides, args.out, args.overwrite, progress.update)
+    print(f"reconstructed {metrics['frames']} views with {metrics['recon']}")
+    for name, row in metrics["labels"].items():
+        line = f"  {name}: {row['pixels']:,} labelled pixels, {row['points']:,} points"
+        if "fscore" in row:
+            scores = ", ".join(f"F@{t}mm {v:.3f}" for t, v in row["fscore"].items())
+            line += f", {scores}, Chamfer {row['chamfer_mm']:.2f} mm" if row["chamfer_mm"] is not None else f", {scores}"
+        print(line)
+    print(f"output: {out / 'clouds'}  {out / 'metrics.json'}")
     return 0
 
 
@@ -229,6 +322,65 @@ def _cmd_plants(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_export(args: argparse.Namespace) -> int:
+    from agrisim.exports import write_nerfstudio
+
+    out = write_nerfstudio(args.run_dir)
+    print(f"wrote {out}")
+    return 0
+
+
+def _cmd_compare(args: argparse.Namespace) -> int:
+    from agrisim.compare import SEG_MODES, compare, default_out, markdown_table, parse_names, plan_compare
+    from agrisim.config import merge
+    from agrisim.progress import EpisodeProgress
+
+    if args.workers is not None and args.workers < 1:
+        raise UserError(f"--workers must be 1 or more, got {args.workers}")
+    # Every `run` option at its default, then compare's episode options on top: the overrides
+    # are built exactly as for `agrisim run`.
+    episode = _parser().parse_args(["run"])
+    for flag, *_ in _COMPARE_EPISODE_FLAGS:
+        dest = flag.lstrip("-").replace("-", "_")
+        setattr(episode, dest, getattr(args, dest))
+    episode.set = args.set
+    base = merge(load_toml(args.config) if args.config else {}, overrides_from_args(episode))
+    plan = plan_compare(
+        base,
+        out=args.out or default_out(),
+        plants=parse_names(args.plants, "plants"),
+        seg_modes=parse_names(args.seg_modes, "seg-modes", SEG_MODES),
+        overwrite=args.overwrite,
+        resume=args.resume,
+        recordings=args.recordings,
+    )  # validates everything before Ray starts or anything is written
+    with EpisodeProgress("episodes") as progress:
+        result = compare(plan, workers=args.workers, ray_address=args.ray_address, progress=progress.update)
+    print(markdown_table(result.rows, plan.seg_modes), end="")
+    ran = [r for r in result.records if r.get("status") != "skipped"]
+    kept = len(result.records) - len(ran)
+    if ran:
+        if args.workers:
+            at_a_time = f"{args.workers} at a time"
+        else:
+            at_a_time = "one per CPU" if args.ray_address is None else "as many at a time as the cluster allows"
+        where = f"{result.ray.get('address')}, {at_a_time}"
+        were = f", {kept} {'was' if kept == 1 else 'were'} complete already" if kept else ""
+        print(
+            f"{len(ran)} episodes ran as Ray tasks ({where}){were}; "
+            f"wall time {result.wall_s:.1f} s (Ray start {result.ray.get('startup_s', 0):.1f} s)"
+        )
+    else:
+        print(f"all {kept} episodes were complete already: the table is rebuilt from their run directories")
+    print(f"output: {result.paths['md']}  {result.paths['csv']}  {result.paths['png']}")
+    for r in result.failed:
+        sys.stderr.write(f"{PROG}: {r['plant']} ({r['seg_mode']}) {r['status']}: {r.get('error', '')}\n")
+    if result.failed or result.missing:
+        _fail(f"{len(result.failed)} of {len(result.records)} episodes did not complete; "
+              f"the table lacks {', '.join(result.missing) or 'nothing'}; --resume continues", status=1)
+    return 0
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``agrisim`` console script."""
     args = _parser().parse_args(argv)
@@ -237,6 +389,12 @@ def main(argv: Sequence[str] | None = None) -> int:
             return _cmd_run(args)
         if args.command == "plants":
             return _cmd_plants(args)
+        if args.command == "recon":
+            return _cmd_recon(args)
+        if args.command == "export":
+            return _cmd_export(args)
+        if args.command == "compare":
+            return _cmd_compare(args)
         return _cmd_plugins(args)
     except UserError as exc:
         _fail(str(exc))
@@ -246,6 +404,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     except BrokenPipeError:  # output piped into `head` and the like
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 0
+    except BackendFailure as exc:  # a plugin's failure: named, the run's finished work kept
+        _fail(str(exc), status=1)
     except Exception as exc:  # an internal failure, not the user's input
         if os.environ.get("AGRISIM_DEBUG"):
             traceback.print_exc()

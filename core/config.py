@@ -15,7 +15,7 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, ValidationInfo, field_validator, model_validator
 
 from agrisim.errors import ConfigError
 
@@ -28,6 +28,15 @@ else:  # pragma: no cover
 class _Model(BaseModel):
     model_config = ConfigDict(extra="forbid", validate_assignment=True, use_attribute_docstrings=True)
 
+    @field_validator("*", mode="before")
+    @classmethod
+    def _no_bools_for_numbers(cls, value: Any, info: ValidationInfo) -> Any:
+        # pydantic reads true as 1 for a number field; in a config that is always a mistake
+        field = cls.model_fields.get(info.field_name or "")
+        if isinstance(value, bool) and field is not None and field.annotation in (int, float):
+            raise ValueError(f"expected a number, not {str(value).lower()}")
+        return value
+
 
 class BackendChoice(BaseModel):
     """Which backend of a kind to use, plus per-backend option tables keyed by backend name."""
@@ -36,6 +45,20 @@ class BackendChoice(BaseModel):
 
     backend: str
     """Name of the backend (see ``agrisim plugins``)."""
+
+    def check_tables(self, section: str, known: Mapping[str, Any]) -> None:
+        """Every extra key must name a backend of this kind and its table must validate, even
+        for a backend not chosen now (a typo such as ``[physics.pybulet]`` or a bad value for
+        the other backend would otherwise be ignored silently). ``known`` maps backend names
+        to their specs (``options_model``)."""
+        names = sorted(known)
+        for key in self.model_extra or {}:
+            if key not in names:
+                raise ConfigError(
+                    f"[{section}] {key!r} is neither a setting nor a {section} backend; "
+                    f"settings: {', '.join(type(self).model_fields)}; backends: {', '.join(names)}"
+                )
+            backend_options(known[key].options_model, self.options_for(key), f"{section} backend {key!r}")
 
     def options_for(self, name: str) -> dict[str, Any]:
         """The option table for backend ``name`` (empty when not given)."""
@@ -58,6 +81,29 @@ class PlannerChoice(BackendChoice):
 class RendererChoice(BackendChoice):
     backend: str = "raycast"
     """Renderer (``--renderer``): raycast or pybullet, or a plugin's."""
+
+
+class ReconChoice(BackendChoice):
+    backend: str = "pointcloud"
+    """Reconstructor (``--recon``): pointcloud or tsdf, or a plugin's; none: no reconstruction."""
+    merged_every: int = Field(10, ge=1, le=10_000)
+    """Announce the merged clouds (to Rerun) every this many views, and at the end."""
+
+
+class MetricsConfig(_Model):
+    """How reconstructions are measured against the ground-truth plant."""
+
+    thresholds_mm: list[float] = Field([1.0, 2.0, 5.0], min_length=1, max_length=8)
+    """Distances at which precision, recall and F-score are reported, mm."""
+    truth_samples: int = Field(500_000, ge=1_000, le=20_000_000)
+    """Points sampled uniformly on the true plant surface (those on cut-away texels dropped)."""
+
+    @field_validator("thresholds_mm")
+    @classmethod
+    def _positive(cls, v: list[float]) -> list[float]:
+        if any(not (0.0 < t <= 1000.0) for t in v):
+            raise ValueError(f"thresholds must lie in (0, 1000] mm, got {v}")
+        return sorted(set(v))
 
 
 class CellConfig(_Model):
@@ -237,6 +283,9 @@ class RunConfig(_Model):
     """Options for a plant read from a file."""
     plants: dict[str, dict[str, Any]] = {}
     """Options per plant species (``[plants.boxwood]``), validated by the species' own model."""
+    plant_age: float | None = Field(None, gt=0.0, le=3650.0, allow_inf_nan=False)
+    """Age of the plant in days (``--plant-age``) for species that grow (``helios:*``); sets
+    the species' ``age`` option. None: the species' default."""
     pcg_seed: int = Field(42, ge=0, le=2**32 - 1)
     """Seed of the lab's clutter randomizer (the paper's PCG Seed, 42)."""
     physics: PhysicsChoice = PhysicsChoice()
@@ -246,6 +295,9 @@ class RunConfig(_Model):
     renderer: RendererChoice = RendererChoice()
     """Renderer and per-backend options (``[renderer.raycast]``)."""
     render: RenderConfig = RenderConfig()
+    recon: ReconChoice = ReconChoice()
+    """Reconstructor and per-backend options (``[recon.pointcloud]``, ``[recon.tsdf]``)."""
+    metrics: MetricsConfig = MetricsConfig()
     cell: CellConfig = CellConfig()
     routine: RoutineConfig = RoutineConfig()
     camera: CameraConfig = CameraConfig()

@@ -25,10 +25,11 @@ import pluggy
 from pydantic import BaseModel
 
 from agrisim.assets import FORMATS, load_plant
+from agrisim.atomic import remove_partial
 from agrisim.camera import preset
 from agrisim.cell import Cell, build_cell
 from agrisim.config import BackendChoice, RunConfig, backend_options
-from agrisim.errors import OutputError, UserError
+from agrisim.errors import BackendFailure, OutputError, UserError
 from agrisim.geometry import pose_error
 from agrisim.interfaces import (
     CameraModel,
@@ -37,19 +38,38 @@ from agrisim.interfaces import (
     PhysicsBackend,
     Planner,
     PlanningFailed,
+    Reconstruction,
+    Reconstructor,
     Renderer,
     Trajectory,
 )
 from agrisim.kinematics import ArmKinematics
 from agrisim.lab import build_scene
+from agrisim.metrics import GroundTruth
 from agrisim.planning import segment_is_valid
+from agrisim.reconstruct import ReconSession, summary_metrics
 from agrisim.scene import LabelTable, Plant, Scene
 from agrisim.registry import BackendSpec, Registry, make_plugin_manager
 from agrisim.setpoints import Setpoint, routine
 from agrisim.timing import Limits, TimedPath, time_parametrize
+from agrisim.views import View, load_view, view_from_capture
 
+#: the config section choosing a backend of each kind
+_SECTIONS = {"physics": "physics", "planner": "planner", "renderer": "renderer", "reconstructor": "recon"}
 #: rate at which planned trajectories are sampled for physics and sinks, Hz
 TRAJECTORY_RATE = 240.0
+
+
+@contextmanager
+def blame(kind: str, spec: BackendSpec, doing: str = "") -> Iterator[None]:
+    """Re-raise an unexpected exception of a backend as :class:`BackendFailure` naming it."""
+    try:
+        yield
+    except (UserError, PlanningFailed, BackendFailure):
+        raise
+    except Exception as exc:
+        origin = f" (from {spec.distribution})" if spec.distribution else ""
+        raise BackendFailure(f"{kind} backend {spec.name!r}{origin} failed{doing}: {type(exc).__name__}: {exc}") from exc
 
 
 @dataclass
@@ -83,6 +103,7 @@ class RunSummary:
     sim_time: float
     wall_s: dict[str, float]
     error: str = ""
+    metrics: dict[str, Any] | None = None  # headline accuracy per label (metrics.json has all)
 
     def to_dict(self) -> dict[str, Any]:
         return asdict(self)
@@ -106,6 +127,8 @@ class Run:
     run_id: str = field(default_factory=lambda: uuid.uuid4().hex)
     results: list[SetpointResult] = field(default_factory=list)
     wall_s: dict[str, float] = field(default_factory=dict)
+    reconstruction: Reconstruction | None = None  # set when a complete run's views are fused
+    metrics: dict[str, Any] | None = None  # metrics.json's content
 
     @property
     def seed(self) -> int:
@@ -142,10 +165,13 @@ class Episode:
             for name, k in self.kinematics.items()
         }
         # Rendering needs a plant and the lab around it; a robot-only run (renderer "none")
-        # builds neither.
+        # builds neither, but a plant it names must still exist.
         self.renderer_spec = None
+        self.recon_spec = None
         self.scene: Scene | None = None
-        if config.renderer.backend != "none":
+        if config.renderer.backend == "none":
+            check_plant_name(self.registry, config)
+        else:
             self.renderer_spec, self.renderer_options = self._backend("renderer", config.renderer)
             with _timed(self._prep_wall, "plant"):
                 self.plant = resolve_plant(self.registry, config)
@@ -153,10 +179,14 @@ class Episode:
                 self.scene = build_scene(
                     self.cell, self.plant, pcg_seed=config.pcg_seed, labels=config.render.labels
                 )
+            # Reconstruction fuses rendered views; without a renderer there is nothing to fuse.
+            if config.recon.backend != "none":
+                self.recon_spec, self.recon_options = self._backend("reconstructor", config.recon)
 
     def _backend(self, kind: str, choice: BackendChoice) -> tuple[BackendSpec, BaseModel]:
         """The chosen backend of ``kind`` and its options, validated by its own model."""
         spec = self.registry.get(kind, choice.backend)
+        choice.check_tables(_SECTIONS[kind], self.registry.specs(kind))
         options = backend_options(spec.options_model, choice.options_for(spec.name), f"{kind} backend {spec.name!r}")
         return spec, options
 
@@ -164,13 +194,22 @@ class Episode:
     def run(self, progress: Callable[[int, int], None] | None = None) -> tuple[Run, RunSummary]:
         """Run the episode; returns the run (with per-setpoint results) and its summary."""
         # Backends first: if one cannot be built, nothing has been written yet.
-        physics: PhysicsBackend = self.physics_spec.factory(self.cell, self.physics_options)
+        with blame("physics", self.physics_spec, " to start"):
+            physics: PhysicsBackend = self.physics_spec.factory(self.cell, self.physics_options)
         renderer: Renderer | None = None
         try:
-            planner: Planner = self.planner_spec.factory(self.planner_options)
+            with blame("planner", self.planner_spec, " to start"):
+                planner: Planner = self.planner_spec.factory(self.planner_options)
             if self.renderer_spec is not None:
-                renderer = self.renderer_spec.factory(self.scene, self.cell, self.config.render, self.renderer_options)
+                with blame("renderer", self.renderer_spec, " to start"):
+                    renderer = self.renderer_spec.factory(self.scene, self.cell, self.config.render, self.renderer_options)
+            recon: Reconstructor | None = None
+            if self.recon_spec is not None:
+                with blame("reconstructor", self.recon_spec, " to start"):
+                    recon = self.recon_spec.factory(self.scene.labels, self.recon_options)
             prepare_out_dir(self.out_dir, self.config)
+            if self.config.output.resume:
+                remove_partial(self.out_dir)  # half-written files of a killed run
         except BaseException:
             physics.close()
             if renderer is not None:
@@ -197,6 +236,22 @@ class Episode:
         if self.renderer_spec is not None:
             run.backends["renderer"] = self.renderer_spec.name
             run.backend_options["renderer"] = self.renderer_options.model_dump(mode="json")
+        self._session: ReconSession | None = None
+        if recon is not None and self.scene is not None and self.recon_spec is not None:
+            run.backends["recon"] = self.recon_spec.name
+            run.backend_options["recon"] = self.recon_options.model_dump(mode="json")
+            with _timed(run.wall_s, "truth"):
+                truth = GroundTruth.sample(self.scene.mesh(self.scene.plant), self.config.metrics.truth_samples)
+            self._session = ReconSession(
+                recon,
+                self.scene.labels,
+                truth,
+                self.config.metrics.thresholds_mm,
+                on_cloud=lambda label, cloud, merged: self.pm.hook.agrisim_cloud(
+                    run=run, label=label, cloud=cloud, merged=merged
+                ),
+                merged_every=self.config.recon.merged_every,
+            )
         self._physics, self._planner, self._run = physics, planner, run
         self._rng = np.random.default_rng(self.config.seed)
         try:
@@ -215,6 +270,9 @@ class Episode:
                 self._step(targets)
                 if progress:
                     progress(k + 1, steps)
+            if self._session is not None and self.recon_spec is not None:
+                with self._stage("metrics"), blame("reconstructor", self.recon_spec, " to finish"):
+                    run.reconstruction, run.metrics = self._session.finish(self._metrics_meta())
         except KeyboardInterrupt:
             status, error = "interrupted", "interrupted by the user"
             raise
@@ -231,6 +289,7 @@ class Episode:
                 sim_time=physics.sim_time,
                 wall_s={k: round(v, 4) for k, v in run.wall_s.items()},
                 error=error,
+                metrics=summary_metrics(run.metrics) if run.metrics is not None else None,
             )
             try:
                 self.pm.hook.agrisim_run_finished(run=run, summary=summary)
@@ -266,8 +325,16 @@ class Episode:
             self._run.wall_s[name] = self._run.wall_s.get(name, 0.0) + time.perf_counter() - t0
 
     def _valid(self, robot: str, others: dict[str, np.ndarray] | None = None) -> Callable[[np.ndarray], bool]:
-        physics = self._physics
-        return lambda q: not physics.in_collision(robot, q, others)
+        physics, spec = self._physics, self.physics_spec
+
+        def valid(q: np.ndarray) -> bool:
+            try:  # free unless it raises; blamed on physics, not on the planner calling it
+                return not physics.in_collision(robot, q, others)
+            except Exception as exc:
+                with blame("physics", spec, " in a collision query"):
+                    raise exc
+
+        return valid
 
     def _prepare_move(self, sp: Setpoint, result: SetpointResult) -> tuple[np.ndarray, TimedPath] | None:
         """IK and planning for one arm with the other arms where they are now."""
@@ -310,7 +377,7 @@ class Episode:
         for goal in candidates:
             t0 = time.perf_counter()
             try:
-                with self._stage("plan"):
+                with self._stage("plan"), blame("planner", self.planner_spec, f" planning {sp.frame}"):
                     path = self._planner.plan(
                         q_now,
                         goal,
@@ -394,7 +461,7 @@ class Episode:
 
         t_start = self._physics.sim_time
         plans = {r: timed.discretize(1.0 / TRAJECTORY_RATE) for r, (_, timed) in moves.items()}
-        with self._stage("execute"):
+        with self._stage("execute"), blame("physics", self.physics_spec, " executing a trajectory"):
             executions = self._physics.execute(plans, settled, m.reach_timeout)
         for robot, ex in executions.items():
             res = results[robot]
@@ -424,16 +491,37 @@ class Episode:
                     world_T_camera=world_T_camera,
                     camera=self.camera,
                 )
+                view: View | None = None
                 if capture.frame in self.done_frames:
+                    # complete on disk from before --resume: read back, not rendered again, so
+                    # the recording and the reconstruction see exactly the saved frame
                     capture.replayed = True
-                elif self._renderer is not None:
-                    with self._stage("render"):
+                    if self._renderer is not None:
+                        view = load_view(self.out_dir, capture.frame, self.camera, world_T_camera)
+                        capture.images = view.images()
+                elif self._renderer is not None and self.renderer_spec is not None:
+                    with self._stage("render"), blame("renderer", self.renderer_spec, f" rendering {capture.frame}"):
                         frame = self._renderer.render(self.camera, world_T_camera, self._link_poses())
                     capture.images = {"rgb": frame.rgb, "labels": frame.labels, "depth": frame.depth}
                     if frame.instances is not None:
                         capture.images["instances"] = frame.instances
+                    view = view_from_capture(capture)
                 with self._stage("capture"):
                     self.pm.hook.agrisim_capture(run=self._run, capture=capture)
+                if self._session is not None and view is not None and self.recon_spec is not None:
+                    with self._stage("recon"), blame("reconstructor", self.recon_spec, f" integrating {capture.frame}"):
+                        self._session.add(view)
+
+
+    def _metrics_meta(self) -> dict[str, Any]:
+        c = self.config
+        return {
+            "plant": c.plant,
+            "seg_mode": c.render.seg_mode,
+            "labels_mode": c.render.labels,
+            "recon": c.recon.backend,
+            "seed": c.seed,
+        }
 
 
 @contextmanager
@@ -445,6 +533,21 @@ def _timed(store: dict[str, float], name: str) -> Iterator[None]:
         store[name] = store.get(name, 0.0) + time.perf_counter() - t0
 
 
+def check_plant_name(registry: Registry, config: RunConfig) -> None:
+    """Is ``config.plant`` a registered species or an asset file that exists? (Without
+    growing or reading it.)"""
+    name = config.plant
+    if name in registry.specs("plant"):
+        return
+    path = Path(name)
+    if path.suffix.lower() in FORMATS:
+        root = config.plant_file.root
+        if (root / path if root is not None and not path.is_absolute() else path).is_file():
+            return
+        raise UserError(f"plant file {name} does not exist")
+    resolve_plant(registry, config)  # raises the unknown-plant error with the species list
+
+
 def resolve_plant(registry: Registry, config: RunConfig) -> Plant:
     """The plant ``config.plant`` names: a registered species grown from ``config.seed``, or a
     glTF/GLB/OBJ file."""
@@ -452,9 +555,17 @@ def resolve_plant(registry: Registry, config: RunConfig) -> Plant:
     species = registry.specs("plant")
     if name in species:
         spec = species[name]
-        options = backend_options(spec.options_model, config.plants.get(name, {}), f"plant {name!r}")
-        plant: Plant = spec.factory(options).build(config.seed)
+        table = dict(config.plants.get(name, {}))
+        if config.plant_age is not None:  # --plant-age is the species' own age option
+            if "age" not in spec.options_model.model_fields:
+                raise UserError(f"--plant-age: plant {name!r} has no age; it applies to species that grow (helios:*)")
+            table["age"] = config.plant_age
+        options = backend_options(spec.options_model, table, f"plant {name!r}")
+        with blame("plant", spec, f" growing {name!r}"):
+            plant: Plant = spec.factory(options).build(config.seed)
         return plant
+    if config.plant_age is not None and (Path(name).suffix.lower() in FORMATS or Path(name).exists()):
+        raise UserError(f"--plant-age: plant file {name} has no age; it applies to species that grow (helios:*)")
     if Path(name).suffix.lower() in FORMATS or Path(name).exists():
         f = config.plant_file
         return load_plant(
@@ -466,6 +577,9 @@ def resolve_plant(registry: Registry, config: RunConfig) -> Plant:
             scale=f.scale,
             root=f.root,
         )
+    hint = registry.pm.hook.agrisim_plant_unavailable(name=name)  # e.g. a missing optional extra
+    if hint:
+        raise UserError(hint)
     available = ", ".join(species) or "none installed"
     raise UserError(f"unknown plant {name!r}; species: {available}; or a .glb/.gltf/.obj file")
 
@@ -530,4 +644,4 @@ def run_episode(config: RunConfig, *, pm: pluggy.PluginManager | None = None) ->
     return Episode(config, pm).run()
 
 
-__all__ = ["Episode", "Run", "RunSummary", "SetpointResult", "run_episode", "JointTrajectory"]
+__all__ = ["BackendFailure", "blame", "Episode", "Run", "RunSummary", "SetpointResult", "run_episode", "JointTrajectory"]

@@ -22,3 +22,9 @@ class PluginError(UserError):
 
 class OutputError(UserError):
     """The output directory exists, cannot be created, or is not writable."""
+
+
+class BackendFailure(RuntimeError):
+    """A backend (built-in or a third-party plugin) raised unexpectedly during a run. The message
+    names it (kind, name, distribution); the run is marked ``failed``, its finished frames stay,
+    and the CLI exits 1."""

@@ -57,6 +57,13 @@ def agrisim_plants() -> list[BackendSpec]:
     """Plant species: each factory returns a :class:`agrisim.interfaces.PlantSpecies`."""
 
 
+@hookspec(firstresult=True)
+def agrisim_plant_unavailable(name: str) -> str | None:
+    """Why the plant ``name``, which no provider lists, is one this plugin would provide but
+    cannot here (e.g. its optional dependency is not installed): a one-line message naming what
+    to install, or None. Asked only before agrisim reports an unknown plant."""
+
+
 @hookspec
 def agrisim_sinks() -> list[BackendSpec]:
     """Sinks: each factory takes the :class:`agrisim.episode.Run` and returns an object whose
@@ -97,7 +104,10 @@ def agrisim_capture(run: Run, capture: Capture) -> None:
 
 @hookspec
 def agrisim_cloud(run: Run, label: str, cloud: Any, merged: bool) -> None:
-    """A point cloud for ``label``: one view's (``merged=False``) or the running merge."""
+    """A point cloud for ``label`` (a label name, or ``"all"``): one view's contribution
+    (``merged=False``) or the merge so far (``merged=True``: every ``recon.merged_every``
+    views and at the end). ``cloud`` is an :class:`agrisim.interfaces.Cloud` (world points in
+    metres, N x 3, and uint8 colours). A surface reconstructor announces its mesh's vertices."""
 
 
 @hookspec

@@ -9,12 +9,15 @@ from __future__ import annotations
 from abc import ABC, abstractmethod
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from agrisim.cell import Cell
-from agrisim.scene import Plant, Scene
+from agrisim.scene import LabelTable, Plant, Scene
+
+if TYPE_CHECKING:
+    from agrisim.views import View
 
 Validity = Callable[[np.ndarray], bool]
 
@@ -219,16 +222,61 @@ class Renderer(ABC):
         """Release resources."""
 
 
+@dataclass
+class Cloud:
+    """A coloured point cloud in world coordinates."""
+
+    points: np.ndarray  # (N, 3) float64, metres
+    colors: np.ndarray  # (N, 3) uint8 sRGB
+
+    def __len__(self) -> int:
+        return len(self.points)
+
+
+@dataclass
+class SurfaceMesh:
+    """A coloured triangle mesh in world coordinates (a reconstructed surface)."""
+
+    vertices: np.ndarray  # (N, 3) float64, metres
+    triangles: np.ndarray  # (M, 3) int32
+    colors: np.ndarray | None = None  # (N, 3) uint8 per vertex
+
+
+@dataclass
+class Reconstruction:
+    """What a reconstructor built, per label name, plus ``"all"`` (every plant label together).
+
+    ``clouds`` go to ``clouds/<label>.ply``, ``meshes`` to ``clouds/<label>_mesh.ply``.
+    """
+
+    clouds: dict[str, Cloud] = field(default_factory=dict)
+    meshes: dict[str, SurfaceMesh] = field(default_factory=dict)
+
+
 class Reconstructor(ABC):
-    """Fuses captures into a 3D reconstruction per label."""
+    """Fuses views into a 3D reconstruction per label, one view at a time.
+
+    Built once per run as ``factory(labels, options)``: ``labels`` is the run's
+    :class:`agrisim.scene.LabelTable`; every non-background label is reconstructed on its own and
+    all of them together as ``"all"``. Views arrive as :class:`agrisim.views.View` (images as the
+    dataset stores them), in capture order.
+    """
+
+    def __init__(self, labels: LabelTable, options: Any) -> None:
+        self.labels = labels
+        self.options = options
 
     @abstractmethod
-    def integrate(self, capture: Capture) -> None:
-        """Add one capture."""
+    def integrate(self, view: View) -> dict[str, Cloud]:
+        """Add one view; returns the view's own cloud per label name (what it saw)."""
 
     @abstractmethod
-    def result(self) -> dict[str, Any]:
-        """The reconstruction so far, per label name."""
+    def merged(self) -> dict[str, Cloud]:
+        """The merged cloud so far per label name and ``"all"`` (for streaming to sinks)."""
+
+    @abstractmethod
+    def result(self) -> Reconstruction:
+        """The final reconstruction of every view integrated so far."""
 
 
 class PlantSpecies(ABC):

@@ -172,7 +172,8 @@ class Plant:
     """A plant asset: its mesh in the plant frame and the label table its materials use.
 
     ``organs`` is True when the label table names several organs (``--labels organs``);
-    ``--labels plant`` maps every non-zero id to 1.
+    ``--labels plant`` maps every non-zero id to 1. ``notes`` say how the plant was made and
+    anything the user should know (e.g. that it was scaled down to fit the routine).
     """
 
     name: str
@@ -180,6 +181,7 @@ class Plant:
     labels: LabelTable
     organs: bool = False
     seed: int = 0
+    notes: list[str] = field(default_factory=list)
 
 
 @dataclass

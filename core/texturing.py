@@ -54,19 +54,30 @@ def label_at(material: Material, uv: np.ndarray) -> np.ndarray:
     return sample_nearest(material.labels, uv)
 
 
-def sample_surface(mesh: Mesh, count: int, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """``count`` points uniformly by area: (points K x 3, faces K, barycentrics K x 2)."""
-    areas = mesh.areas
+def sample_triangles(
+    vertices: np.ndarray, faces: np.ndarray, count: int, rng: np.random.Generator
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``count`` points uniformly by area on triangles: (points K x 3, faces K, barycentrics
+    K x 2 as weights of the second and third corners)."""
+    a, b, c = (vertices[faces[:, i]] for i in range(3))
+    areas = 0.5 * np.linalg.norm(np.cross(b - a, c - a), axis=1)
     total = areas.sum()
     if total <= 0:
-        raise ValueError(f"mesh {mesh.name!r} has no area")
-    faces = rng.choice(len(areas), size=count, p=areas / total)
+        raise ValueError("the triangles have no area")
+    chosen = rng.choice(len(areas), size=count, p=areas / total)
     r1, r2 = rng.random(count), rng.random(count)
     s = np.sqrt(r1)
-    bary = np.column_stack([s * (1 - r2), s * r2])  # weights of B and C
-    tri = mesh.vertices[mesh.faces[faces]]
+    bary = np.column_stack([s * (1 - r2), s * r2])
+    tri = vertices[faces[chosen]]
     points = (1 - bary[:, :1] - bary[:, 1:]) * tri[:, 0] + bary[:, :1] * tri[:, 1] + bary[:, 1:] * tri[:, 2]
-    return points, faces, bary
+    return points, chosen, bary
+
+
+def sample_surface(mesh: Mesh, count: int, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``count`` points uniformly by area: (points K x 3, faces K, barycentrics K x 2)."""
+    if mesh.areas.sum() <= 0:
+        raise ValueError(f"mesh {mesh.name!r} has no area")
+    return sample_triangles(mesh.vertices, mesh.faces, count, rng)
 
 
 def opaque_samples(mesh: Mesh, faces: np.ndarray, bary: np.ndarray) -> np.ndarray:
@@ -80,6 +91,18 @@ def opaque_samples(mesh: Mesh, faces: np.ndarray, bary: np.ndarray) -> np.ndarra
         sel = mats == i
         keep[sel] = opaque(mesh.materials[i], uv[sel])
     return keep
+
+
+def labels_at_samples(mesh: Mesh, faces: np.ndarray, bary: np.ndarray) -> np.ndarray:
+    """Label id at surface samples (faces, barycentrics), from each material's label texture or
+    constant label (uint8, K)."""
+    out = np.zeros(len(faces), dtype=np.uint8)
+    uv = interpolate_uv(mesh, faces, bary) if mesh.uvs is not None else np.zeros((len(faces), 2))
+    mats = mesh.face_material[faces]
+    for i in np.unique(mats):
+        sel = mats == i
+        out[sel] = label_at(mesh.materials[i], uv[sel])
+    return out
 
 
 def cutaway_fraction(mesh: Mesh, samples: int = 200_000, seed: int = 0) -> float:

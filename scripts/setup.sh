@@ -21,7 +21,7 @@ if [ ! -x "$VENV/bin/python" ]; then
   "$PYTHON" -m venv "$VENV"
 fi
 "$VENV/bin/python" -m pip install -q --upgrade pip 2>&1 | grep -v "is ignored" || true
-"$VENV/bin/python" -m pip install -q -e ".[dev]" 2>&1 | grep -v "is ignored" || true
+"$VENV/bin/python" -m pip install -q -e ".[dev,helios]" 2>&1 | grep -v "is ignored" || true
 # pybullet announces its build time on import: keep the check quiet unless it fails.
 if ! out=$("$VENV/bin/python" -c "import agrisim, open3d, pinocchio, pybullet, ompl, ruckig, rerun" 2>&1); then
   echo "$out" >&2

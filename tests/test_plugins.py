@@ -320,11 +320,14 @@ def test_every_kind_is_discovered_from_a_distribution(site: Path, capsys) -> Non
                 return None
 
         class FakeReconstructor(Reconstructor):
-            def integrate(self, capture):
-                pass
+            def integrate(self, view):
+                return {}
+
+            def merged(self):
+                return {}
 
             def result(self):
-                return {}
+                return None
 
         class FakePlant(PlantSpecies):
             def build(self, seed):
@@ -344,7 +347,7 @@ def test_every_kind_is_discovered_from_a_distribution(site: Path, capsys) -> Non
     """
     make_dist(site, "agrisim-fakes", {"agrisim_fakes": source}, {"fakes": "agrisim_fakes"}, version="2.0")
     registry = Registry(make_plugin_manager())
-    construct = {"renderer": (None, None, None, None), "reconstructor": (), "plant": (None,)}
+    construct = {"renderer": (None, None, None, None), "reconstructor": (None, None), "plant": (None,)}
     for kind, name in (("renderer", "fake-render"), ("reconstructor", "fake-recon"), ("plant", "fake-plant")):
         spec = registry.get(kind, name)
         assert spec.distribution == "agrisim-fakes 2.0"
@@ -393,7 +396,8 @@ class Recorder:
 def test_event_hooks_fire_in_order(site: Path, tmp_path: Path, monkeypatch) -> None:
     from agrisim.episode import Episode
 
-    monkeypatch.setenv("AGRISIM_LOAD_PLUGINS", "physics-kinematic,planner-direct")
+    # a robot-only run still checks the plant it names: the species' plugin is needed too
+    monkeypatch.setenv("AGRISIM_LOAD_PLUGINS", "physics-kinematic,planner-direct,plants-procedural")
     pm = make_plugin_manager()
     recorder = Recorder()
     pm.register(recorder)

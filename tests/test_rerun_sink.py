@@ -100,7 +100,12 @@ class Recording:
 def _plugin_manager():
     # Only the backends this test needs: other plugins may be half-written in a working tree.
     pm = make_plugin_manager(autoload=False)
-    for name in ("agrisim.plugins.physics.kinematic", "agrisim.plugins.planners.direct", "agrisim.plugins.sinks.rerun_sink"):
+    for name in (
+        "agrisim.plugins.physics.kinematic",
+        "agrisim.plugins.planners.direct",
+        "agrisim.plugins.plants.procedural",  # the plant a robot-only run names is still checked
+        "agrisim.plugins.sinks.rerun_sink",
+    ):
         pm.register(importlib.import_module(name), name=name)
     return pm
 

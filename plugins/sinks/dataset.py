@@ -5,7 +5,9 @@ run got (``status`` running / complete / failed / interrupted) and what each set
 ``cameras.json`` holds the intrinsics and the camera pose of every captured frame. Rendered
 frames go to ``rgb/``, ``labels/`` (uint8 ids), ``labels_vis/`` (label colours), ``depth/``
 (uint16 millimetres, 0 = no hit) and ``instances/`` (uint16 leaf ids), each PNG written
-atomically; a frame is listed in ``run.json`` only once all its files exist.
+atomically; a frame is listed in ``run.json`` only once all its files exist. A complete run's
+reconstruction goes to ``clouds/`` and its accuracy to ``metrics.json`` before ``run.json``
+says ``complete``.
 """
 
 from __future__ import annotations
@@ -26,8 +28,10 @@ from agrisim import BackendSpec, __version__, hookimpl
 from agrisim.assets import export_glb
 from agrisim.atomic import write_bytes, write_json
 from agrisim.encoding import depth_to_mm
+from agrisim.exports import write_nerfstudio
 from agrisim.episode import Run, RunSummary, SetpointResult
 from agrisim.interfaces import CameraModel, Capture
+from agrisim.reconstruct import write_reconstruction
 
 #: distributions whose versions a run records
 VERSIONED = (
@@ -185,11 +189,16 @@ class DatasetSink:
     def agrisim_run_finished(self, run: Run, summary: RunSummary) -> None:
         try:
             self._collect(wait=True)
+            if run.reconstruction is not None and run.metrics is not None:
+                write_reconstruction(self.out, run.reconstruction, run.metrics)
         finally:
             self._writer.shutdown(wait=True)
             self.status = summary.status
             self.summary = summary.to_dict()
             write_json(self.out / "run.json", self._run_json(run))
+        if self.frames and run.labels is not None:
+            # after run.json: the export reads the frames it lists as complete
+            write_nerfstudio(self.out)
 
 
 def write_frame(out: Path, frame: str, images: dict[str, np.ndarray], palette: np.ndarray | None) -> None:

@@ -15,6 +15,7 @@ reconstruction code should reuse)::
     world/<robot>/<link>/visual_<i>     Asset3D (GLB) or Boxes3D, static, link_T_visual
     world/<robot>/camera                Transform3D world_T_camera + Pinhole (OpenCV RDF)
     world/<robot>/camera/{rgb,labels,depth}   Image (JPEG), SegmentationImage, DepthImage (uint16 mm)
+    world/<robot>/camera/instances      SegmentationImage of leaf instance ids (when the plant has them)
     world/<robot>/planned|executed      LineStrips3D of the camera position per move
     world/setpoints/<robot>             Points3D (colour = pending/reached/failed)
     world/setpoints/<robot>/view        Arrows3D, the camera's viewing direction
@@ -67,6 +68,9 @@ IMAGE_PLANE_DISTANCE = 0.08
 #: length of the viewing-direction arrows drawn at each setpoint, m
 SETPOINT_ARROW = 0.05
 RGB_JPEG_QUALITY = 90
+#: most points a per-view / merged cloud keeps in the recording (the files on disk keep all)
+VIEW_CLOUD_POINTS = 50_000
+MERGED_CLOUD_POINTS = 300_000
 #: seconds to wait for the sinks (file, viewer) to take the last data at the end of the run
 FLUSH_TIMEOUT = 20.0
 
@@ -99,7 +103,7 @@ class paths:  # noqa: N801 - a namespace of path builders, used like a module
     RUN_CONFIG = "run/config"
     RUN_SUMMARY = "run/summary"
     #: images under each camera: capture.images key -> child entity name
-    IMAGE_KINDS = ("rgb", "labels", "depth")
+    IMAGE_KINDS = ("rgb", "labels", "depth", "instances")
 
     @staticmethod
     def obstacle(name: str) -> str:
@@ -135,7 +139,7 @@ class paths:  # noqa: N801 - a namespace of path builders, used like a module
 
     @staticmethod
     def camera_image(robot: str, kind: str) -> str:
-        """``kind`` is ``rgb``, ``labels`` or ``depth``."""
+        """``kind`` is ``rgb``, ``labels``, ``depth`` or ``instances``."""
         return f"world/{robot}/camera/{kind}"
 
     @staticmethod
@@ -560,7 +564,7 @@ class RerunSink:
         self.log_images(capture.robot, capture.images)
 
     def log_images(self, robot: str, images: Mapping[str, np.ndarray]) -> None:
-        """Log a capture's ``rgb``, ``labels`` and ``depth`` at the current time."""
+        """Log a capture's ``rgb``, ``labels``, ``depth`` and leaf ``instances`` at the current time."""
         assert self.rec is not None
         rgb = images.get("rgb")
         if rgb is not None:
@@ -572,6 +576,10 @@ class RerunSink:
         labels = images.get("labels")
         if labels is not None:
             self.rec.log(paths.camera_image(robot, "labels"), rr.SegmentationImage(np.asarray(labels)))
+        instances = images.get("instances")
+        if instances is not None:
+            # leaf instance ids (uint16, 0 = none): no annotation context, Rerun colours each id
+            self.rec.log(paths.camera_image(robot, "instances"), rr.SegmentationImage(np.asarray(instances)))
         depth = images.get("depth")
         if depth is not None:
             # Millimetres in uint16 (as the dataset's depth PNGs): half the size of float32 metres
@@ -596,6 +604,11 @@ class RerunSink:
         if points is None:
             log.debug("cloud %r of type %s not recorded", label, type(cloud).__name__)
             return
+        cap = MERGED_CLOUD_POINTS if merged else VIEW_CLOUD_POINTS
+        if len(points) > cap:
+            # an even, repeatable subset: a run's clouds would otherwise outweigh its images
+            keep = np.sort(np.random.default_rng(0).choice(len(points), cap, replace=False))
+            points, colors = points[keep], (colors[keep] if colors is not None else None)
         self._set_time(*self._now)
         self.rec.log(paths.cloud(label, merged), rr.Points3D(points, colors=colors, radii=rr.Radius.ui_points(1.5)))
 

@@ -1,0 +1,178 @@
+"""Exports of a finished run directory to other tools' formats.
+
+``nerfstudio``: ``OUT/transforms.json`` plus ``OUT/masks/<frame>.png``, readable by nerfstudio's
+``nerfstudio-data`` parser (``ns-train nerfacto --data OUT``; ``depth-nerfacto`` uses the depth).
+
+- Poses: ``transform_matrix`` is camera-to-world in the OpenGL/Blender convention nerfstudio uses
+  (x right, y up, z back: the camera looks along -z), i.e. our OpenCV ``world_T_camera`` with
+  its y and z axes negated. The world frame is agrisim's (metres, z up), as nerfstudio expects.
+- Intrinsics: one shared pinhole, ``camera_model`` ``OPENCV`` with zero distortion. nerfstudio
+  puts pixel centres at +0.5 (pixel (i, j) spans [i, i+1)), agrisim at integer coordinates, so
+  ``cx`` and ``cy`` are ours + 0.5; ``fl_x``, ``fl_y``, ``w``, ``h`` are unchanged.
+- ``file_path`` is ``rgb/<frame>.png``, ``depth_file_path`` ``depth/<frame>.png`` (uint16
+  millimetres, 0 = no hit, which nerfstudio's depth losses skip): ``depth_unit_scale_factor``
+  0.001 is nerfstudio's default and is written for readers that take it from the file.
+- ``mask_path`` is ``masks/<frame>.png``: single-channel uint8, 255 where any plant label is
+  (label id != 0), 0 elsewhere. nerfstudio trains only on nonzero mask pixels, so a NeRF of this
+  export models the plant, not the lab; drop ``mask_path`` to train on the whole image.
+- Only frames listed in ``run.json``'s ``frames_complete`` are exported, in name order.
+
+Bad input (not a run directory, missing ``run.json``/``cameras.json``/frame images, a run still
+marked ``running``) raises :class:`ExportError` before anything is written.
+"""
+
+from __future__ import annotations
+
+import io
+import json
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from PIL import Image
+
+from agrisim.atomic import write_bytes, write_json
+from agrisim.errors import UserError
+
+#: OpenCV optical frame -> OpenGL camera frame (negate y and z), as a right factor on camera-to-world
+CV_TO_GL = np.diag([1.0, -1.0, -1.0, 1.0])
+#: the images a frame needs for the nerfstudio export
+FRAME_IMAGES = ("rgb", "labels", "depth")
+
+
+class ExportError(UserError):
+    """The directory cannot be exported: not a run, or a run missing files (one-line message)."""
+
+
+def opencv_to_opengl(world_T_camera: np.ndarray) -> np.ndarray:
+    """Camera-to-world in OpenGL convention from an OpenCV optical ``world_T_camera`` (4 x 4)."""
+    return np.asarray(world_T_camera, np.float64) @ CV_TO_GL
+
+
+def nerfstudio_transforms(intrinsics: dict[str, Any], frames: dict[str, dict[str, Any]]) -> dict[str, Any]:
+    """The ``transforms.json`` document for ``frames`` (name -> cameras.json frame entry).
+
+    ``intrinsics`` is cameras.json's: ``K`` (pixel centres at integers), ``width``, ``height``.
+    Paths are relative to the run directory, where transforms.json lives.
+    """
+    K = np.asarray(intrinsics["K"], np.float64)
+    return {
+        "camera_model": "OPENCV",
+        "fl_x": float(K[0, 0]),
+        "fl_y": float(K[1, 1]),
+        "cx": float(K[0, 2]) + 0.5,  # nerfstudio: pixel centres at +0.5
+        "cy": float(K[1, 2]) + 0.5,
+        "w": int(intrinsics["width"]),
+        "h": int(intrinsics["height"]),
+        "k1": 0.0,
+        "k2": 0.0,
+        "p1": 0.0,
+        "p2": 0.0,
+        "depth_unit_scale_factor": 0.001,
+        "frames": [
+            {
+                "file_path": f"rgb/{name}.png",
+                "transform_matrix": np.round(opencv_to_opengl(frames[name]["world_T_camera"]), 12).tolist(),
+                "mask_path": f"masks/{name}.png",
+                "depth_file_path": f"depth/{name}.png",
+            }
+            for name in sorted(frames)
+        ],
+    }
+
+
+def _read_json(path: Path, what: str) -> dict[str, Any]:
+    if not path.is_file():
+        raise ExportError(f"{path.parent} holds no {path.name}: {what}")
+    try:
+        doc = json.loads(path.read_text())
+    except (OSError, UnicodeDecodeError, ValueError) as exc:
+        raise ExportError(f"cannot read {path}: {exc}") from None
+    if not isinstance(doc, dict):
+        raise ExportError(f"{path} is not a JSON object")
+    return doc
+
+
+def _valid_intrinsics(intrinsics: Any) -> bool:
+    """cameras.json's intrinsics: a finite 3 x 3 ``K`` and positive integer ``width``, ``height``."""
+    if not isinstance(intrinsics, dict) or not {"K", "width", "height"} <= set(intrinsics):
+        return False
+    try:
+        K = np.asarray(intrinsics["K"], np.float64)
+    except (TypeError, ValueError):
+        return False
+    sizes = (intrinsics["width"], intrinsics["height"])
+    return K.shape == (3, 3) and bool(np.isfinite(K).all()) and all(type(n) is int and n > 0 for n in sizes)
+
+
+def _mask_png(path: Path, width: int, height: int) -> bytes:
+    """PNG bytes of the plant mask (255 where label != 0) of the label image at ``path``."""
+    try:
+        with Image.open(path) as im:
+            labels = np.asarray(im)
+    except (OSError, ValueError) as exc:
+        raise ExportError(f"cannot read {path}: {exc}") from None
+    if labels.shape != (height, width):
+        raise ExportError(f"{path} is {labels.shape[::-1]} pixels, expected a {width}x{height} label image")
+    buffer = io.BytesIO()
+    Image.fromarray(np.where(labels != 0, 255, 0).astype(np.uint8), mode="L").save(buffer, format="PNG")
+    return buffer.getvalue()
+
+
+def write_nerfstudio(run_dir: Path) -> Path:
+    """Write ``run_dir/transforms.json`` and ``run_dir/masks/`` for the run's complete frames.
+
+    Everything is read and checked first, then the masks and finally transforms.json are written,
+    each atomically; bad input raises :class:`ExportError` with nothing written. A run whose
+    run.json still says ``running`` is refused (it is being written, or was killed: resume it).
+    Returns the path of transforms.json.
+    """
+    run_dir = Path(run_dir)
+    if not run_dir.is_dir():
+        raise ExportError(f"{run_dir} is not a directory: give an agrisim run directory (agrisim run --out DIR)")
+    run = _read_json(run_dir / "run.json", "not an agrisim run directory")
+    status = run.get("status")
+    if status == "running":
+        raise ExportError(
+            f"the run in {run_dir} is unfinished (status running): let it finish, or continue it with "
+            f"agrisim run --resume --out {run_dir}"
+        )
+    if ((run.get("config") or {}).get("renderer") or {}).get("backend") == "none":
+        raise ExportError(f"the run in {run_dir} rendered no images (renderer none): nothing to export")
+    complete = run.get("frames_complete")
+    if not isinstance(complete, list) or not complete:
+        raise ExportError(f"the run in {run_dir} has no complete frames to export (status {status})")
+    if not all(isinstance(name, str) and name for name in complete):
+        raise ExportError(f"{run_dir / 'run.json'}: frames_complete must list frame names")
+    cameras = _read_json(run_dir / "cameras.json", "the run wrote no frames, or is half-written")
+    intrinsics, known = cameras.get("intrinsics"), cameras.get("frames")
+    if not isinstance(known, dict) or not _valid_intrinsics(intrinsics):
+        raise ExportError(f"{run_dir / 'cameras.json'} lacks intrinsics (K, width, height) or frames")
+    missing = [name for name in complete if name not in known]
+    if missing:
+        raise ExportError(
+            f"{run_dir / 'cameras.json'} lacks frame {missing[0]} that run.json lists complete "
+            f"({len(missing)} missing): a half-written run"
+        )
+    for name in complete:
+        pose = known[name].get("world_T_camera") if isinstance(known[name], dict) else None
+        try:
+            ok = np.asarray(pose, np.float64).shape == (4, 4) and bool(np.isfinite(pose).all())
+        except (TypeError, ValueError):
+            ok = False
+        if not ok:
+            raise ExportError(f"{run_dir / 'cameras.json'}: frame {name} has no 4x4 world_T_camera")
+        for folder in FRAME_IMAGES:
+            if not (run_dir / folder / f"{name}.png").is_file():
+                raise ExportError(f"{run_dir / folder / (name + '.png')} is missing: a half-written run")
+    width, height = int(intrinsics["width"]), int(intrinsics["height"])
+    masks = {name: _mask_png(run_dir / "labels" / f"{name}.png", width, height) for name in complete}
+    doc = nerfstudio_transforms(intrinsics, {name: known[name] for name in complete})
+    if (run_dir / "clouds" / "all.ply").is_file():
+        doc["ply_file_path"] = "clouds/all.ply"  # splatfacto starts from it
+
+    for name, data in masks.items():
+        write_bytes(run_dir / "masks" / f"{name}.png", data)
+    out = run_dir / "transforms.json"
+    write_json(out, doc)
+    return out

@@ -1,0 +1,318 @@
+"""Reconstruction of a run, during the run or afterwards from its dataset on disk.
+
+:class:`ReconSession` feeds views to a reconstructor backend, counts what the metrics need, and
+passes per-view and merged clouds on (to the ``agrisim_cloud`` hook in a run). The episode uses
+it view by view; ``agrisim recon RUN_DIR`` (:func:`rebuild`) replays a saved dataset through
+the same session. :func:`write_reconstruction` writes ``clouds/`` and ``metrics.json``.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import tempfile
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from agrisim.atomic import write_bytes, write_json
+from agrisim.errors import OutputError, UserError
+from agrisim.interfaces import CameraModel, Cloud, Reconstruction, Reconstructor, SurfaceMesh
+from agrisim.metrics import ALL, GroundTruth, ViewStats, evaluate
+from agrisim.scene import Label, LabelTable
+from agrisim.views import View, load_view
+
+CloudCallback = Callable[[str, Cloud, bool], None]
+
+
+class ReconSession:
+    """One reconstruction fed view by view, with the counts its metrics need.
+
+    ``on_cloud(label, cloud, merged)`` receives each view's clouds and, every ``merged_every``
+    views and at the end, the merged clouds (``all`` only when there are several labels, since
+    with one it repeats that label's).
+    """
+
+    def __init__(
+        self,
+        recon: Reconstructor,
+        labels: LabelTable,
+        truth: GroundTruth | None,
+        thresholds_mm: list[float],
+        on_cloud: CloudCallback | None = None,
+        merged_every: int = 10,
+    ) -> None:
+        self.recon = recon
+        self.labels = labels
+        self.stats = ViewStats(truth)
+        self.thresholds_mm = list(thresholds_mm)
+        self.on_cloud = on_cloud
+        self.merged_every = merged_every
+        self._several = sum(lab.id != 0 for lab in labels.labels) > 1
+
+    def add(self, view: View) -> None:
+        """Integrate one view and count it."""
+        self.stats.add(view)
+        clouds = self.recon.integrate(view)
+        if self.on_cloud is None:
+            return
+        for name, cloud in clouds.items():
+            self.on_cloud(name, cloud, False)
+        if self.stats.frames % self.merged_every == 0:
+            self._announce_merged(self.recon.merged())
+
+    def _announce_merged(self, clouds: dict[str, Cloud]) -> None:
+        assert self.on_cloud is not None
+        for name, cloud in clouds.items():
+            if name != ALL or self._several:
+                self.on_cloud(name, cloud, True)
+
+    def finish(self, meta: dict[str, Any] | None = None) -> tuple[Reconstruction, dict[str, Any]]:
+        """The final reconstruction and its metrics (``metrics.json``'s content)."""
+        result = self.recon.result()
+        if self.on_cloud is not None:
+            final = dict(result.clouds)
+            for name, mesh in result.meshes.items():
+                final.setdefault(name, Cloud(mesh.vertices, _vertex_colors(mesh)))
+            self._announce_merged(final)
+        truth = self.stats.truth
+        metrics: dict[str, Any] = dict(meta or {})
+        metrics.update(
+            {
+                "frames": self.stats.frames,
+                "thresholds_mm": self.thresholds_mm,
+                "truth": None
+                if truth is None
+                else {"samples": int(len(truth.points)), "opaque_area_m2": round(truth.area_m2, 6)},
+                "labels": evaluate(result, self.labels, self.stats, self.thresholds_mm),
+                "leaf_instances_seen": self.stats.leaf_instances_seen,
+            }
+        )
+        return result, metrics
+
+
+def _vertex_colors(mesh: SurfaceMesh) -> np.ndarray:
+    return mesh.colors if mesh.colors is not None else np.full((len(mesh.vertices), 3), 200, np.uint8)
+
+
+def summary_metrics(metrics: dict[str, Any]) -> dict[str, Any]:
+    """The headline numbers of ``metrics.json`` for ``run.json``'s summary: per label, points
+    and precision/recall/F-score at each threshold."""
+    out = {}
+    for name, row in metrics.get("labels", {}).items():
+        out[name] = {k: row[k] for k in ("pixels", "points", "precision", "recall", "fscore", "chamfer_mm") if k in row}
+    return out
+
+
+# ------------------------------------------------------------------------------ files
+
+
+def output_files(out_dir: Path, result: Reconstruction) -> list[Path]:
+    """The files :func:`write_reconstruction` writes for ``result``."""
+    clouds = out_dir / "clouds"
+    return (
+        [clouds / f"{name}.ply" for name in result.clouds]
+        + [clouds / f"{name}_mesh.ply" for name in result.meshes]
+        + [out_dir / "metrics.json"]
+    )
+
+
+def write_reconstruction(out_dir: Path, result: Reconstruction, metrics: dict[str, Any]) -> None:
+    """``clouds/<label>.ply`` (binary PLY, colours), ``clouds/<label>_mesh.ply`` and
+    ``metrics.json``, each written atomically."""
+    import open3d as o3d
+
+    clouds = out_dir / "clouds"
+    clouds.mkdir(parents=True, exist_ok=True)
+    for name, cloud in result.clouds.items():
+        if len(cloud.points) == 0:  # Open3D refuses to write an empty cloud; readers accept one
+            write_bytes(clouds / f"{name}.ply", _EMPTY_PLY)
+            continue
+        pcd = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(cloud.points))
+        pcd.colors = o3d.utility.Vector3dVector(cloud.colors.astype(np.float64) / 255.0)
+        _atomic(clouds / f"{name}.ply", lambda tmp, g=pcd: o3d.io.write_point_cloud(tmp, g, write_ascii=False))
+    for name, mesh in result.meshes.items():
+        if len(mesh.vertices) == 0:
+            write_bytes(clouds / f"{name}_mesh.ply", _EMPTY_PLY)
+            continue
+        tm = o3d.geometry.TriangleMesh(
+            o3d.utility.Vector3dVector(mesh.vertices), o3d.utility.Vector3iVector(mesh.triangles)
+        )
+        tm.vertex_colors = o3d.utility.Vector3dVector(_vertex_colors(mesh).astype(np.float64) / 255.0)
+        _atomic(clouds / f"{name}_mesh.ply", lambda tmp, g=tm: o3d.io.write_triangle_mesh(tmp, g, write_ascii=False))
+    write_json(out_dir / "metrics.json", metrics)
+
+
+_EMPTY_PLY = (
+    b"ply\nformat binary_little_endian 1.0\nelement vertex 0\nproperty double x\nproperty double y\n"
+    b"property double z\nproperty uchar red\nproperty uchar green\nproperty uchar blue\nend_header\n"
+)
+
+
+def _atomic(path: Path, write: Callable[[str], bool]) -> None:
+    """Run a writer that takes a file name (Open3D's) on a temporary file, then rename."""
+    # Open3D picks the format by extension; the ".tmp" marks it as partial (see atomic.py)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=f".tmp{path.suffix}", dir=path.parent)
+    os.close(fd)
+    try:
+        if not write(tmp):
+            raise OSError(f"could not write {path}")
+        os.chmod(tmp, 0o644)
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+
+
+# -------------------------------------------------------------------- from a saved run
+
+
+def read_run(run_dir: Path) -> tuple[dict[str, Any], dict[str, Any]]:
+    """``run.json`` and ``cameras.json`` of a *complete* run, checked; a run that is still
+    running, was interrupted or failed is refused (its frames are not all there)."""
+    if not run_dir.is_dir():
+        raise UserError(f"{run_dir} is not a directory")
+    docs = []
+    for name in ("run.json", "cameras.json"):
+        path = run_dir / name
+        if not path.is_file():
+            raise UserError(f"{run_dir} holds no {name}, so it is not a rendered agrisim run")
+        try:
+            doc = json.loads(path.read_text())
+        except (OSError, ValueError) as exc:
+            raise UserError(f"cannot read {path}: {exc}") from None
+        if not isinstance(doc, dict):
+            raise UserError(f"{path} is not an agrisim {name}")
+        docs.append(doc)
+    run, cameras = docs
+    status = run.get("status")
+    if status != "complete":
+        raise UserError(
+            f"the run in {run_dir} is {status or 'of unknown status'}, not complete: "
+            f"finish it first with agrisim run --resume --out {run_dir}"
+        )
+    if not isinstance(run.get("labels"), list):
+        raise UserError(f"the run in {run_dir} has no label table (was it rendered?)")
+    frames = cameras.get("frames")
+    if not isinstance(frames, dict) or not isinstance(cameras.get("intrinsics"), dict):
+        raise UserError(f"{run_dir / 'cameras.json'} has no intrinsics and frames")
+    complete = run.get("frames_complete") or []
+    missing = sorted(set(complete) - set(frames))
+    if missing:
+        raise UserError(f"{run_dir / 'cameras.json'} lacks frames {', '.join(missing[:3])} that run.json lists")
+    for name in complete:
+        for folder in ("rgb", "labels", "depth"):
+            if not (run_dir / folder / f"{name}.png").is_file():
+                raise UserError(f"missing {folder} image {run_dir / folder / name}.png: the run's frames are incomplete")
+    return run, cameras
+
+
+def camera_from_json(intrinsics: dict[str, Any]) -> CameraModel:
+    """The pinhole of ``cameras.json``'s intrinsics."""
+    K = np.asarray(intrinsics["K"], float)
+    return CameraModel(int(intrinsics["width"]), int(intrinsics["height"]), K[0, 0], K[1, 1], K[0, 2], K[1, 2])
+
+
+def label_table_from_json(rows: list[dict[str, Any]]) -> LabelTable:
+    """The label table ``run.json`` records."""
+    return LabelTable([Label(int(r["id"]), str(r["name"]), tuple(int(c) for c in r["color"])) for r in rows])
+
+
+def truth_from_run(run_dir: Path, samples: int, seed: int = 0) -> GroundTruth | None:
+    """The ground truth of a saved run: its ``scene/plant.glb`` (world coordinates)."""
+    from agrisim.assets import load_plant
+
+    path = run_dir / "scene" / "plant.glb"
+    if not path.is_file():
+        return None
+    plant = load_plant(path, place=False)
+    return GroundTruth.sample(plant.mesh, samples, seed)
+
+
+def rebuild(
+    run_dir: Path,
+    recon: Reconstructor,
+    labels: LabelTable,
+    run: dict[str, Any],
+    cameras: dict[str, Any],
+    truth: GroundTruth | None,
+    thresholds_mm: list[float],
+    progress: Callable[[int, int], None] | None = None,
+) -> ReconSession:
+    """Feed every complete frame of a saved run, in capture order, to a fresh session."""
+    session = ReconSession(recon, labels, truth, thresholds_mm)
+    camera = camera_from_json(cameras["intrinsics"])
+    frames = cameras["frames"]
+    # capture order: the order run.json's results list the frames in
+    order = [r["frame"] for r in run.get("results", []) if r.get("frame") in frames]
+    order += sorted(set(frames) - set(order))
+    for i, name in enumerate(order):
+        session.add(load_view(run_dir, name, camera, np.asarray(frames[name]["world_T_camera"], float)))
+        if progress:
+            progress(i + 1, len(order))
+    return session
+
+
+def check_writable(out_dir: Path, labels: LabelTable, overwrite: bool) -> None:
+    """Refuse, before any work, to replace a reconstruction's outputs unless ``overwrite``."""
+    names = [lab.name for lab in labels.labels if lab.id != 0] + [ALL]
+    candidates = [out_dir / "metrics.json"] + [
+        out_dir / "clouds" / f"{name}{suffix}.ply" for name in names for suffix in ("", "_mesh")
+    ]
+    existing = [p for p in candidates if p.exists()]
+    if existing and not overwrite:
+        raise OutputError(f"{existing[0]} already exists; pass --overwrite to replace it or --out DIR to write elsewhere")
+
+
+__all__ = ["ReconSession", "rebuild", "read_run", "write_reconstruction", "summary_metrics", "check_writable"]
+
+
+def reconstruct_saved_run(
+    run_dir: Path,
+    overrides: dict[str, Any],
+    out_dir: Path | None = None,
+    overwrite: bool = False,
+    progress: Callable[[int, int], None] | None = None,
+) -> tuple[Path, dict[str, Any]]:
+    """``agrisim recon``: rebuild a complete run's reconstruction from its files.
+
+    ``overrides`` may set ``recon`` (backend and its options) and ``metrics``; everything else
+    is the run's saved configuration. Writes into ``out_dir`` (default: the run directory) and
+    returns it with the metrics. Every input is checked before any work or write.
+    """
+    from agrisim.config import backend_options, build_config
+    from agrisim.registry import Registry, make_plugin_manager
+
+    unknown = set(overrides) - {"recon", "metrics"}
+    if unknown:
+        raise UserError(f"agrisim recon takes only recon.* and metrics.* settings, not {', '.join(sorted(unknown))}")
+    run, cameras = read_run(run_dir)
+    saved = run.get("config")
+    if not isinstance(saved, dict):
+        raise UserError(f"{run_dir / 'run.json'} holds no run configuration")
+    saved = {k: v for k, v in saved.items() if k != "output"}
+    config = build_config(saved, overrides)
+    if config.recon.backend == "none":
+        raise UserError("--recon none reconstructs nothing; choose a reconstructor (see agrisim plugins)")
+    registry = Registry(make_plugin_manager())
+    spec = registry.get("reconstructor", config.recon.backend)
+    config.recon.check_tables("recon", registry.specs("reconstructor"))
+    options = backend_options(spec.options_model, config.recon.options_for(spec.name), f"reconstructor {spec.name!r}")
+    labels = label_table_from_json(run["labels"])
+    out = out_dir if out_dir is not None else run_dir
+    check_writable(out, labels, overwrite)
+    truth = truth_from_run(run_dir, config.metrics.truth_samples)
+    session = rebuild(run_dir, spec.factory(labels, options), labels, run, cameras, truth, config.metrics.thresholds_mm, progress)
+    meta = {
+        "plant": config.plant,
+        "seg_mode": config.render.seg_mode,
+        "labels_mode": config.render.labels,
+        "recon": spec.name,
+        "seed": config.seed,
+        "source": str(run_dir),
+    }
+    result, metrics = session.finish(meta)
+    write_reconstruction(out, result, metrics)
+    return out, metrics

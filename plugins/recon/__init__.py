@@ -1,0 +1,1 @@
+"""Reconstructors: the paper's point clouds and TSDF surfaces, per label."""
