@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import re
 import sys
 import traceback
 from collections.abc import Sequence
@@ -161,7 +162,10 @@ def _set(tree: dict[str, Any], dotted: str, value: Any) -> None:
 
 
 def _parse_value(text: str) -> Any:
-    """A TOML value (number, bool, string, array); bare words are strings."""
+    """A TOML value (number, bool, string, array); bare words are strings, and so are words
+    like ``0x1`` that TOML would read as hexadecimal, octal or binary numbers (a grid ``LxC``)."""
+    if re.fullmatch(r"[+-]?0[xob][0-9a-fA-F_]*", text.strip()):
+        return text
     try:
         return tomllib.loads(f"v = {text}")["v"]
     except tomllib.TOMLDecodeError:

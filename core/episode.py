@@ -9,7 +9,6 @@ reason and the run goes on.
 from __future__ import annotations
 
 import datetime as _dt
-import json
 import os
 import shutil
 import time
@@ -48,6 +47,7 @@ from agrisim.lab import build_scene
 from agrisim.metrics import GroundTruth
 from agrisim.planning import segment_is_valid
 from agrisim.reconstruct import ReconSession, summary_metrics
+from agrisim.rundir import read_json
 from agrisim.scene import LabelTable, Plant, Scene
 from agrisim.registry import BackendSpec, Registry, make_plugin_manager
 from agrisim.setpoints import Setpoint, routine
@@ -127,6 +127,7 @@ class Run:
     run_id: str = field(default_factory=lambda: uuid.uuid4().hex)
     results: list[SetpointResult] = field(default_factory=list)
     wall_s: dict[str, float] = field(default_factory=dict)
+    plant_notes: list[str] = field(default_factory=list)  # how the plant was made (scaled, aged...)
     reconstruction: Reconstruction | None = None  # set when a complete run's views are fused
     metrics: dict[str, Any] | None = None  # metrics.json's content
 
@@ -232,6 +233,7 @@ class Episode:
             scene=self.scene,
             labels=self.scene.labels if self.scene is not None else None,
             wall_s=dict(self._prep_wall),
+            plant_notes=list(self.plant.notes) if self.scene is not None else [],
         )
         if self.renderer_spec is not None:
             run.backends["renderer"] = self.renderer_spec.name
@@ -616,13 +618,8 @@ def resolve_out_dir(config: RunConfig) -> Path:
 def saved_run(out: Path) -> dict[str, Any]:
     """The ``run.json`` of an unfinished run in ``out`` (for ``--resume``)."""
     path = out / "run.json"
-    if not path.is_file():
-        raise OutputError(f"--resume: {out} holds no run.json, so it is not an agrisim run to continue")
-    try:
-        doc = json.loads(path.read_text())
-    except (OSError, ValueError) as exc:
-        raise OutputError(f"--resume: cannot read {path}: {exc}") from None
-    if not isinstance(doc, dict) or not isinstance(doc.get("config"), dict):
+    doc = read_json(path, "not an agrisim run to continue", OutputError, prefix="--resume: ")
+    if not isinstance(doc.get("config"), dict):
         raise OutputError(f"--resume: {path} holds no run configuration")
     if doc.get("status") == "complete":
         raise OutputError(f"--resume: the run in {out} is complete; nothing to continue")

@@ -24,7 +24,6 @@ marked ``running``) raises :class:`ExportError` before anything is written.
 from __future__ import annotations
 
 import io
-import json
 from pathlib import Path
 from typing import Any
 
@@ -33,6 +32,7 @@ from PIL import Image
 
 from agrisim.atomic import write_bytes, write_json
 from agrisim.errors import UserError
+from agrisim.rundir import read_json
 
 #: OpenCV optical frame -> OpenGL camera frame (negate y and z), as a right factor on camera-to-world
 CV_TO_GL = np.diag([1.0, -1.0, -1.0, 1.0])
@@ -82,15 +82,7 @@ def nerfstudio_transforms(intrinsics: dict[str, Any], frames: dict[str, dict[str
 
 
 def _read_json(path: Path, what: str) -> dict[str, Any]:
-    if not path.is_file():
-        raise ExportError(f"{path.parent} holds no {path.name}: {what}")
-    try:
-        doc = json.loads(path.read_text())
-    except (OSError, UnicodeDecodeError, ValueError) as exc:
-        raise ExportError(f"cannot read {path}: {exc}") from None
-    if not isinstance(doc, dict):
-        raise ExportError(f"{path} is not a JSON object")
-    return doc
+    return read_json(path, what, ExportError)
 
 
 def _valid_intrinsics(intrinsics: Any) -> bool:

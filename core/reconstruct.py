@@ -8,7 +8,6 @@ the same session. :func:`write_reconstruction` writes ``clouds/`` and ``metrics.
 
 from __future__ import annotations
 
-import json
 import os
 import tempfile
 from collections.abc import Callable
@@ -20,6 +19,7 @@ import numpy as np
 from agrisim.atomic import write_bytes, write_json
 from agrisim.errors import OutputError, UserError
 from agrisim.interfaces import CameraModel, Cloud, Reconstruction, Reconstructor, SurfaceMesh
+from agrisim.rundir import read_json
 from agrisim.metrics import ALL, GroundTruth, ViewStats, evaluate
 from agrisim.scene import Label, LabelTable
 from agrisim.views import View, load_view
@@ -174,19 +174,7 @@ def read_run(run_dir: Path) -> tuple[dict[str, Any], dict[str, Any]]:
     running, was interrupted or failed is refused (its frames are not all there)."""
     if not run_dir.is_dir():
         raise UserError(f"{run_dir} is not a directory")
-    docs = []
-    for name in ("run.json", "cameras.json"):
-        path = run_dir / name
-        if not path.is_file():
-            raise UserError(f"{run_dir} holds no {name}, so it is not a rendered agrisim run")
-        try:
-            doc = json.loads(path.read_text())
-        except (OSError, ValueError) as exc:
-            raise UserError(f"cannot read {path}: {exc}") from None
-        if not isinstance(doc, dict):
-            raise UserError(f"{path} is not an agrisim {name}")
-        docs.append(doc)
-    run, cameras = docs
+    run, cameras = (read_json(run_dir / name, "not a rendered agrisim run") for name in ("run.json", "cameras.json"))
     status = run.get("status")
     if status != "complete":
         raise UserError(

@@ -7,6 +7,7 @@ import pytest
 from agrisim.cell import Cell, build_cell
 from agrisim.config import CellConfig
 from agrisim.kinematics import ArmKinematics
+from agrisim.registry import hookimpl
 
 
 @pytest.fixture(scope="session")
@@ -17,3 +18,27 @@ def cell() -> Cell:
 @pytest.fixture(scope="session")
 def kin(cell: Cell) -> dict[str, ArmKinematics]:
     return {arm.name: ArmKinematics(arm) for arm in cell.arms}
+
+
+def run_cli(args: list[str], capsys: pytest.CaptureFixture[str]) -> tuple[int, str, str]:
+    """Run ``agrisim ARGS`` in-process: (exit status, stdout, stderr)."""
+    from agrisim.cli import main
+
+    capsys.readouterr()
+    try:
+        code = main(args)
+    except SystemExit as exc:
+        code = exc.code
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+class Frames:
+    """A plugin object that keeps a copy of every capture's images, by frame name."""
+
+    def __init__(self) -> None:
+        self.images: dict[str, dict] = {}
+
+    @hookimpl
+    def agrisim_capture(self, run, capture):  # noqa: ANN001 - pluggy passes what the hook names
+        self.images[capture.frame] = {k: v.copy() for k, v in capture.images.items()}

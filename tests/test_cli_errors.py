@@ -14,7 +14,7 @@ from pathlib import Path
 
 import pytest
 
-from agrisim.cli import main
+from conftest import run_cli
 from agrisim.errors import UserError
 from agrisim.robot import ur10_with_camera
 
@@ -45,14 +45,6 @@ def snapshot(root: Path) -> dict[str, tuple[bytes | None, int]]:
     }
 
 
-def run_cli(args: list[str], capsys: pytest.CaptureFixture[str]) -> tuple[int, str, str]:
-    capsys.readouterr()
-    try:
-        code = main(args)
-    except SystemExit as exc:
-        code = exc.code
-    out, err = capsys.readouterr()
-    return code, out, err
 
 
 def assert_one_line_error(code: int, err: str, expected: list[str]) -> None:

@@ -19,6 +19,7 @@ from typing import Any
 
 import pytest
 
+from conftest import run_cli
 from agrisim import compare as cmp
 from agrisim.cli import main
 from agrisim.errors import UserError
@@ -227,14 +228,6 @@ def no_ray(monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setattr(cmp, "start_ray", _refuse_ray)
 
 
-def _cli(args: list[str], capsys: pytest.CaptureFixture[str]) -> tuple[int, str, str]:
-    capsys.readouterr()
-    try:
-        status = main(args)
-    except SystemExit as exc:
-        status = exc.code
-    out, err = capsys.readouterr()
-    return status, out, err
 
 
 @pytest.mark.parametrize(
@@ -253,7 +246,7 @@ def _cli(args: list[str], capsys: pytest.CaptureFixture[str]) -> tuple[int, str,
 def test_bad_input_exits_2_with_one_line(args, message, tmp_path, capsys, monkeypatch) -> None:
     if "--ray-address" not in args:
         monkeypatch.setattr(cmp, "start_ray", _refuse_ray)
-    status, out, err = _cli(["compare", "--out", str(tmp_path / "c"), *args], capsys)
+    status, out, err = run_cli(["compare", "--out", str(tmp_path / "c"), *args], capsys)
     assert status == 2
     assert err.count("\n") == 1 and message in err, err
     assert not (tmp_path / "c").exists()
@@ -328,15 +321,15 @@ def test_one_worker_gives_identical_results(two_workers, tmp_path: Path) -> None
 def test_existing_out_is_refused_and_resume_skips_complete_runs(two_workers, capsys, no_ray) -> None:
     out, _ = two_workers
     before = {p: p.stat().st_mtime_ns for p in out.rglob("*") if p.is_file()}
-    status, _, err = _cli(["compare", "--plants", ",".join(PLANTS), "--out", str(out), *TINY], capsys)
+    status, _, err = run_cli(["compare", "--plants", ",".join(PLANTS), "--out", str(out), *TINY], capsys)
     assert status == 2 and "already exists; pass --overwrite" in err
-    status, _, err = _cli(["compare", "--plants", ",".join(PLANTS), "--out", str(out), "--resume", *TINY[:-2]], capsys)
+    status, _, err = run_cli(["compare", "--plants", ",".join(PLANTS), "--out", str(out), "--resume", *TINY[:-2]], capsys)
     assert status == 2 and "metrics.truth_samples" in err  # made with other settings: never mixed
     after = {p: p.stat().st_mtime_ns for p in out.rglob("*") if p.is_file()}
     assert after == before
     table = (out / "table.csv").read_text()
     # every run complete: nothing runs (no_ray), the table is rebuilt from the run directories
-    status, stdout, _ = _cli(["compare", "--plants", ",".join(PLANTS), "--out", str(out), "--resume", *TINY], capsys)
+    status, stdout, _ = run_cli(["compare", "--plants", ",".join(PLANTS), "--out", str(out), "--resume", *TINY], capsys)
     assert status == 0 and "were complete already" in stdout
     assert (out / "table.csv").read_text() == table
     assert all(e["status"] == "skipped" for e in json.loads((out / "compare.json").read_text())["episodes"])

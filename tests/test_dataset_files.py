@@ -7,19 +7,12 @@ import json
 import numpy as np
 from PIL import Image
 
+from conftest import Frames
 from agrisim.assets import load_plant
 from agrisim.config import build_config
 from agrisim.episode import Episode
-from agrisim.registry import hookimpl
 
 
-class Frames:
-    def __init__(self) -> None:
-        self.images: dict[str, dict[str, np.ndarray]] = {}
-
-    @hookimpl
-    def agrisim_capture(self, run, capture):
-        self.images[capture.frame] = {k: v.copy() for k, v in capture.images.items()}
 
 
 def test_files_match_the_rendered_frames(tmp_path):

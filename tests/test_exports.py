@@ -16,8 +16,8 @@ import open3d as o3d
 import pytest
 from PIL import Image
 
+from conftest import run_cli
 from agrisim.assets import load_plant
-from agrisim.cli import main
 from agrisim.config import build_config
 from agrisim.episode import Episode
 from agrisim.exports import ExportError, opencv_to_opengl, write_nerfstudio
@@ -214,14 +214,6 @@ def test_nerfstudio_rays_meet_the_plant_at_the_exported_depth(exported: tuple[Pa
 # ------------------------------------------------------------------------------- bad input
 
 
-def _run_cli(args: list[str], capsys: pytest.CaptureFixture[str]) -> tuple[int, str, str]:
-    capsys.readouterr()
-    try:
-        code = main(args)
-    except SystemExit as exc:
-        code = exc.code
-    out, err = capsys.readouterr()
-    return code, out, err
 
 
 def _snapshot(root: Path) -> dict[str, tuple[bytes | None, int]]:
@@ -239,7 +231,7 @@ def _copy_run(exported: tuple[Path, np.ndarray, np.ndarray], dest: Path) -> Path
 
 def test_cli_export_writes_transforms(exported: tuple[Path, np.ndarray, np.ndarray], tmp_path: Path, capsys) -> None:
     run = _copy_run(exported, tmp_path / "run")
-    code, out, err = _run_cli(["export", "nerfstudio", str(run)], capsys)
+    code, out, err = run_cli(["export", "nerfstudio", str(run)], capsys)
     assert code == 0 and err == "", err
     assert out.strip() == f"wrote {run / 'transforms.json'}"
     assert _doc(run) == _doc(exported[0])
@@ -287,7 +279,7 @@ def test_bad_run_dir_exits_2_and_writes_nothing(case: str, exported, tmp_path: P
     breaker, expected = BROKEN[case]
     breaker(run)
     before = _snapshot(tmp_path)
-    code, out, err = _run_cli(["export", "nerfstudio", str(run)], capsys)
+    code, out, err = run_cli(["export", "nerfstudio", str(run)], capsys)
     assert code == 2, err
     assert err.startswith("agrisim: error: ") and err.count("\n") == 1 and err.endswith("\n"), err
     assert all(word in err for word in expected), err
@@ -310,7 +302,7 @@ def test_not_a_run_dir_exits_2(args: list[str], expected: list[str], tmp_path: P
     (tmp_path / "afile").write_text("not a run\n")
     (tmp_path / "empty").mkdir()
     before = _snapshot(tmp_path)
-    code, _, err = _run_cli([a.format(tmp=tmp_path) for a in args], capsys)
+    code, _, err = run_cli([a.format(tmp=tmp_path) for a in args], capsys)
     assert code == 2 and err.count("\n") == 1, err
     assert all(word in err for word in expected), err
     assert _snapshot(tmp_path) == before

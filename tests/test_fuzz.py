@@ -15,7 +15,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from agrisim.cli import main
+from conftest import run_cli
 
 #: a valid, cheap run: each example breaks it
 BASE: dict[str, Any] = {
@@ -137,12 +137,7 @@ def sandbox(tmp_path_factory: pytest.TempPathFactory, monkeypatch: pytest.Monkey
 
 def _expect_refusal(args: list[str], root: Path, capsys: pytest.CaptureFixture[str]) -> str:
     before = _tree(root)
-    capsys.readouterr()
-    try:
-        code = main(args)
-    except SystemExit as exc:
-        code = exc.code
-    out, err = capsys.readouterr()
+    code, out, err = run_cli(args, capsys)
     assert code == 2, f"exit {code} for {args}: {err or out}"
     assert err.count("\n") == 1 and err.startswith("agrisim: error: "), err
     assert "Traceback" not in err

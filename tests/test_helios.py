@@ -15,14 +15,15 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from agrisim.cli import _parser, main, overrides_from_args
+from conftest import Frames, run_cli
+from agrisim.cli import _parser, overrides_from_args
 from agrisim.config import RunConfig, build_config
 from agrisim.episode import Episode, resolve_plant
 from agrisim.errors import UserError
 from agrisim.plugins.plants import helios as H
 from agrisim.plugins.plants import helios_convert as hc
 from agrisim.plugins.plants.procedural import FIT_HEIGHT, FIT_RADIUS
-from agrisim.registry import Registry, hookimpl, make_plugin_manager
+from agrisim.registry import Registry, make_plugin_manager
 from agrisim.texturing import interpolate_uv, opaque
 
 # No skip without PyHelios: CI installs the extra (scripts/setup.sh), and without it these tests
@@ -38,14 +39,6 @@ def _plugins(monkeypatch: pytest.MonkeyPatch) -> None:
         monkeypatch.delenv(var, raising=False)
 
 
-def run_cli(args: list[str], capsys: pytest.CaptureFixture[str]) -> tuple[int, str, str]:
-    capsys.readouterr()
-    try:
-        code = main(args)
-    except SystemExit as exc:
-        code = exc.code
-    out, err = capsys.readouterr()
-    return code, out, err
 
 
 def assert_one_line_error(code: int, err: str, *expected: str) -> None:
@@ -258,15 +251,6 @@ def test_without_pyhelios_helios_plants_name_the_extra(tmp_path, capsys, monkeyp
 # ------------------------------------------------------------------------------ whole episodes
 
 
-class Frames:
-    """Collects every capture's images."""
-
-    def __init__(self) -> None:
-        self.images: dict[str, dict[str, np.ndarray]] = {}
-
-    @hookimpl
-    def agrisim_capture(self, run, capture):
-        self.images[capture.frame] = {k: v.copy() for k, v in capture.images.items()}
 
 
 def tiny_run(plant: str, out: Path, **output: object) -> tuple[Episode, Frames, object]:
@@ -313,3 +297,34 @@ def test_crop_runs_the_routine_with_organs_and_instances(model, tmp_path):
 
         entities = {chunk.entity_path.lstrip("/") for chunk in RrdReader(rrd).stream()}
         assert {f"world/{arm}/camera/instances" for arm in ("r1", "r2")} <= entities
+
+
+def test_compare_reports_the_repopa_excess_of_the_five_crops(tmp_path, capsys):
+    """``agrisim compare`` over the five crops: RepOpa labels more pixels than the texture
+    labels for each, the table says by how much, and every run counts the leaves it saw."""
+    import csv
+    import json
+
+    from PIL import Image
+
+    out = tmp_path / "compare"
+    plants = ",".join(f"helios:{m}" for m in CROPS)
+    code, _, err = run_cli(
+        ["compare", "--plants", plants, "--workers", "2", "--out", str(out), "--physics", "kinematic",
+         "--setpoints", "1x2", "--resolution", "160x90", "--shadow-samples", "0",
+         "--set", "metrics.truth_samples=20000"],
+        capsys,
+    )
+    assert code == 0, err
+    rows = {r["plant"]: r for r in csv.DictReader((out / "table.csv").open()) if r["label"] == "all"}
+    assert set(rows) == {f"helios:{m}" for m in CROPS}
+    for plant, row in rows.items():
+        texture, repopa = int(row["pixels_texture"]), int(row["pixels_repopa"])
+        assert repopa > texture > 0, plant
+        assert float(row["pixels_pct"]) == pytest.approx(100 * (repopa / texture - 1), rel=1e-6)
+    run = next(out.rglob("metrics.json")).parent
+    metrics = json.loads((run / "metrics.json").read_text())
+    ids: set[int] = set()
+    for png in (run / "instances").glob("*.png"):
+        ids |= set(np.unique(np.array(Image.open(png))).tolist())
+    assert metrics["leaf_instances_seen"] == len(ids - {0}) > 0

@@ -111,6 +111,7 @@ class DatasetSink:
             "backends": run.backends,
             "backend_options": run.backend_options,
             "config": run.config.model_dump(mode="json"),
+            "plant_notes": run.plant_notes,
             "versions": self.versions,
             "labels": [
                 {"id": lab.id, "name": lab.name, "color": list(lab.color)} for lab in run.labels.labels

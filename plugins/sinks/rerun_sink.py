@@ -69,7 +69,7 @@ IMAGE_PLANE_DISTANCE = 0.08
 SETPOINT_ARROW = 0.05
 RGB_JPEG_QUALITY = 90
 #: most points a per-view / merged cloud keeps in the recording (the files on disk keep all)
-VIEW_CLOUD_POINTS = 50_000
+VIEW_CLOUD_POINTS = 20_000
 MERGED_CLOUD_POINTS = 300_000
 #: seconds to wait for the sinks (file, viewer) to take the last data at the end of the run
 FLUSH_TIMEOUT = 20.0
