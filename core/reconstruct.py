@@ -18,10 +18,10 @@ import numpy as np
 
 from agrisim.atomic import write_bytes, write_json
 from agrisim.errors import OutputError, UserError
-from agrisim.interfaces import CameraModel, Cloud, Reconstruction, Reconstructor, SurfaceMesh
-from agrisim.rundir import read_json
+from agrisim.interfaces import Cloud, Reconstruction, Reconstructor, SurfaceMesh
+from agrisim.rundir import camera_from_json, label_table_from_json, read_run
 from agrisim.metrics import ALL, GroundTruth, ViewStats, evaluate
-from agrisim.scene import Label, LabelTable
+from agrisim.scene import LabelTable
 from agrisim.views import View, load_view
 
 CloudCallback = Callable[[str, Cloud, bool], None]
@@ -167,45 +167,6 @@ def _atomic(path: Path, write: Callable[[str], bool]) -> None:
 
 
 # -------------------------------------------------------------------- from a saved run
-
-
-def read_run(run_dir: Path) -> tuple[dict[str, Any], dict[str, Any]]:
-    """``run.json`` and ``cameras.json`` of a *complete* run, checked; a run that is still
-    running, was interrupted or failed is refused (its frames are not all there)."""
-    if not run_dir.is_dir():
-        raise UserError(f"{run_dir} is not a directory")
-    run, cameras = (read_json(run_dir / name, "not a rendered agrisim run") for name in ("run.json", "cameras.json"))
-    status = run.get("status")
-    if status != "complete":
-        raise UserError(
-            f"the run in {run_dir} is {status or 'of unknown status'}, not complete: "
-            f"finish it first with agrisim run --resume --out {run_dir}"
-        )
-    if not isinstance(run.get("labels"), list):
-        raise UserError(f"the run in {run_dir} has no label table (was it rendered?)")
-    frames = cameras.get("frames")
-    if not isinstance(frames, dict) or not isinstance(cameras.get("intrinsics"), dict):
-        raise UserError(f"{run_dir / 'cameras.json'} has no intrinsics and frames")
-    complete = run.get("frames_complete") or []
-    missing = sorted(set(complete) - set(frames))
-    if missing:
-        raise UserError(f"{run_dir / 'cameras.json'} lacks frames {', '.join(missing[:3])} that run.json lists")
-    for name in complete:
-        for folder in ("rgb", "labels", "depth"):
-            if not (run_dir / folder / f"{name}.png").is_file():
-                raise UserError(f"missing {folder} image {run_dir / folder / name}.png: the run's frames are incomplete")
-    return run, cameras
-
-
-def camera_from_json(intrinsics: dict[str, Any]) -> CameraModel:
-    """The pinhole of ``cameras.json``'s intrinsics."""
-    K = np.asarray(intrinsics["K"], float)
-    return CameraModel(int(intrinsics["width"]), int(intrinsics["height"]), K[0, 0], K[1, 1], K[0, 2], K[1, 2])
-
-
-def label_table_from_json(rows: list[dict[str, Any]]) -> LabelTable:
-    """The label table ``run.json`` records."""
-    return LabelTable([Label(int(r["id"]), str(r["name"]), tuple(int(c) for c in r["color"])) for r in rows])
 
 
 def truth_from_run(run_dir: Path, samples: int, seed: int = 0) -> GroundTruth | None:

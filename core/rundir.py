@@ -12,7 +12,11 @@ import json
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from agrisim.errors import UserError
+from agrisim.interfaces import CameraModel
+from agrisim.scene import Label, LabelTable
 
 
 def read_json(path: Path, missing: str, error: type[UserError] = UserError, prefix: str = "") -> dict[str, Any]:
@@ -28,3 +32,42 @@ def read_json(path: Path, missing: str, error: type[UserError] = UserError, pref
     if not isinstance(doc, dict):
         raise error(f"{prefix}{path} is not a JSON object")
     return doc
+
+
+def read_run(run_dir: Path) -> tuple[dict[str, Any], dict[str, Any]]:
+    """``run.json`` and ``cameras.json`` of a *complete* run, checked; a run that is still
+    running, was interrupted or failed is refused (its frames are not all there)."""
+    if not run_dir.is_dir():
+        raise UserError(f"{run_dir} is not a directory")
+    run, cameras = (read_json(run_dir / name, "not a rendered agrisim run") for name in ("run.json", "cameras.json"))
+    status = run.get("status")
+    if status != "complete":
+        raise UserError(
+            f"the run in {run_dir} is {status or 'of unknown status'}, not complete: "
+            f"finish it first with agrisim run --resume --out {run_dir}"
+        )
+    if not isinstance(run.get("labels"), list):
+        raise UserError(f"the run in {run_dir} has no label table (was it rendered?)")
+    frames = cameras.get("frames")
+    if not isinstance(frames, dict) or not isinstance(cameras.get("intrinsics"), dict):
+        raise UserError(f"{run_dir / 'cameras.json'} has no intrinsics and frames")
+    complete = run.get("frames_complete") or []
+    missing = sorted(set(complete) - set(frames))
+    if missing:
+        raise UserError(f"{run_dir / 'cameras.json'} lacks frames {', '.join(missing[:3])} that run.json lists")
+    for name in complete:
+        for folder in ("rgb", "labels", "depth"):
+            if not (run_dir / folder / f"{name}.png").is_file():
+                raise UserError(f"missing {folder} image {run_dir / folder / name}.png: the run's frames are incomplete")
+    return run, cameras
+
+
+def camera_from_json(intrinsics: dict[str, Any]) -> CameraModel:
+    """The pinhole of ``cameras.json``'s intrinsics."""
+    K = np.asarray(intrinsics["K"], float)
+    return CameraModel(int(intrinsics["width"]), int(intrinsics["height"]), K[0, 0], K[1, 1], K[0, 2], K[1, 2])
+
+
+def label_table_from_json(rows: list[dict[str, Any]]) -> LabelTable:
+    """The label table ``run.json`` records."""
+    return LabelTable([Label(int(r["id"]), str(r["name"]), tuple(int(c) for c in r["color"])) for r in rows])

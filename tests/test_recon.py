@@ -22,7 +22,8 @@ from agrisim.metrics import GroundTruth, ViewStats, evaluate
 from agrisim.interfaces import Cloud, Reconstruction
 from agrisim.plugins.recon.pointcloud import PointCloudReconstructor
 from agrisim.plugins.recon.voxel_grid import VoxelGrid
-from agrisim.reconstruct import ReconSession, camera_from_json, read_run
+from agrisim.reconstruct import ReconSession
+from agrisim.rundir import camera_from_json, read_run
 from agrisim.registry import Registry, make_plugin_manager
 from agrisim.scene import Label, LabelTable, Material, Mesh
 from agrisim.setpoints import hemisphere
