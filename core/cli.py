@@ -138,6 +138,7 @@ def _parser() -> argparse.ArgumentParser:
 #: the episode options `compare` passes on (as `agrisim run` has them)
 _COMPARE_EPISODE_FLAGS: list[tuple[str, str, Any, str]] = [
     ("--labels", "plant|organs", str, "one plant label, or one per organ (default: plant)"),
+    ("--plant-age", "DAYS", float, "age of every growing plant (helios:*), days (default: each model's)"),
     ("--renderer", "NAME", str, "renderer (default: raycast)"),
     ("--shadow-samples", "N", int, "shadow rays per pixel, 0..32 (default: 1)"),
     ("--physics", "NAME", str, "physics backend (default: pybullet)"),
