@@ -25,17 +25,22 @@ else:  # pragma: no cover
     import tomli as tomllib
 
 
+def _no_bool_for_number(model: type[BaseModel], name: str | None, value: Any) -> Any:
+    """Refuse ``true``/``false`` for a number field: pydantic reads true as 1, which in a
+    configuration is always a mistake."""
+    field = model.model_fields.get(name or "")
+    if isinstance(value, bool) and field is not None and field.annotation in (int, float):
+        raise ValueError(f"expected a number, not {str(value).lower()}")
+    return value
+
+
 class _Model(BaseModel):
     model_config = ConfigDict(extra="forbid", validate_assignment=True, use_attribute_docstrings=True)
 
     @field_validator("*", mode="before")
     @classmethod
     def _no_bools_for_numbers(cls, value: Any, info: ValidationInfo) -> Any:
-        # pydantic reads true as 1 for a number field; in a config that is always a mistake
-        field = cls.model_fields.get(info.field_name or "")
-        if isinstance(value, bool) and field is not None and field.annotation in (int, float):
-            raise ValueError(f"expected a number, not {str(value).lower()}")
-        return value
+        return _no_bool_for_number(cls, info.field_name, value)
 
 
 class BackendChoice(BaseModel):
@@ -361,7 +366,13 @@ def build_config(*layers: Mapping[str, Any]) -> RunConfig:
 
 
 def backend_options(model: type[BaseModel], table: Mapping[str, Any], what: str) -> BaseModel:
-    """Validate one backend's option table with its own model."""
+    """Validate one backend's option table with its own model (a plugin's models do not derive
+    from agrisim's, so the checks every setting gets are applied here too)."""
+    try:
+        for key, value in table.items():
+            _no_bool_for_number(model, key, value)
+    except ValueError as exc:
+        raise ConfigError(f"{what}: invalid setting {key!r}: {exc}") from None
     try:
         return model.model_validate(dict(table))
     except ValidationError as exc:

@@ -72,7 +72,8 @@ class ReconSession:
     def finish(self, meta: dict[str, Any] | None = None) -> tuple[Reconstruction, dict[str, Any]]:
         """The final reconstruction and its metrics (``metrics.json``'s content)."""
         result = self.recon.result()
-        if self.on_cloud is not None:
+        # the last view may have announced the merge already: the same clouds, not twice
+        if self.on_cloud is not None and self.stats.frames % self.merged_every != 0:
             final = dict(result.clouds)
             for name, mesh in result.meshes.items():
                 final.setdefault(name, Cloud(mesh.vertices, _vertex_colors(mesh)))
