@@ -2,7 +2,7 @@
 VENV ?= .venv
 ARGS ?=
 
-.PHONY: setup run test bench clean
+.PHONY: setup run test bench lock clean
 
 setup:
 	bash scripts/setup.sh
@@ -15,6 +15,12 @@ test: setup
 
 bench: setup
 	$(VENV)/bin/python bench/robot_episode.py
+
+# Re-resolve requirements.lock from pyproject.toml's ranges (newest versions that fit), with
+# hashes, for every Python the project supports; then run `make test` before committing it.
+lock: setup
+	$(VENV)/bin/uv pip compile pyproject.toml --extra dev --extra helios --upgrade --generate-hashes \
+		--universal --python-version 3.10 --custom-compile-command "make lock" -o requirements.lock
 
 clean:
 	rm -rf $(VENV) runs .pytest_cache

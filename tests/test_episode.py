@@ -104,14 +104,69 @@ def test_executed_trajectories_are_collision_free_by_coal(pybullet_run):
         coal.close()
 
 
-def test_arms_move_concurrently_when_that_is_collision_free(pybullet_run):
-    episode, run, summary, recorder = pybullet_run
-    spans = {(tr.robot, tr.setpoint): (tr.executed.t[0], tr.executed.t[-1]) for tr in recorder.trajectories}
-    overlapping = sum(
-        1 for k in range(6) if ("r1", k) in spans and ("r2", k) in spans and spans["r1", k][0] == spans["r2", k][0]
+def _reach_bound(physics: KinematicPhysics, robot: str) -> tuple[np.ndarray, float]:
+    """The arm's first joint in the world, and a bound on how far any of its collision geometry
+    can be from it in any configuration: the joint offsets along the chain plus each body's
+    bounding sphere. Exact geometry, no sampling: a premise that cannot depend on the machine."""
+    model, geom = physics.model, physics.geom
+    root, bound = None, 0.0
+    for obj in geom.geometryObjects:
+        joint, chain = obj.parentJoint, 0.0
+        if joint == 0 or not model.names[joint].startswith(f"{robot}/"):
+            continue
+        while model.parents[joint] != 0:
+            chain += float(np.linalg.norm(model.jointPlacements[joint].translation))
+            joint = model.parents[joint]
+        root = joint
+        obj.geometry.computeLocalAABB()
+        centre = obj.placement.translation + obj.placement.rotation @ obj.geometry.aabb_center
+        bound = max(bound, chain + float(np.linalg.norm(centre)) + float(obj.geometry.aabb_radius))
+    assert root is not None, robot
+    return model.jointPlacements[root].translation.copy(), bound
+
+
+def _spans(recorder: Recorder) -> dict[tuple[str, int], tuple[float, float]]:
+    return {(tr.robot, tr.setpoint): (tr.executed.t[0], tr.executed.t[-1]) for tr in recorder.trajectories}
+
+
+@pytest.mark.parametrize("physics", ["kinematic", "pybullet"])
+def test_arms_move_together_when_their_workspaces_cannot_meet(tmp_path, physics):
+    """Arms 5 m apart, each photographing in front of itself: whatever IK branch or path is
+    found, the arms cannot touch, so every step moves both at once and nobody waits."""
+    csv = tmp_path / "sp.csv"
+    rows = [(1.9, 0.3, 1.3), (1.8, -0.3, 1.2), (1.7, 0.0, 1.4)]
+    csv.write_text(
+        "robot,x,y,z,roll,pitch,yaw\n"
+        + "".join(f"{robot},{sign * x},{y},{z},3.14159,0,0\n" for robot, sign in (("r1", 1), ("r2", -1)) for x, y, z in rows)
     )
-    assert overlapping >= 5
+    cell = {"arm_distance": 2.5}
+    coal = KinematicPhysics(build_cell(CellConfig(**cell)), KinematicOptions())
+    (o1, reach1), (o2, reach2) = _reach_bound(coal, "r1"), _reach_bound(coal, "r2")
+    assert reach1 + reach2 < np.linalg.norm(o1 - o2) - 1.0  # a metre to spare, not a graze
+
+    episode, run, summary, recorder = _run(
+        tmp_path, physics={"backend": physics}, planner={"backend": "ompl"}, routine={"csv": str(csv)}, cell=cell
+    )
+    assert summary.reached == 6, [r.reason for r in run.results if not r.reached]
+    spans = _spans(recorder)
+    assert all(spans["r1", k][0] == spans["r2", k][0] for k in range(3)), spans
     assert not any(r.waited for r in run.results)
+
+
+@pytest.mark.parametrize("physics", ["kinematic", "pybullet"])
+def test_an_arm_waits_when_moving_together_would_collide(tmp_path, physics):
+    """Both cameras sent to the same point at the same step: moving together certainly ends in
+    a collision, so r1 goes first and r2 waits, then finds every solution blocked by r1."""
+    csv = tmp_path / "sp.csv"
+    csv.write_text("robot,x,y,z,roll,pitch,yaw\nr1,0.0,0.0,1.4,3.14159,0,0\nr2,0.0,0.0,1.4,3.14159,0,3.14159\n")
+    episode, run, summary, recorder = _run(
+        tmp_path, physics={"backend": physics}, planner={"backend": "ompl"}, routine={"csv": str(csv)}
+    )
+    by_robot = {r.robot: r for r in run.results}
+    assert by_robot["r1"].reached and not by_robot["r1"].waited
+    assert by_robot["r2"].waited and not by_robot["r2"].reached
+    assert "collision" in by_robot["r2"].reason
+    assert ("r2", 0) not in _spans(recorder)  # r2 never moved towards r1
 
 
 def test_run_json_records_the_run(pybullet_run):

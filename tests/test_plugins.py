@@ -16,14 +16,21 @@ import sys
 import textwrap
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 import agrisim
 from agrisim import hookspecs
+from agrisim.cell import build_cell
 from agrisim.cli import main
-from agrisim.config import build_config
+from agrisim.config import CellConfig, MotionConfig, build_config
 from agrisim.errors import PluginError
-from agrisim.registry import PROVIDER_HOOKS, Registry, make_plugin_manager
+from agrisim.interfaces import PlanningFailed
+from agrisim.kinematics import ArmKinematics
+from agrisim.planning import path_is_valid, segment_samples
+from agrisim.plugins.physics.kinematic import KinematicOptions, KinematicPhysics
+from agrisim.plugins.planners.direct import DirectPlanner
+from agrisim.registry import PROVIDER_HOOKS, NoOptions, Registry, make_plugin_manager
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -159,8 +166,7 @@ def test_example_package_is_discovered_in_a_fresh_interpreter(site: Path) -> Non
 
 
 def test_run_with_the_example_planner(site: Path, tmp_path: Path, capsys) -> None:
-    """End to end with the plugin's planner: at 1x2 the straight line to r2_001 is blocked
-    (the ``direct`` planner fails it), the waypoint planner's detour reaches it."""
+    """End to end with the plugin's planner, chosen by name on the command line."""
     install_example(site)
     out = tmp_path / "run"
     args = ["run", "--physics", "kinematic", "--planner", "waypoint", "--setpoints", "1x2", "--no-rrd", "--renderer", "none"]
@@ -175,10 +181,38 @@ def test_run_with_the_example_planner(site: Path, tmp_path: Path, capsys) -> Non
     assert all(r["ee_error_mm"] <= 0.05 for r in run["results"])
     assert "reached 4/4 setpoints" in stdout
 
-    # the same run with the built-in straight line fails that setpoint: the plugin earns its keep
-    assert main([*args[:4], "direct", *args[5:], "--out", str(tmp_path / "direct")]) == 0
-    direct = json.loads((tmp_path / "direct" / "run.json").read_text())
-    assert direct["summary"]["reached"] < 4
+
+# The camera swings low round the plant, from its left (y = +0.5 m) to its right (y = -0.44 m):
+# fixed joint configurations, not IK results, so no IK branch or seed can change the situation.
+SWING_START = np.array([-0.747, -0.805, 1.502, -2.576, -0.988, -0.011])
+SWING_GOAL = np.array([0.233, -0.714, 1.747, -2.58, -0.988, -0.011])
+
+
+def test_example_planner_detours_where_the_straight_line_is_certainly_blocked(site: Path) -> None:
+    """The plugin's point: the straight line through the plant fails the built-in ``direct``
+    planner, the waypoint planner's detour gets there. Both margins are centimetres: the line
+    stays blocked with a keep-out 10 cm thinner, and the detour stays free with 3 cm clearance."""
+    install_example(site)
+    from agrisim_example_planner import WaypointOptions, WaypointPlanner
+
+    def validity(margin: float = 0.0, **cell: float):
+        physics = KinematicPhysics(build_cell(CellConfig(arms=1, **cell)), KinematicOptions(margin=margin))
+        return lambda q: not physics.in_collision("r1", q)
+
+    valid = validity()
+    kin = ArmKinematics(build_cell(CellConfig(arms=1)).arm("r1"))
+    step = MotionConfig().collision_check_step
+    assert valid(SWING_START) and valid(SWING_GOAL)
+    thinner = validity(keepout_radius=CellConfig().keepout_radius - 0.10)
+    blocked = [not thinner(q) for q in segment_samples(SWING_START, SWING_GOAL, step)]
+    assert np.mean(blocked) > 0.2  # a fifth of the line inside even the thinner keep-out
+
+    with pytest.raises(PlanningFailed):
+        DirectPlanner(NoOptions()).plan(SWING_START, SWING_GOAL, valid, kin.lower, kin.upper, 0, step)
+    path = WaypointPlanner(WaypointOptions()).plan(SWING_START, SWING_GOAL, valid, kin.lower, kin.upper, 0, step)
+    np.testing.assert_array_equal(path[0], SWING_START)
+    np.testing.assert_array_equal(path[-1], SWING_GOAL)
+    assert path_is_valid(path, validity(margin=0.03), step / 2)
 
 
 def test_example_planner_options_are_validated(site: Path, tmp_path: Path, capsys) -> None:
