@@ -27,21 +27,23 @@ from agrisim.texturing import interpolate_uv, opaque, opaque_samples, sample_sur
 
 @pytest.fixture(scope="module")
 def exported(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, np.ndarray, np.ndarray]:
-    """A 4-frame run without the arms (the NeRF captures), exported; (run dir, the hemisphere
+    """A 6-frame run without the arms (the NeRF captures), exported; (run dir, the hemisphere
     centre, the point the cameras aim at)."""
     out = tmp_path_factory.mktemp("export") / "run"
     config = build_config(
         {
             "render": {"labels": "organs", "shadow_samples": 0, "hide_robots": True},
             "physics": {"backend": "kinematic"},
-            "routine": {"setpoints": "1x2"},
+            # 1x3 reaches every setpoint without an OMPL search for every seed tried (41 of 41);
+            # 1x2 needs one that fails for a few seeds, and this module is not about motion.
+            "routine": {"setpoints": "1x3"},
             "camera": {"resolution": "320x180"},
             "output": {"out": str(out), "no_rrd": True},
         }
     )
     episode = Episode(config)
     run, summary = episode.run()
-    assert summary.reached == 4
+    assert summary.reached == 6
     assert write_nerfstudio(out) == out / "transforms.json"
     centre = episode.cell.plant_center
     return out, centre, centre + [0.0, 0.0, config.routine.aim_height]
@@ -236,7 +238,7 @@ def test_cli_export_writes_transforms(exported: tuple[Path, np.ndarray, np.ndarr
     assert out.strip() == f"wrote {run / 'transforms.json'}"
     assert _doc(run) == _doc(exported[0])
     masks = sorted(p.name for p in (run / "masks").iterdir())
-    assert masks == sorted(p.name for p in (exported[0] / "masks").iterdir()) and len(masks) == 4
+    assert masks == sorted(p.name for p in (exported[0] / "masks").iterdir()) and len(masks) == 6
 
 
 def _break_status(run: Path) -> None:

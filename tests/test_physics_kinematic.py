@@ -11,7 +11,6 @@ from __future__ import annotations
 import re
 import subprocess
 import sys
-import time
 from itertools import product
 
 import numpy as np
@@ -149,9 +148,16 @@ def test_camera_driven_into_obstacle_collides(cell, physics, kin, obstacle, poin
 
 def test_arms_reaching_into_each_other_collide(cell, physics, kin):
     # Cameras face each other with their box centres 1 cm apart, above the plant's keep-out.
+    # IK starts right next to one branch each (elbows away from the other arm), so every
+    # machine solves to the same branch: from the arms' homes, rounding decides between three.
     e1, e2 = np.array([-0.03, 0.4, 1.3]), np.array([0.03, 0.4, 1.3])
-    q1 = ik(kin["r1"], look_at(e1, e1 + [-1.0, 0, 0]), home(cell, "r1"), restarts=0)
-    q2 = ik(kin["r2"], look_at(e2, e2 + [1.0, 0, 0]), home(cell, "r2"), restarts=0)
+    near1 = np.array([-0.59, -0.86, 1.07, -0.22, 0.98, -3.14])
+    near2 = np.array([-2.55, -2.29, -1.07, -2.92, -0.98, 3.14])
+    q1 = ik(kin["r1"], look_at(e1, e1 + [-1.0, 0, 0]), near1, restarts=0)
+    q2 = ik(kin["r2"], look_at(e2, e2 + [1.0, 0, 0]), near2, restarts=0)
+    assert np.max(np.abs(q1 - near1)) < 0.01 and np.max(np.abs(q2 - near2)) < 0.01
+    clear = KinematicPhysics(cell, KinematicOptions(margin=0.03))  # alone, 3 cm from anything
+    assert not clear.in_collision("r1", q1) and not clear.in_collision("r2", q2)
     c1, c2 = kin["r1"].fk(q1, "camera_link"), kin["r2"].fk(q2, "camera_link")
     assert np.linalg.norm(c1[:3, 3] - c2[:3, 3]) < 0.011  # boxes 5 x 4 x 4 cm: they overlap
     assert not physics.in_collision("r1", q1)  # alone (r2 at home) each is free
@@ -199,16 +205,14 @@ def test_adjacent_links_that_overlap_are_not_collisions(cell, physics, kin):
     assert not physics.in_collision("r1", home(cell))
 
 
-def test_queries_are_history_independent_and_fast(cell, physics):
+def test_queries_are_history_independent(cell, physics):
+    # (Their rate is measured by bench/robot_episode.py, not asserted: machines differ.)
     rng = np.random.default_rng(0)
     Q = rng.uniform(-np.pi, np.pi, (1500, 6))
-    t0 = time.perf_counter()
     forward = [physics.in_collision("r1", q) for q in Q]
-    rate = len(Q) / (time.perf_counter() - t0)
     backward = [physics.in_collision("r1", q) for q in Q[::-1]][::-1]
     assert forward == backward
     assert 0.1 < np.mean(forward) < 0.9  # random joints: both answers occur
-    assert rate > 2000, f"{rate:.0f} queries/s"
 
 
 def test_unknown_arm_and_bad_shape_are_errors(physics):

@@ -5,8 +5,6 @@ asset relies on opacity."""
 
 from __future__ import annotations
 
-import time
-
 import numpy as np
 import pytest
 from pydantic import ValidationError
@@ -33,18 +31,14 @@ RADIUS, HEIGHT = 0.28, 0.40  # the cylinder every plant must fit in above the so
 
 
 @pytest.fixture(scope="module")
-def plants() -> dict[str, tuple[Plant, float]]:
-    out = {}
-    for name in NAMES:
-        t0 = time.perf_counter()
-        plant = grow(name, 0)
-        out[name] = (plant, time.perf_counter() - t0)
-    return out
+def plants() -> dict[str, Plant]:
+    # How long each takes to build is measured by bench/plant_build.py, not asserted here.
+    return {name: grow(name, 0) for name in NAMES}
 
 
 @pytest.fixture(scope="module")
 def cutaways(plants) -> dict[str, float]:
-    return {name: cutaway_fraction(p.mesh, samples=60_000, seed=1) for name, (p, _) in plants.items()}
+    return {name: cutaway_fraction(p.mesh, samples=60_000, seed=1) for name, p in plants.items()}
 
 
 def surface_labels(mesh: Mesh, count: int, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
@@ -95,7 +89,7 @@ def test_options_are_documented_and_strict():
 
 @pytest.mark.parametrize("name", NAMES)
 def test_same_seed_same_plant_other_seed_other_plant(name, plants):
-    a = plants[name][0].mesh
+    a = plants[name].mesh
     b = grow(name, 0).mesh
     for attr in ("vertices", "faces", "uvs", "face_material", "face_instance"):
         np.testing.assert_array_equal(getattr(a, attr), getattr(b, attr), err_msg=attr)
@@ -111,11 +105,10 @@ def test_same_seed_same_plant_other_seed_other_plant(name, plants):
 
 @pytest.mark.parametrize("name", NAMES)
 def test_mesh_is_valid_textured_and_fits_the_camera_cylinder(name, plants):
-    plant, seconds = plants[name]
+    plant = plants[name]
     m = plant.mesh
     # the Mesh constructor's checks pass on a rebuilt copy too
     Mesh(m.name, m.vertices, m.faces, m.materials, m.face_material, m.uvs, m.face_instance)
-    assert seconds < 2.0, f"{name} took {seconds:.2f} s to build"
     assert np.all(m.areas > 0)
     v = m.vertices
     assert np.hypot(v[:, 0], v[:, 1]).max() <= RADIUS
@@ -141,7 +134,7 @@ def test_mesh_is_valid_textured_and_fits_the_camera_cylinder(name, plants):
 def test_card_uvs_stay_on_labelled_texels(name, plants):
     """Every card vertex and face centre maps to a labelled texel: no UV bleeds into empty
     atlas space, and with opacity ignored (repopa) the whole card is labelled."""
-    m = plants[name][0].mesh
+    m = plants[name].mesh
     cards = card_faces(m)
     tri = m.faces[cards]
     for mi in np.unique(m.face_material[cards]):
@@ -155,7 +148,7 @@ def test_card_uvs_stay_on_labelled_texels(name, plants):
 
 @pytest.mark.parametrize("name", NAMES)
 def test_every_opaque_surface_sample_is_labelled(name, plants):
-    plant = plants[name][0]
+    plant = plants[name]
     keep, labels = surface_labels(plant.mesh, 40_000)
     assert keep.any()
     assert np.all(labels[keep] > 0)
@@ -172,7 +165,7 @@ def test_every_opaque_surface_sample_is_labelled(name, plants):
 
 @pytest.mark.parametrize("name", NAMES)
 def test_leaf_instances_number_the_cards(name, plants):
-    m = plants[name][0].mesh
+    m = plants[name].mesh
     inst = m.face_instance.astype(np.int64)
     ids = np.unique(inst[inst > 0])
     np.testing.assert_array_equal(ids, np.arange(1, len(ids) + 1))
@@ -187,7 +180,7 @@ def test_leaf_instances_number_the_cards(name, plants):
     for mi in np.unique(m.face_material[cards]):
         sel = m.face_material[cards] == mi
         lab[sel] = label_at(m.materials[mi], centres[sel])
-    leaf_id = plants[name][0].labels.by_name("leaf").id
+    leaf_id = plants[name].labels.by_name("leaf").id
     assert np.all(inst[cards[lab == leaf_id]] > 0)
     # an instance is one small organ, not scattered over the plant
     order = np.argsort(inst, kind="stable")
@@ -202,7 +195,7 @@ def test_leaf_instances_number_the_cards(name, plants):
 
 
 def test_boxwood_is_dense_solid_geometry(plants, cutaways):
-    m = plants["boxwood"][0].mesh
+    m = plants["boxwood"].mesh
     assert len(m.faces) >= 50_000
     assert cutaways["boxwood"] < 0.05
 
@@ -241,7 +234,7 @@ def test_cutaway_follows_the_papers_order_roughly(cutaways):
 
 
 def test_hydrangea_organs_have_the_papers_colours(plants):
-    plant = plants["hydrangea"][0]
+    plant = plants["hydrangea"]
     assert plant.organs
     colours = {lab.name: lab.color for lab in plant.labels.labels}
     assert colours["leaf"] == (0, 255, 0)
@@ -258,7 +251,7 @@ def test_hydrangea_organs_have_the_papers_colours(plants):
 
 def test_hydrangea_petal_labels_follow_petal_colour(plants):
     """The label texture marks white petals white and purple petals purple."""
-    plant = plants["hydrangea"][0]
+    plant = plants["hydrangea"]
     mat = plant.mesh.materials[0]
     ids = {lab.name: lab.id for lab in plant.labels.labels}
     opaque = mat.albedo[..., 3] >= 128

@@ -44,7 +44,9 @@ def run_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
             "plant": "hydrangea",
             "render": {"labels": "organs", "shadow_samples": 0},
             "physics": {"backend": "kinematic"},
-            "routine": {"setpoints": "1x2"},
+            # 1x3 reaches every setpoint without an OMPL search for every seed tried (41 of 41);
+            # 1x2 needs one that fails for a few seeds, and this module is not about motion.
+            "routine": {"setpoints": "1x3"},
             "camera": {"resolution": "320x180"},
             "recon": {"merged_every": 2},
             "metrics": {"truth_samples": 100_000},
@@ -52,7 +54,7 @@ def run_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
         }
     )
     run, summary = Episode(config).run()
-    assert summary.status == "complete" and summary.reached == 4
+    assert summary.status == "complete" and summary.reached == 6
     return out
 
 
@@ -69,7 +71,7 @@ def _labels(run_dir: Path) -> dict[int, str]:
 
 def test_backprojection_equals_open3ds_on_real_frames(run_dir: Path) -> None:
     views = _views(run_dir)
-    assert len(views) == 4
+    assert len(views) == 6
     compared = 0
     for view in views:
         cam = view.camera
@@ -147,7 +149,7 @@ def test_run_outputs_metrics_and_recording(run_dir: Path) -> None:
     metrics = json.loads((run_dir / "metrics.json").read_text())
     names = set(_labels(run_dir).values())
     assert set(metrics["labels"]) == names | {"all"}
-    assert metrics["frames"] == 4 and metrics["recon"] == "pointcloud"
+    assert metrics["frames"] == 6 and metrics["recon"] == "pointcloud"
     labels_png = sum(np.count_nonzero(v.labels) for v in _views(run_dir))
     assert metrics["labels"]["all"]["pixels"] == labels_png
     for name in names | {"all"}:
