@@ -16,7 +16,7 @@ import numpy as np  # noqa: E402
 import trimesh  # noqa: E402
 from mpl_toolkits.mplot3d.art3d import Poly3DCollection  # noqa: E402
 
-from agrisim.cell import Box, Cylinder  # noqa: E402
+from agrisim.scene.cell import Box, Cylinder  # noqa: E402
 from agrisim.config import build_config  # noqa: E402
 from agrisim.episode import Episode  # noqa: E402
 from agrisim.registry import hookimpl  # noqa: E402

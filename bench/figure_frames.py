@@ -10,14 +10,14 @@ from pathlib import Path
 import numpy as np
 from PIL import Image, ImageDraw
 
-from agrisim.camera import preset
-from agrisim.cell import build_cell
+from agrisim.scene.camera import preset
+from agrisim.scene.cell import build_cell
 from agrisim.config import CellConfig, RenderConfig, RoutineConfig, build_config
 from agrisim.episode import resolve_plant
-from agrisim.kinematics import ArmKinematics
-from agrisim.lab import build_scene
+from agrisim.robot.kinematics import ArmKinematics
+from agrisim.lab.room import build_scene
 from agrisim.registry import Registry, make_plugin_manager
-from agrisim.setpoints import hemisphere
+from agrisim.robot.setpoints import hemisphere
 
 ROWS = [("boxwood", "plant", ("r1", 13)), ("hydrangea", "organs", ("r2", 16)), ("basket_grass", "plant", ("r1", 24))]
 W, H = 480, 270

@@ -3,7 +3,7 @@ paper's texture labels and from RepOpa labels, each point coloured by its distan
 surface, with the precision that ``metrics.json`` reports. Run: ``python bench/figure_recon.py``.
 
 The views are the paper's hemisphere (robots hidden, no shadows) at a reduced resolution; the
-measurement is agrisim's own (:mod:`agrisim.metrics`).
+measurement is agrisim's own (:mod:`agrisim.evaluation.metrics`).
 """
 
 from __future__ import annotations
@@ -17,18 +17,18 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from agrisim.camera import preset  # noqa: E402
-from agrisim.cell import build_cell  # noqa: E402
+from agrisim.scene.camera import preset  # noqa: E402
+from agrisim.scene.cell import build_cell  # noqa: E402
 from agrisim.config import CellConfig, RenderConfig, RoutineConfig, build_config  # noqa: E402
-from agrisim.encoding import depth_to_mm  # noqa: E402
+from agrisim.files.encoding import depth_to_mm  # noqa: E402
 from agrisim.episode import resolve_plant  # noqa: E402
-from agrisim.lab import build_scene  # noqa: E402
-from agrisim.metrics import GroundTruth, SurfaceDistance  # noqa: E402
+from agrisim.lab.room import build_scene  # noqa: E402
+from agrisim.evaluation.metrics import GroundTruth, SurfaceDistance  # noqa: E402
 from agrisim.plugins.recon.pointcloud import PointCloudReconstructor  # noqa: E402
-from agrisim.reconstruct import ReconSession  # noqa: E402
+from agrisim.evaluation.session import ReconSession  # noqa: E402
 from agrisim.registry import Registry, make_plugin_manager  # noqa: E402
-from agrisim.setpoints import hemisphere  # noqa: E402
-from agrisim.views import View  # noqa: E402
+from agrisim.robot.setpoints import hemisphere  # noqa: E402
+from agrisim.evaluation.views import View  # noqa: E402
 
 MAX_MM = 10.0  # colour scale: distances beyond this are drawn as this
 

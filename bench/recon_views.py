@@ -17,19 +17,19 @@ import time
 import numpy as np
 import open3d as o3d
 
-from agrisim.camera import preset
-from agrisim.cell import build_cell
+from agrisim.scene.camera import preset
+from agrisim.scene.cell import build_cell
 from agrisim.config import CellConfig, RenderConfig, RoutineConfig, build_config
-from agrisim.encoding import depth_to_mm
+from agrisim.files.encoding import depth_to_mm
 from agrisim.episode import resolve_plant
-from agrisim.lab import build_scene
-from agrisim.metrics import GroundTruth
+from agrisim.lab.room import build_scene
+from agrisim.evaluation.metrics import GroundTruth
 from agrisim.plugins.recon.pointcloud import PointCloudReconstructor
 from agrisim.plugins.recon.tsdf import TsdfReconstructor
-from agrisim.reconstruct import ReconSession
+from agrisim.evaluation.session import ReconSession
 from agrisim.registry import Registry, make_plugin_manager
-from agrisim.setpoints import hemisphere
-from agrisim.views import View, backproject
+from agrisim.robot.setpoints import hemisphere
+from agrisim.evaluation.views import View, backproject
 
 
 def _pcd(points: np.ndarray) -> o3d.geometry.PointCloud:

@@ -12,15 +12,15 @@ import time
 
 import numpy as np
 
-from agrisim.camera import preset
-from agrisim.cell import build_cell
+from agrisim.scene.camera import preset
+from agrisim.scene.cell import build_cell
 from agrisim.config import CellConfig, RenderConfig, RoutineConfig
 from agrisim.episode import resolve_plant
 from agrisim.config import build_config
-from agrisim.kinematics import ArmKinematics
-from agrisim.lab import build_scene
+from agrisim.robot.kinematics import ArmKinematics
+from agrisim.lab.room import build_scene
 from agrisim.registry import Registry, make_plugin_manager
-from agrisim.setpoints import hemisphere
+from agrisim.robot.setpoints import hemisphere
 
 
 def main() -> None:

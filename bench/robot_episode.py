@@ -14,15 +14,15 @@ from pathlib import Path
 
 import numpy as np
 
-from agrisim.cell import build_cell
+from agrisim.scene.cell import build_cell
 from agrisim.config import CellConfig, build_config
 from agrisim.episode import Episode
-from agrisim.geometry import look_at
-from agrisim.kinematics import ArmKinematics
+from agrisim.scene.transforms import look_at
+from agrisim.robot.kinematics import ArmKinematics
 from agrisim.plugins.physics.bullet import BulletOptions, BulletPhysics
 from agrisim.plugins.physics.kinematic import KinematicOptions, KinematicPhysics
 from agrisim.plugins.planners.ompl_planner import OmplOptions, OmplPlanner
-from agrisim.timing import Limits, time_parametrize
+from agrisim.robot.trajectory import Limits, time_parametrize
 
 
 def per_call(fn, n: int) -> float:

@@ -3,7 +3,7 @@
 The public API, all importable from here::
 
     from agrisim import build_config, Episode, run_episode      # run episodes from Python
-    from agrisim import hookimpl, BackendSpec                   # write a plugin
+    from agrisim import hookimpl, BackendSpec, Options          # write a plugin
 
 ``import agrisim`` stays light (a plugin importing ``hookimpl`` pulls in no robotics library);
 the episode machinery loads on first use.
@@ -13,11 +13,13 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING, Any
 
+from agrisim.options import Options
 from agrisim.registry import BackendSpec, hookimpl, make_plugin_manager
 
 if TYPE_CHECKING:
     from agrisim.config import RunConfig, build_config, load_toml
-    from agrisim.episode import Episode, Run, RunSummary, SetpointResult, run_episode
+    from agrisim.episode import Episode, run_episode
+    from agrisim.records import Run, RunSummary, SetpointResult
 
 __version__ = "0.1.0"
 
@@ -26,9 +28,9 @@ _LAZY = {
     "build_config": "agrisim.config",
     "load_toml": "agrisim.config",
     "Episode": "agrisim.episode",
-    "Run": "agrisim.episode",
-    "RunSummary": "agrisim.episode",
-    "SetpointResult": "agrisim.episode",
+    "Run": "agrisim.records",
+    "RunSummary": "agrisim.records",
+    "SetpointResult": "agrisim.records",
     "run_episode": "agrisim.episode",
 }
 
@@ -41,4 +43,4 @@ def __getattr__(name: str) -> Any:
     raise AttributeError(f"module 'agrisim' has no attribute {name!r}")
 
 
-__all__ = ["BackendSpec", "hookimpl", "make_plugin_manager", "__version__", *_LAZY]
+__all__ = ["BackendSpec", "Options", "hookimpl", "make_plugin_manager", "__version__", *_LAZY]

@@ -2,6 +2,6 @@
 
 import sys
 
-from agrisim.cli import main
+from agrisim.app.cli import main
 
 sys.exit(main())

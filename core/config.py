@@ -15,9 +15,10 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, ValidationInfo, field_validator, model_validator
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
 from agrisim.errors import ConfigError
+from agrisim.options import Options, refuse_bool_for_number
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -25,22 +26,9 @@ else:  # pragma: no cover
     import tomli as tomllib
 
 
-def _no_bool_for_number(model: type[BaseModel], name: str | None, value: Any) -> Any:
-    """Refuse ``true``/``false`` for a number field: pydantic reads true as 1, which in a
-    configuration is always a mistake."""
-    field = model.model_fields.get(name or "")
-    if isinstance(value, bool) and field is not None and field.annotation in (int, float):
-        raise ValueError(f"expected a number, not {str(value).lower()}")
-    return value
-
-
-class _Model(BaseModel):
-    model_config = ConfigDict(extra="forbid", validate_assignment=True, use_attribute_docstrings=True)
-
-    @field_validator("*", mode="before")
-    @classmethod
-    def _no_bools_for_numbers(cls, value: Any, info: ValidationInfo) -> Any:
-        return _no_bool_for_number(cls, info.field_name, value)
+class _Model(Options):
+    # agrisim's own sections are Options too, and also re-validate on assignment.
+    model_config = ConfigDict(validate_assignment=True)
 
 
 class BackendChoice(BaseModel):
@@ -238,7 +226,7 @@ class CameraConfig(_Model):
     @classmethod
     def _resolution(cls, v: str | None) -> str | None:
         if v is not None:
-            from agrisim.camera import parse_resolution
+            from agrisim.scene.camera import parse_resolution
 
             parse_resolution(v)
         return v
@@ -370,7 +358,7 @@ def backend_options(model: type[BaseModel], table: Mapping[str, Any], what: str)
     from agrisim's, so the checks every setting gets are applied here too)."""
     try:
         for key, value in table.items():
-            _no_bool_for_number(model, key, value)
+            refuse_bool_for_number(model, key, value)
     except ValueError as exc:
         raise ConfigError(f"{what}: invalid setting {key!r}: {exc}") from None
     try:

@@ -12,10 +12,8 @@ import datetime as _dt
 import os
 import shutil
 import time
-import uuid
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
-from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -23,36 +21,35 @@ import numpy as np
 import pluggy
 from pydantic import BaseModel
 
-from agrisim.assets import FORMATS, load_plant
-from agrisim.atomic import remove_partial
-from agrisim.camera import preset
-from agrisim.cell import Cell, build_cell
+from agrisim.files.plant_asset import FORMATS, load_plant
+from agrisim.files.atomic import remove_partial
+from agrisim.scene.camera import preset
+from agrisim.scene.cell import build_cell
 from agrisim.config import BackendChoice, RunConfig, backend_options
 from agrisim.errors import BackendFailure, OutputError, UserError
-from agrisim.geometry import pose_error
+from agrisim.scene.transforms import pose_error
 from agrisim.interfaces import (
-    CameraModel,
     Capture,
     JointTrajectory,
     PhysicsBackend,
     Planner,
     PlanningFailed,
-    Reconstruction,
     Reconstructor,
     Renderer,
     Trajectory,
 )
-from agrisim.kinematics import ArmKinematics
-from agrisim.lab import build_scene
-from agrisim.metrics import GroundTruth
-from agrisim.planning import segment_is_valid
-from agrisim.reconstruct import ReconSession, summary_metrics
-from agrisim.rundir import read_json
-from agrisim.scene import LabelTable, Plant, Scene
+from agrisim.robot.kinematics import ArmKinematics
+from agrisim.lab.room import build_scene
+from agrisim.evaluation.metrics import GroundTruth
+from agrisim.robot.segments import segment_is_valid
+from agrisim.evaluation.session import ReconSession, summary_metrics
+from agrisim.files.rundir import read_json
+from agrisim.scene.model import Plant, Scene
+from agrisim.records import Run, RunSummary, SetpointResult
 from agrisim.registry import BackendSpec, Registry, make_plugin_manager
-from agrisim.setpoints import Setpoint, routine
-from agrisim.timing import Limits, TimedPath, time_parametrize
-from agrisim.views import View, load_view, view_from_capture
+from agrisim.robot.setpoints import Setpoint, routine
+from agrisim.robot.trajectory import Limits, TimedPath, time_parametrize
+from agrisim.evaluation.views import View, load_view, view_from_capture
 
 #: the config section choosing a backend of each kind
 _SECTIONS = {"physics": "physics", "planner": "planner", "renderer": "renderer", "reconstructor": "recon"}
@@ -70,70 +67,6 @@ def blame(kind: str, spec: BackendSpec, doing: str = "") -> Iterator[None]:
     except Exception as exc:
         origin = f" (from {spec.distribution})" if spec.distribution else ""
         raise BackendFailure(f"{kind} backend {spec.name!r}{origin} failed{doing}: {type(exc).__name__}: {exc}") from exc
-
-
-@dataclass
-class SetpointResult:
-    """What happened at one setpoint of one arm (a row of ``run.json``)."""
-
-    robot: str
-    index: int
-    frame: str
-    reached: bool
-    ee_error_mm: float | None = None  # camera position error after settling
-    rot_error_rad: float | None = None
-    ik_s: float = 0.0  # wall seconds in IK
-    plan_s: float = 0.0  # wall seconds in the planner
-    motion_s: float = 0.0  # simulated seconds of the trajectory plus settling
-    sim_time: float = 0.0  # simulated time when the setpoint was done
-    waited: bool = False  # the other arm moved first because moving together would collide
-    contacts: list[str] = field(default_factory=list)
-    reason: str = ""
-
-
-@dataclass
-class RunSummary:
-    """How the episode ended (``agrisim_run_finished``)."""
-
-    status: str  # complete | failed | interrupted
-    setpoints: int
-    reached: int
-    failed: int
-    collisions: int
-    sim_time: float
-    wall_s: dict[str, float]
-    error: str = ""
-    metrics: dict[str, Any] | None = None  # headline accuracy per label (metrics.json has all)
-
-    def to_dict(self) -> dict[str, Any]:
-        return asdict(self)
-
-
-@dataclass
-class Run:
-    """The state of one episode, as sinks see it."""
-
-    config: RunConfig
-    cell: Cell
-    out_dir: Path
-    kinematics: dict[str, ArmKinematics]
-    setpoints: dict[str, list[Setpoint]]
-    camera: CameraModel
-    backends: dict[str, str]
-    started_at: str
-    backend_options: dict[str, dict[str, Any]] = field(default_factory=dict)
-    scene: Scene | None = None  # what the renderer draws (None without a renderer)
-    labels: LabelTable | None = None  # the label table of the images
-    run_id: str = field(default_factory=lambda: uuid.uuid4().hex)
-    results: list[SetpointResult] = field(default_factory=list)
-    wall_s: dict[str, float] = field(default_factory=dict)
-    plant_notes: list[str] = field(default_factory=list)  # how the plant was made (scaled, aged...)
-    reconstruction: Reconstruction | None = None  # set when a complete run's views are fused
-    metrics: dict[str, Any] | None = None  # metrics.json's content
-
-    @property
-    def seed(self) -> int:
-        return self.config.seed
 
 
 class Episode:

@@ -21,9 +21,9 @@ from typing import TYPE_CHECKING, Any
 import pluggy
 
 if TYPE_CHECKING:
-    from agrisim.episode import Run, RunSummary
     from agrisim.interfaces import Capture, Trajectory
-    from agrisim.registry import BackendSpec
+    from agrisim.kinds import BackendSpec
+    from agrisim.records import Run, RunSummary
 
 PROJECT = "agrisim"
 hookspec = pluggy.HookspecMarker(PROJECT)

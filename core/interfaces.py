@@ -13,11 +13,11 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from agrisim.cell import Cell
-from agrisim.scene import LabelTable, Plant, Scene
+from agrisim.scene.camera import CameraModel
+from agrisim.scene.model import LabelTable, Plant, Scene
 
 if TYPE_CHECKING:
-    from agrisim.views import View
+    from agrisim.scene.cell import Cell
 
 Validity = Callable[[np.ndarray], bool]
 
@@ -58,26 +58,6 @@ class Execution:
     settled: bool  # reached the goal (by the caller's test) before the timeout
     settle_time: float  # seconds after the trajectory's end until settled (or the timeout)
     contacts: list[str] = field(default_factory=list)  # collisions seen while moving, "a|b"
-
-
-@dataclass
-class CameraModel:
-    """A pinhole camera (OpenCV conventions; pixel centres at integer coordinates)."""
-
-    width: int
-    height: int
-    fx: float
-    fy: float
-    cx: float
-    cy: float
-
-    @property
-    def K(self) -> np.ndarray:  # noqa: N802 - the field's name for it
-        return np.array([[self.fx, 0.0, self.cx], [0.0, self.fy, self.cy], [0.0, 0.0, 1.0]])
-
-    @property
-    def hfov_deg(self) -> float:
-        return float(np.degrees(2.0 * np.arctan(self.width / (2.0 * self.fx))))
 
 
 @dataclass
@@ -173,7 +153,7 @@ class Planner(ABC):
         resolution: float,
     ) -> np.ndarray:
         """Waypoints (M x dof, first = start, last = goal) whose straight segments are valid
-        when checked every ``resolution`` radians (see :mod:`agrisim.planning`).
+        when checked every ``resolution`` radians (see :mod:`agrisim.robot.segments`).
 
         Raises :class:`PlanningFailed` when there is none within the planner's budget.
         """
@@ -197,7 +177,7 @@ class Renderer(ABC):
     """Draws the scene and the arms (at the poses it is given) through a pinhole camera.
 
     Built once per run as ``factory(scene, cell, settings, options)``: ``scene`` is the
-    :class:`agrisim.scene.Scene` (room, plant, lights, label table), ``cell`` gives the arms'
+    :class:`agrisim.scene.model.Scene` (room, plant, lights, label table), ``cell`` gives the arms'
     URDFs (their visual meshes), ``settings`` the run-wide :class:`agrisim.config.RenderConfig`
     (segmentation mode, shadow samples, ...) and ``options`` the backend's own options.
     """
@@ -220,6 +200,32 @@ class Renderer(ABC):
 
     def close(self) -> None:  # noqa: B027 - optional hook for backends holding resources
         """Release resources."""
+
+
+@dataclass
+class View:
+    """One camera's images at one setpoint (OpenCV optical frame, H x W pixel grid)."""
+
+    frame: str
+    camera: CameraModel
+    world_T_camera: np.ndarray  # 4x4
+    rgb: np.ndarray  # uint8 H x W x 3
+    labels: np.ndarray  # uint8 H x W label ids
+    depth_mm: np.ndarray  # uint16 H x W planar depth in millimetres, 0 = no hit
+    instances: np.ndarray | None = None  # uint16 H x W leaf instance ids, 0 = none
+
+    def images(self) -> dict[str, np.ndarray]:
+        """The images as a :class:`Capture` carries them (depth in metres)."""
+        out = {"rgb": self.rgb, "labels": self.labels, "depth": self.depth}
+        if self.instances is not None:
+            out["instances"] = self.instances
+        return out
+
+    @property
+    def depth(self) -> np.ndarray:
+        """Planar depth in metres (float32, 0 = no hit), as Open3D reads the depth PNG with
+        ``depth_scale = 1000``."""
+        return self.depth_mm.astype(np.float32) / np.float32(1000.0)
 
 
 @dataclass
@@ -257,8 +263,8 @@ class Reconstructor(ABC):
     """Fuses views into a 3D reconstruction per label, one view at a time.
 
     Built once per run as ``factory(labels, options)``: ``labels`` is the run's
-    :class:`agrisim.scene.LabelTable`; every non-background label is reconstructed on its own and
-    all of them together as ``"all"``. Views arrive as :class:`agrisim.views.View` (images as the
+    :class:`agrisim.scene.model.LabelTable`; every non-background label is reconstructed on its own and
+    all of them together as ``"all"``. Views arrive as :class:`agrisim.evaluation.views.View` (images as the
     dataset stores them), in capture order.
     """
 

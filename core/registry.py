@@ -13,55 +13,18 @@ from __future__ import annotations
 import importlib
 import os
 import sys
-from collections.abc import Callable
-from dataclasses import dataclass, field
 from importlib import metadata
-from typing import Any, Literal
 
 import pluggy
-from pydantic import BaseModel, ConfigDict
+from pydantic import BaseModel
 
 from agrisim import hookspecs
 from agrisim.errors import PluginError
+from agrisim.kinds import PROVIDER_HOOKS, BackendSpec, Kind, NoOptions
+
+__all__ = ["PROVIDER_HOOKS", "BackendSpec", "Kind", "NoOptions", "Registry", "hookimpl", "make_plugin_manager"]
 
 hookimpl = pluggy.HookimplMarker(hookspecs.PROJECT)
-
-Kind = Literal["physics", "renderer", "planner", "reconstructor", "plant", "sink"]
-
-#: kind -> provider hook name
-PROVIDER_HOOKS: dict[str, str] = {
-    "physics": "agrisim_physics",
-    "renderer": "agrisim_renderers",
-    "planner": "agrisim_planners",
-    "reconstructor": "agrisim_reconstructors",
-    "plant": "agrisim_plants",
-    "sink": "agrisim_sinks",
-}
-
-
-class NoOptions(BaseModel):
-    """Options model for a backend that takes none."""
-
-    model_config = ConfigDict(extra="forbid", use_attribute_docstrings=True)
-
-
-@dataclass(frozen=True)
-class BackendSpec:
-    """What a provider hook returns for one backend.
-
-    ``factory(options, **context)`` builds the backend; ``options`` is an instance of
-    ``options_model`` validated from the user's configuration (its field docstrings are the
-    documentation users see).
-    """
-
-    name: str
-    factory: Callable[..., Any]
-    description: str
-    options_model: type[BaseModel] = NoOptions
-    limits: str = ""
-    #: filled in by the registry: the distribution that provided the spec
-    distribution: str = field(default="", compare=False)
-
 
 def make_plugin_manager(*, autoload: bool | None = None) -> pluggy.PluginManager:
     """A fresh plugin manager with agrisim's hookspecs and the installed plugins.

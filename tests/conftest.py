@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import pytest
 
-from agrisim.cell import Cell, build_cell
+from agrisim.scene.cell import Cell, build_cell
 from agrisim.config import CellConfig
-from agrisim.kinematics import ArmKinematics
+from agrisim.robot.kinematics import ArmKinematics
 from agrisim.registry import hookimpl
 
 
@@ -22,7 +22,7 @@ def kin(cell: Cell) -> dict[str, ArmKinematics]:
 
 def run_cli(args: list[str], capsys: pytest.CaptureFixture[str]) -> tuple[int, str, str]:
     """Run ``agrisim ARGS`` in-process: (exit status, stdout, stderr)."""
-    from agrisim.cli import main
+    from agrisim.app.cli import main
 
     capsys.readouterr()
     try:

@@ -1,7 +1,7 @@
 """Bad input: exit status 2, exactly one line on stderr naming the problem, no traceback, and
 nothing written or overwritten (DESIGN.md, "Errors").
 
-The CLI runs in-process (``agrisim.cli.main``) for speed; two cases also run as real
+The CLI runs in-process (``agrisim.app.cli.main``) for speed; two cases also run as real
 subprocesses so that the actual stderr and exit status are checked.
 """
 
@@ -16,7 +16,7 @@ import pytest
 
 from conftest import run_cli
 from agrisim.errors import UserError
-from agrisim.robot import ur10_with_camera
+from agrisim.robot.urdf import ur10_with_camera
 
 @pytest.fixture
 def workdir(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:

@@ -20,8 +20,8 @@ from typing import Any
 import pytest
 
 from conftest import run_cli
-from agrisim import compare as cmp
-from agrisim.cli import main
+from agrisim.app import compare as cmp
+from agrisim.app.cli import main
 from agrisim.errors import UserError
 
 TINY = [

@@ -8,7 +8,7 @@ import numpy as np
 from PIL import Image
 
 from conftest import Frames
-from agrisim.assets import load_plant
+from agrisim.files.plant_asset import load_plant
 from agrisim.config import build_config
 from agrisim.episode import Episode
 

@@ -8,10 +8,10 @@ import json
 import numpy as np
 import pytest
 
-from agrisim.cell import build_cell
+from agrisim.scene.cell import build_cell
 from agrisim.config import CellConfig, build_config
 from agrisim.episode import Episode
-from agrisim.geometry import pose_error
+from agrisim.scene.transforms import pose_error
 from agrisim.plugins.physics.kinematic import KinematicOptions, KinematicPhysics
 from agrisim.registry import hookimpl
 

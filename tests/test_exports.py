@@ -17,12 +17,12 @@ import pytest
 from PIL import Image
 
 from conftest import run_cli
-from agrisim.assets import load_plant
+from agrisim.files.plant_asset import load_plant
 from agrisim.config import build_config
 from agrisim.episode import Episode
-from agrisim.exports import ExportError, opencv_to_opengl, write_nerfstudio
-from agrisim.scene import Mesh
-from agrisim.texturing import interpolate_uv, opaque, opaque_samples, sample_surface
+from agrisim.files.nerfstudio import ExportError, opencv_to_opengl, write_nerfstudio
+from agrisim.scene.model import Mesh
+from agrisim.scene.texturing import interpolate_uv, opaque, opaque_samples, sample_surface
 
 
 @pytest.fixture(scope="module")

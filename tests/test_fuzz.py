@@ -165,7 +165,7 @@ def test_broken_set_flags_are_refused(key: str, text: str, sandbox: Path, capsys
     or the KEY itself is misspelt."""
     out = str(sandbox / f"out-{uuid.uuid4().hex}")
     base = ["run", "--renderer", "none", "--physics", "kinematic", "--setpoints", "1x1", "--out", out]
-    from agrisim.cli import _parse_value
+    from agrisim.app.cli import _parse_value
     from agrisim.config import build_config
     from agrisim.errors import UserError
 

@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 
 from conftest import Frames, run_cli
-from agrisim.cli import _parser, overrides_from_args
+from agrisim.app.cli import _parser, overrides_from_args
 from agrisim.config import RunConfig, build_config
 from agrisim.episode import Episode, resolve_plant
 from agrisim.errors import UserError
@@ -24,7 +24,7 @@ from agrisim.plugins.plants import helios as H
 from agrisim.plugins.plants import helios_convert as hc
 from agrisim.plugins.plants.procedural import FIT_HEIGHT, FIT_RADIUS
 from agrisim.registry import Registry, make_plugin_manager
-from agrisim.texturing import interpolate_uv, opaque
+from agrisim.scene.texturing import interpolate_uv, opaque
 
 # No skip without PyHelios: CI installs the extra (scripts/setup.sh), and without it these tests
 # fail with the one-line error that names it (pip install 'agrisim[helios]').
@@ -239,7 +239,7 @@ def test_without_pyhelios_helios_plants_name_the_extra(tmp_path, capsys, monkeyp
     # for real: PyHelios cannot be imported at all, the plugin module still imports
     script = (
         "import sys; sys.modules['pyhelios'] = None\n"
-        "from agrisim.cli import main\n"
+        "from agrisim.app.cli import main\n"
         f"sys.exit(main(['run', '--plant', 'helios:bean', '--out', {str(tmp_path / 'out2')!r}]))\n"
     )
     env = {k: v for k, v in os.environ.items() if not k.startswith("AGRISIM_")}

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from agrisim.geometry import look_at, pose_error
+from agrisim.scene.transforms import look_at, pose_error
 from agrisim.plugins.physics.bullet import BulletOptions, BulletPhysics
 
 

@@ -6,10 +6,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from agrisim import lab
-from agrisim.cell import Box, Cylinder, build_cell
+from agrisim.lab import room as lab
+from agrisim.scene.cell import Box, Cylinder, build_cell
 from agrisim.config import CellConfig
-from agrisim.scene import Label, LabelTable, Material, Mesh, Plant
+from agrisim.scene.model import Label, LabelTable, Material, Mesh, Plant
 
 # ---------------------------------------------------------------------------------------------
 # fixtures: a tiny synthetic plant (a textured card with organ labels 2 and 3)

@@ -16,13 +16,13 @@ from itertools import product
 import numpy as np
 import pytest
 
-from agrisim.cell import Box, Cylinder, build_cell
+from agrisim.scene.cell import Box, Cylinder, build_cell
 from agrisim.config import CellConfig
-from agrisim.geometry import look_at, pose
+from agrisim.scene.transforms import look_at, pose
 from agrisim.interfaces import JointTrajectory
-from agrisim.kinematics import ArmKinematics
+from agrisim.robot.kinematics import ArmKinematics
 from agrisim.plugins.physics.kinematic import KinematicOptions, KinematicPhysics, agrisim_physics
-from agrisim.robot import CAMERA_BODY
+from agrisim.robot.urdf import CAMERA_BODY
 
 RATE = 240.0
 

@@ -8,7 +8,7 @@ import pytest
 from agrisim.config import backend_options
 from agrisim.errors import ConfigError
 from agrisim.interfaces import PlanningFailed
-from agrisim.planning import segment_samples
+from agrisim.robot.segments import segment_samples
 from agrisim.plugins.physics.bullet import BulletOptions, BulletPhysics
 from agrisim.plugins.physics.kinematic import KinematicOptions, KinematicPhysics
 from agrisim.plugins.planners.direct import DirectPlanner

@@ -3,7 +3,7 @@
 Assets are built in tmp by agrisim's own writer *and* by a second writer (trimesh's glTF and OBJ
 exporters, hand-written OBJ/MTL/PNG), so the reader is not only checked against itself. Opacity is
 checked geometrically: a card whose texture is half transparent must lose half its area
-(:func:`agrisim.texturing.cutaway_fraction`).
+(:func:`agrisim.scene.texturing.cutaway_fraction`).
 """
 
 from __future__ import annotations
@@ -22,9 +22,10 @@ from PIL import Image
 from trimesh.visual.material import PBRMaterial, SimpleMaterial
 
 from agrisim.errors import UserError
-from agrisim.assets import export_glb, load_plant
-from agrisim.scene import Label, LabelTable, Material, Mesh
-from agrisim.texturing import cutaway_fraction, interpolate_uv, label_at, opaque, sample_surface
+from agrisim.files.glb import export_glb
+from agrisim.files.plant_asset import load_plant
+from agrisim.scene.model import Label, LabelTable, Material, Mesh
+from agrisim.scene.texturing import cutaway_fraction, interpolate_uv, label_at, opaque, sample_surface
 
 CARD_V = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], float) * 0.25  # a 25 cm square, z = 0
 CARD_F = np.array([[0, 1, 2], [0, 2, 3]])

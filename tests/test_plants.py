@@ -1,5 +1,5 @@
 """The procedural plant library, checked against independent truth: the mesh contract of
-:mod:`agrisim.scene`, the shared texture lookups of :mod:`agrisim.texturing`, the size of the
+:mod:`agrisim.scene.model`, the shared texture lookups of :mod:`agrisim.scene.texturing`, the size of the
 cameras' safe cylinder, the paper's organ colours and its Table 2 ordering of how much each
 asset relies on opacity."""
 
@@ -12,8 +12,8 @@ from pydantic import ValidationError
 from agrisim.plugins.plants.procedural import ProceduralPlantOptions, grow
 from agrisim.plugins.plants.species import SPECIES
 from agrisim.registry import Registry, make_plugin_manager
-from agrisim.scene import Mesh, Plant
-from agrisim.texturing import cutaway_fraction, interpolate_uv, label_at, opaque_samples, sample_surface
+from agrisim.scene.model import Mesh, Plant
+from agrisim.scene.texturing import cutaway_fraction, interpolate_uv, label_at, opaque_samples, sample_surface
 
 NAMES = [
     "indian_cress",

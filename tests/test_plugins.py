@@ -21,13 +21,13 @@ import pytest
 
 import agrisim
 from agrisim import hookspecs
-from agrisim.cell import build_cell
-from agrisim.cli import main
+from agrisim.scene.cell import build_cell
+from agrisim.app.cli import main
 from agrisim.config import CellConfig, MotionConfig, build_config
 from agrisim.errors import PluginError
 from agrisim.interfaces import PlanningFailed
-from agrisim.kinematics import ArmKinematics
-from agrisim.planning import path_is_valid, segment_samples
+from agrisim.robot.kinematics import ArmKinematics
+from agrisim.robot.segments import path_is_valid, segment_samples
 from agrisim.plugins.physics.kinematic import KinematicOptions, KinematicPhysics
 from agrisim.plugins.planners.direct import DirectPlanner
 from agrisim.registry import PROVIDER_HOOKS, NoOptions, Registry, make_plugin_manager
@@ -518,3 +518,33 @@ def test_every_hook_is_implemented_or_tested() -> None:
     assert not untested, f"hooks neither implemented by a built-in plugin nor exercised by a test: {untested}"
     assert not set(EXERCISED_BY_TESTS) - set(_hookspecs()), "EXERCISED_BY_TESTS names a hook that no longer exists"
     assert all(fn.__name__ in globals() for fn in EXERCISED_BY_TESTS.values())
+
+
+# ------------------------------------------------------------------ the Options base
+
+
+def test_options_base_refuses_unknown_keys_and_bools_for_numbers() -> None:
+    from pydantic import ValidationError
+
+    class Lift(agrisim.Options):
+        height: float = 0.5
+        """How high, m."""
+        tries: int = 3
+        """How many times."""
+        limit: float | None = None
+        """An optional bound, m."""
+        loud: bool = False
+        """Say so."""
+
+    assert Lift(height=1, tries=2, limit=0.2, loud=True).height == 1.0
+    assert Lift.model_fields["height"].description == "How high, m."
+    for bad in ({"hieght": 1.0}, {"height": True}, {"tries": False}, {"limit": True}):
+        with pytest.raises(ValidationError):
+            Lift(**bad)
+
+
+def test_every_builtin_backend_takes_agrisim_options() -> None:
+    registry = Registry(make_plugin_manager())
+    for kind in PROVIDER_HOOKS:
+        for spec in registry.specs(kind).values():
+            assert issubclass(spec.options_model, agrisim.Options), (kind, spec.name)

@@ -11,23 +11,23 @@ import numpy as np
 import open3d as o3d
 import pytest
 
-from agrisim.camera import preset
-from agrisim.cell import build_cell
-from agrisim.cli import main
+from agrisim.scene.camera import preset
+from agrisim.scene.cell import build_cell
+from agrisim.app.cli import main
 from agrisim.config import CellConfig, RenderConfig, RoutineConfig, build_config
-from agrisim.encoding import depth_to_mm
+from agrisim.files.encoding import depth_to_mm
 from agrisim.episode import Episode, resolve_plant
-from agrisim.lab import build_scene
-from agrisim.metrics import GroundTruth, ViewStats, evaluate
+from agrisim.lab.room import build_scene
+from agrisim.evaluation.metrics import GroundTruth, ViewStats, evaluate
 from agrisim.interfaces import Cloud, Reconstruction
 from agrisim.plugins.recon.pointcloud import PointCloudReconstructor
 from agrisim.plugins.recon.voxel_grid import VoxelGrid
-from agrisim.reconstruct import ReconSession
-from agrisim.rundir import camera_from_json, read_run
+from agrisim.evaluation.session import ReconSession
+from agrisim.files.rundir import camera_from_json, read_run
 from agrisim.registry import Registry, make_plugin_manager
-from agrisim.scene import Label, LabelTable, Material, Mesh
-from agrisim.setpoints import hemisphere
-from agrisim.views import View, backproject, load_view
+from agrisim.scene.model import Label, LabelTable, Material, Mesh
+from agrisim.robot.setpoints import hemisphere
+from agrisim.evaluation.views import View, backproject, load_view
 
 SPECIES = [
     "indian_cress", "boston_fern", "amaryllis", "bog_marshcress", "chinese_evergreen",

@@ -17,7 +17,7 @@ import pytest
 from PIL import Image
 
 from agrisim import BackendSpec, hookimpl
-from agrisim.cli import main
+from agrisim.app.cli import main
 from agrisim.config import build_config
 from agrisim.episode import Episode
 from agrisim.errors import BackendFailure

@@ -5,12 +5,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from agrisim.camera import from_fov
+from agrisim.scene.camera import from_fov
 from agrisim.config import RenderConfig
 from agrisim.errors import UserError
-from agrisim.geometry import look_at
+from agrisim.scene.transforms import look_at
 from agrisim.plugins.render.pybullet_render import PybulletRenderer, PybulletRenderOptions
-from agrisim.scene import Label, LabelTable, Light, Material, Mesh, Scene
+from agrisim.scene.model import Label, LabelTable, Light, Material, Mesh, Scene
 
 
 def quad(name: str, half: float, z: float, material: Material) -> Mesh:

@@ -2,7 +2,7 @@
 texture labels (texture and repopa modes, organs), shadows through cut-out cards, the arms.
 
 Scenes are built here from the data model (planes, spheres, textured cards), so every expected
-value is analytic or recomputed independently with Open3D and :mod:`agrisim.texturing`.
+value is analytic or recomputed independently with Open3D and :mod:`agrisim.scene.texturing`.
 """
 
 from __future__ import annotations
@@ -13,11 +13,11 @@ import numpy as np
 import open3d as o3d
 import pytest
 
-from agrisim import texturing
-from agrisim.camera import from_fov
+from agrisim.scene import texturing
+from agrisim.scene.camera import from_fov
 from agrisim.config import RenderConfig
 from agrisim.interfaces import CameraModel
-from agrisim.scene import Label, LabelTable, Light, Material, Mesh, Scene
+from agrisim.scene.model import Label, LabelTable, Light, Material, Mesh, Scene
 from agrisim.plugins.render.materials import SRGB_TO_LINEAR, MaterialTable
 from agrisim.plugins.render.raycast import RaycastOptions, RaycastRenderer
 
@@ -83,7 +83,7 @@ LIGHTS = [Light("key", "area", np.array([0.0, 0.0, 4.0]), np.array([0.0, 0.0, -1
 
 def test_open3d_barycentrics_match_interpolate_uv():
     """Open3D's primitive_uvs are Embree's (u, v): point = (1-u-v) A + u B + v C, the convention
-    agrisim.texturing.interpolate_uv assumes."""
+    agrisim.scene.texturing.interpolate_uv assumes."""
     rng = np.random.default_rng(1)
     tri = rng.uniform(-1, 1, (3, 3)) + [0, 0, 3]
     mesh = Mesh("t", tri, np.array([[0, 1, 2]]), [GREY], np.zeros(1, np.int32), rng.random((3, 2)).astype(np.float32))

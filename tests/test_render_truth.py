@@ -7,13 +7,13 @@ import numpy as np
 import open3d as o3d
 import pytest
 
-from agrisim.camera import preset
-from agrisim.cell import build_cell
+from agrisim.scene.camera import preset
+from agrisim.scene.cell import build_cell
 from agrisim.config import CellConfig, RenderConfig, RoutineConfig, build_config
 from agrisim.episode import resolve_plant
-from agrisim.lab import build_scene
+from agrisim.lab.room import build_scene
 from agrisim.registry import Registry, make_plugin_manager
-from agrisim.setpoints import hemisphere
+from agrisim.robot.setpoints import hemisphere
 
 SPECIES = [
     "indian_cress", "boston_fern", "amaryllis", "bog_marshcress", "chinese_evergreen",

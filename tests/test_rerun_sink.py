@@ -20,17 +20,17 @@ import pytest
 rr = pytest.importorskip("rerun")
 from rerun.chunk import RrdReader  # noqa: E402
 
-from agrisim.camera import preset  # noqa: E402
-from agrisim.cell import build_cell  # noqa: E402
+from agrisim.scene.camera import preset  # noqa: E402
+from agrisim.scene.cell import build_cell  # noqa: E402
 from agrisim.config import build_config  # noqa: E402
 from agrisim.episode import Episode, Run, RunSummary, SetpointResult  # noqa: E402
 from agrisim.interfaces import Capture, JointTrajectory, Trajectory  # noqa: E402
-from agrisim.kinematics import ArmKinematics  # noqa: E402
-from agrisim import robot_meshes  # noqa: E402
+from agrisim.robot.kinematics import ArmKinematics  # noqa: E402
+from agrisim.robot import meshes as robot_meshes  # noqa: E402
 from agrisim.plugins.sinks import rerun_sink  # noqa: E402
 from agrisim.plugins.sinks.rerun_sink import paths  # noqa: E402
 from agrisim.registry import make_plugin_manager  # noqa: E402
-from agrisim.setpoints import routine  # noqa: E402
+from agrisim.robot.setpoints import routine  # noqa: E402
 
 UR10_MESH_LINKS = {
     "base_link",

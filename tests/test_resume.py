@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pytest
 
-from agrisim.cli import main
+from agrisim.app.cli import main
 from agrisim.config import build_config
 from agrisim.episode import Episode
 

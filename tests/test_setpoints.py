@@ -7,7 +7,7 @@ import pytest
 
 from agrisim.config import RoutineConfig
 from agrisim.errors import UserError
-from agrisim.setpoints import from_csv, hemisphere
+from agrisim.robot.setpoints import from_csv, hemisphere
 
 
 def test_hemisphere_matches_the_paper(cell):

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from agrisim.timing import Limits, time_parametrize
+from agrisim.robot.trajectory import Limits, time_parametrize
 
 
 def _path() -> np.ndarray:

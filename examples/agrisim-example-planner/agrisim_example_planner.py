@@ -4,7 +4,7 @@ Tries the straight joint-space line first. When something is in the way (the pla
 arm), it goes through a *retracted* configuration instead: the shoulder lifted towards upright
 and the elbow folded, so the forearm and camera come in close to the arm's own base and pass
 over whatever blocked the line. Each segment is collision-checked with
-:func:`agrisim.planning.segment_is_valid`, at the resolution the episode asks for.
+:func:`agrisim.robot.segments.segment_is_valid`, at the resolution the episode asks for.
 
 Two detours are tried at growing retraction, the shortest first:
 
@@ -22,20 +22,20 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import Field
 
-from agrisim import BackendSpec, hookimpl
+from agrisim import BackendSpec, Options, hookimpl
 from agrisim.interfaces import Planner, PlanningFailed, Validity
-from agrisim.planning import require_within_limits, segment_is_valid
+from agrisim.robot.segments import require_within_limits, segment_is_valid
 
 __version__ = "0.1.0"
 
 
-class WaypointOptions(BaseModel):
-    """Options of the ``waypoint`` planner (``[planner.waypoint]`` in a config file)."""
+class WaypointOptions(Options):
+    """Options of the ``waypoint`` planner (``[planner.waypoint]`` in a config file).
 
-    # The docstring under each field becomes its description (help text, JSON schema).
-    model_config = ConfigDict(extra="forbid", use_attribute_docstrings=True)
+    ``agrisim.Options`` refuses unknown keys and true/false for numbers; the docstring under
+    each field becomes its description (``agrisim plugins --options``, the JSON schema)."""
 
     retract: float = Field(1.0, gt=0.0, le=math.pi)
     """Largest move of the shoulder-lift and elbow joints towards the retracted pose, rad."""

@@ -13,23 +13,21 @@ from collections.abc import Callable, Mapping
 from pathlib import Path
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import Field
 
-from agrisim import BackendSpec, hookimpl
-from agrisim.cell import Box, Cell, Cylinder
-from agrisim.geometry import quat_xyzw
+from agrisim import BackendSpec, Options, hookimpl
+from agrisim.scene.cell import Box, Cell, Cylinder
+from agrisim.scene.transforms import quat_xyzw
 from agrisim.interfaces import Execution, JointTrajectory, PhysicsBackend
-from agrisim.quiet import native_output_silenced
+from agrisim.util.native_output import native_output_silenced
 
 with native_output_silenced():  # pybullet prints its build time on import
     import pybullet as pb
     from pybullet_utils.bullet_client import BulletClient
 
 
-class BulletOptions(BaseModel):
+class BulletOptions(Options):
     """Options of the pybullet physics backend."""
-
-    model_config = ConfigDict(extra="forbid", use_attribute_docstrings=True)
 
     rate: float = Field(240.0, ge=240.0, le=10000.0)
     """Simulation steps per second (at least 240 Hz)."""

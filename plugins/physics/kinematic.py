@@ -28,17 +28,15 @@ from dataclasses import dataclass
 import coal
 import numpy as np
 import pinocchio as pin
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import Field
 
-from agrisim import BackendSpec, hookimpl
-from agrisim.cell import Box, Cell, Cylinder, Obstacle
+from agrisim import BackendSpec, Options, hookimpl
+from agrisim.scene.cell import Box, Cell, Cylinder, Obstacle
 from agrisim.interfaces import Execution, JointTrajectory, PhysicsBackend
 
 
-class KinematicOptions(BaseModel):
+class KinematicOptions(Options):
     """Options of the kinematic (perfect-tracking) physics backend."""
-
-    model_config = ConfigDict(extra="forbid", use_attribute_docstrings=True)
 
     rate: float = Field(240.0, gt=0.0, le=100000.0)
     """Samples per second of executed trajectories, Hz; every sample is collision-checked."""
@@ -100,7 +98,7 @@ def _robust(request: coal.CollisionRequest) -> None:
 class KinematicPhysics(PhysicsBackend):
     """Arms that track their plans exactly; collisions from Pinocchio + coal.
 
-    Built from a :class:`agrisim.cell.Cell`; arms start at their ``home`` configuration.
+    Built from a :class:`agrisim.scene.cell.Cell`; arms start at their ``home`` configuration.
     """
 
     def __init__(self, cell: Cell, options: KinematicOptions | None = None) -> None:

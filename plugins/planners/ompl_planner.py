@@ -8,12 +8,12 @@ query), at the motion resolution the episode asks for.
 from __future__ import annotations
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, field_validator
+from pydantic import Field, field_validator
 
-from agrisim import BackendSpec, hookimpl
+from agrisim import BackendSpec, Options, hookimpl
 from agrisim.interfaces import Planner, PlanningFailed, Validity
-from agrisim.planning import path_is_valid, require_within_limits, segment_is_valid
-from agrisim.quiet import silence_native_output_at_exit
+from agrisim.robot.segments import path_is_valid, require_within_limits, segment_is_valid
+from agrisim.util.native_output import silence_native_output_at_exit
 
 from ompl import base as ob  # noqa: E402  (after agrisim imports: keeps the import order stable)
 from ompl import geometric as og
@@ -42,10 +42,8 @@ def _seed_once(seed: int) -> None:
         _seeded = True
 
 
-class OmplOptions(BaseModel):
+class OmplOptions(Options):
     """Options of the OMPL planner."""
-
-    model_config = ConfigDict(extra="forbid", use_attribute_docstrings=True)
 
     algorithm: str = "RRTConnect"
     """An OMPL geometric planner by name (see ``agrisim plugins``)."""

@@ -11,7 +11,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from agrisim.scene import Material, Mesh
+from agrisim.scene.model import Material, Mesh
 
 from .textures import tile_uv
 

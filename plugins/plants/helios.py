@@ -27,12 +27,12 @@ from dataclasses import dataclass
 from typing import Any, Literal
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import Field
 
-from agrisim import BackendSpec, hookimpl
+from agrisim import BackendSpec, Options, hookimpl
 from agrisim.errors import UserError
 from agrisim.interfaces import PlantSpecies
-from agrisim.scene import Mesh, Plant
+from agrisim.scene.model import Mesh, Plant
 
 from . import helios_convert as hc
 from .procedural import FIT_HEIGHT, FIT_RADIUS
@@ -84,10 +84,8 @@ DEFAULT_AGES: dict[str, float] = {
 }
 
 
-class HeliosPlantOptions(BaseModel):
+class HeliosPlantOptions(Options):
     """Options of a Helios plant."""
-
-    model_config = ConfigDict(extra="forbid", use_attribute_docstrings=True)
 
     age: float | None = Field(None, gt=0.0, le=MAX_AGE, allow_inf_nan=False)
     """Age of the plant in days (``--plant-age``); None: the model's default, chosen so that

@@ -31,7 +31,7 @@ from typing import Any
 
 import numpy as np
 
-from agrisim.scene import Label, LabelTable, Material, Mesh
+from agrisim.scene.model import Label, LabelTable, Material, Mesh
 
 from .textures import srgb_to_linear
 

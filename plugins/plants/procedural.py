@@ -11,11 +11,11 @@ The same seed gives identical arrays.
 from __future__ import annotations
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import Field
 
-from agrisim import BackendSpec, hookimpl
+from agrisim import BackendSpec, Options, hookimpl
 from agrisim.interfaces import PlantSpecies
-from agrisim.scene import Material, Mesh, Plant
+from agrisim.scene.model import Material, Mesh, Plant
 
 from .species import SPECIES, Grown
 from .textures import srgb_to_linear
@@ -28,10 +28,8 @@ SOIL_DEPTH = 0.012
 """How far stems and bulbs may reach into the soil, m."""
 
 
-class ProceduralPlantOptions(BaseModel):
+class ProceduralPlantOptions(Options):
     """Options of the procedural species."""
-
-    model_config = ConfigDict(extra="forbid", use_attribute_docstrings=True)
 
     scale: float = Field(1.0, ge=0.2, le=3.0)
     """Uniform size factor. At 1 every species fits in a 0.28 m radius x 0.40 m cylinder above

@@ -20,7 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from agrisim.scene import Label, LabelTable
+from agrisim.scene.model import Label, LabelTable
 
 from . import painters as P
 from .geometry import MeshBuilder, bezier, direction, plate_cards, solid_leaves, strip_cards, tubes, unit

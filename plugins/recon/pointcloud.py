@@ -8,22 +8,20 @@ sums, so the merge after any number of views equals one downsample of all points
 
 from __future__ import annotations
 
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import Field
 
-from agrisim import BackendSpec, hookimpl
+from agrisim import BackendSpec, Options, hookimpl
 from agrisim.interfaces import Cloud, Reconstruction, Reconstructor
-from agrisim.scene import LabelTable
-from agrisim.views import View, backproject
+from agrisim.scene.model import LabelTable
+from agrisim.evaluation.views import View, backproject
 
 from .voxel_grid import VoxelGrid
 
 ALL = "all"
 
 
-class PointCloudOptions(BaseModel):
+class PointCloudOptions(Options):
     """Options of the ``pointcloud`` reconstructor."""
-
-    model_config = ConfigDict(extra="forbid", use_attribute_docstrings=True)
 
     voxel_size: float = Field(0.001, gt=0.0, le=0.1)
     """Edge of the voxels points are averaged in, m (the paper: 1 mm)."""

@@ -11,21 +11,19 @@ of the wheel: the tensor API is the maintained one.)
 from __future__ import annotations
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, model_validator
+from pydantic import Field, model_validator
 
-from agrisim import BackendSpec, hookimpl
+from agrisim import BackendSpec, Options, hookimpl
 from agrisim.interfaces import Cloud, Reconstruction, Reconstructor, SurfaceMesh
-from agrisim.scene import LabelTable
-from agrisim.views import View, backproject
+from agrisim.scene.model import LabelTable
+from agrisim.evaluation.views import View, backproject
 
 from .pointcloud import ALL
 from .voxel_grid import VoxelGrid
 
 
-class TsdfOptions(BaseModel):
+class TsdfOptions(Options):
     """Options of the ``tsdf`` reconstructor."""
-
-    model_config = ConfigDict(extra="forbid", use_attribute_docstrings=True)
 
     voxel_size: float = Field(0.002, gt=0.0, le=0.1)
     """Edge of the TSDF voxels, m."""

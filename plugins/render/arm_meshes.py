@@ -14,14 +14,14 @@ from functools import lru_cache
 
 import numpy as np
 
-from agrisim import robot_meshes
-from agrisim.scene import Material, Mesh
+from agrisim.robot import meshes as robot_meshes
+from agrisim.scene.model import Material, Mesh
 
 log = logging.getLogger(__name__)
 
 #: colour of visuals whose files and URDF give none (linear RGBA)
 DEFAULT_COLOR = (0.45, 0.45, 0.47, 1.0)
-#: the camera body added to the flange by agrisim.robot (linear RGBA)
+#: the camera body added to the flange by agrisim.robot.urdf (linear RGBA)
 CAMERA_COLOR = (0.02, 0.02, 0.02, 1.0)
 
 

@@ -21,7 +21,7 @@ from collections.abc import Callable, Iterator
 
 import numpy as np
 
-from agrisim.scene import Light
+from agrisim.scene.model import Light
 
 F32 = np.float32
 #: shadow rays stop this fraction of their length short of the light (a lamp's own housing

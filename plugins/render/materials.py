@@ -2,8 +2,8 @@
 
 Every material's albedo and label textures go into flat buffers, so that the texels of hits on
 any mix of materials are one gather: ``index = offset[m] + row * stride[m] + col``. The texel
-arithmetic for labels and opacity is that of :func:`agrisim.texturing.texel_index` (float64
-product, floor, wrap) and opacity is compared in 8 bits as :func:`agrisim.texturing.opaque` does,
+arithmetic for labels and opacity is that of :func:`agrisim.scene.texturing.texel_index` (float64
+product, floor, wrap) and opacity is compared in 8 bits as :func:`agrisim.scene.texturing.opaque` does,
 so a renderer using this table labels exactly the texels the core's functions name.
 
 Albedo is stored ready to shade: linear float32 RGB, already multiplied by the material's colour
@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from agrisim.scene import Material
+from agrisim.scene.model import Material
 
 F32 = np.float32
 
@@ -31,7 +31,7 @@ SRGB_TO_LINEAR = np.where(
 def alpha_threshold(material: Material) -> int:
     """Smallest 8-bit texture alpha that ``material`` keeps (0 when opacity cuts nothing; 256
     when it keeps nothing). glTF: alpha is the texel's times the colour factor's, compared with
-    the same float operations as :func:`agrisim.texturing.opaque`; an untextured material reads
+    the same float operations as :func:`agrisim.scene.texturing.opaque`; an untextured material reads
     a white texel (alpha 255)."""
     if not material.cuts:
         return 0
@@ -141,7 +141,7 @@ class MaterialTable:
     @staticmethod
     def _index(uv, off, h, w, stride, mat) -> np.ndarray:  # noqa: ANN001
         """Flat index of the nearest texel of each hit in a buffer of textures at ``off`` with
-        ``stride`` texels per row. Same arithmetic as agrisim.texturing.texel_index (float64
+        ``stride`` texels per row. Same arithmetic as agrisim.scene.texturing.texel_index (float64
         product, floor, wrap)."""
         wm, hm = np.take(w, mat), np.take(h, mat)
         cols = np.floor(uv[:, 0].astype(np.float64) * wm).astype(np.int64) % wm

@@ -17,15 +17,16 @@ from pathlib import Path
 
 import numpy as np
 from PIL import Image
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import Field
 
-from agrisim import BackendSpec, hookimpl, robot_meshes
-from agrisim.cell import Cell
+from agrisim import BackendSpec, Options, hookimpl
+from agrisim.robot import meshes as robot_meshes
+from agrisim.scene.cell import Cell
 from agrisim.errors import UserError
-from agrisim.geometry import quat_xyzw
+from agrisim.scene.transforms import quat_xyzw
 from agrisim.interfaces import CameraModel, Frame, Renderer
-from agrisim.quiet import native_output_silenced
-from agrisim.scene import Mesh, Scene
+from agrisim.util.native_output import native_output_silenced
+from agrisim.scene.model import Mesh, Scene
 
 with native_output_silenced():
     import pybullet as pb
@@ -35,10 +36,8 @@ with native_output_silenced():
 CHUNK = 20000
 
 
-class PybulletRenderOptions(BaseModel):
+class PybulletRenderOptions(Options):
     """Options of the pybullet (TinyRenderer) renderer."""
-
-    model_config = ConfigDict(extra="forbid", use_attribute_docstrings=True)
 
     near: float = Field(0.02, gt=0.0, le=1.0)
     """Near clipping plane, m."""

@@ -6,13 +6,13 @@ direction ``K^-1 [u, v, 1]`` rotated to the world, so the hit distance in units 
 
 Opacity. Embree knows nothing of textures, so a hit on a texel that opacity cuts away (a
 ``MASK``/``BLEND`` material whose albedo alpha is below its cutoff, compared in 8 bits exactly as
-:func:`agrisim.texturing.opaque`) is passed here: the ray is cast again from just past that hit
+:func:`agrisim.scene.texturing.opaque`) is passed here: the ray is cast again from just past that hit
 (``epsilon`` m along it), up to ``max_layers`` surfaces; rays still on cut-out texels after that
 count as hitting nothing. Back faces of single-sided materials are passed the same way (glTF back
 face culling). RGB and depth come from the first surface that is left.
 
 Labels. Only the plant mesh (``scene.plant``) carries labels; its label texture is sampled
-*nearest* at the hit's UV (the texel :func:`agrisim.texturing.label_at` names).
+*nearest* at the hit's UV (the texel :func:`agrisim.scene.texturing.label_at` names).
 ``seg_mode="texture"`` labels the first opaque hit (the paper's method); ``seg_mode="repopa"``
 ignores opacity for labels only (EasySynth's way): the first hit of any card decides, a cut-out
 texel taking its label texture's value there or, where that is 0, the material's most common
@@ -57,13 +57,13 @@ from dataclasses import dataclass
 from typing import Literal
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import Field
 
-from agrisim import BackendSpec, hookimpl
-from agrisim.cell import Cell
+from agrisim import BackendSpec, Options, hookimpl
+from agrisim.scene.cell import Cell
 from agrisim.interfaces import CameraModel, Frame, Renderer
-from agrisim.quiet import native_output_silenced
-from agrisim.scene import Material, Scene
+from agrisim.util.native_output import native_output_silenced
+from agrisim.scene.model import Material, Scene
 
 with native_output_silenced():
     import open3d as o3d
@@ -76,10 +76,8 @@ F32 = np.float32
 INVALID = np.uint32(0xFFFFFFFF)  # Open3D's geometry/primitive id of a miss
 
 
-class RaycastOptions(BaseModel):
+class RaycastOptions(Options):
     """Options of the raycast (Open3D/Embree) renderer."""
-
-    model_config = ConfigDict(extra="forbid", use_attribute_docstrings=True)
 
     ambient: float = Field(0.15, ge=0.0, le=100.0)
     """Ambient irradiance added everywhere (a white surface lit by ambient 1 alone is white)."""
@@ -348,7 +346,7 @@ class RaycastRenderer(Renderer):
         return t, face, bary
 
     def _uv(self, face: np.ndarray, bary: np.ndarray) -> np.ndarray:
-        """UVs at hits: the arithmetic of agrisim.texturing.interpolate_uv, operation for
+        """UVs at hits: the arithmetic of agrisim.scene.texturing.interpolate_uv, operation for
         operation in float32 (so the same texels), on pre-gathered corner UVs, chunk by chunk."""
         uv = np.empty((len(face), 2), F32)
         for c in chunks(len(face)):

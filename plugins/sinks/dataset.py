@@ -25,13 +25,13 @@ import numpy as np
 from PIL import Image
 
 from agrisim import BackendSpec, __version__, hookimpl
-from agrisim.assets import export_glb
-from agrisim.atomic import write_bytes, write_json
-from agrisim.encoding import depth_to_mm
-from agrisim.exports import write_nerfstudio
+from agrisim.files.glb import export_glb
+from agrisim.files.atomic import write_bytes, write_json
+from agrisim.files.encoding import depth_to_mm
+from agrisim.files.nerfstudio import write_nerfstudio
 from agrisim.episode import Run, RunSummary, SetpointResult
 from agrisim.interfaces import CameraModel, Capture
-from agrisim.reconstruct import write_reconstruction
+from agrisim.evaluation.session import write_reconstruction
 
 #: distributions whose versions a run records
 VERSIONED = (

@@ -42,15 +42,15 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from agrisim import BackendSpec, hookimpl
-from agrisim.encoding import depth_to_mm
-from agrisim import robot_meshes
+from agrisim.files.encoding import depth_to_mm
+from agrisim.robot import meshes as robot_meshes
 
 if TYPE_CHECKING:
     import rerun as rr
     import rerun.blueprint as rrb
 
-    from agrisim.cell import Box, Cylinder
-    from agrisim.scene import Scene
+    from agrisim.scene.cell import Box, Cylinder
+    from agrisim.scene.model import Scene
     from agrisim.episode import Run, RunSummary, SetpointResult
     from agrisim.interfaces import Capture, Trajectory
 
@@ -342,7 +342,7 @@ class RerunSink:
     # ------------------------------------------------------------------ static scene
     def _log_obstacle(self, ob: Box | Cylinder) -> None:
         assert self.rec is not None
-        from agrisim.cell import Box
+        from agrisim.scene.cell import Box
 
         path = paths.obstacle(ob.name)
         T = np.asarray(ob.world_T, float)

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from agrisim.scene import Material, Mesh
+from agrisim.scene.model import Material, Mesh
 
 
 def texel_index(uv: np.ndarray, height: int, width: int) -> tuple[np.ndarray, np.ndarray]:

@@ -25,9 +25,9 @@ from typing import Any
 import numpy as np
 
 from agrisim.interfaces import Reconstruction
-from agrisim.scene import LabelTable, Mesh
-from agrisim.texturing import labels_at_samples, opaque_samples, sample_surface, sample_triangles
-from agrisim.views import View
+from agrisim.scene.model import LabelTable, Mesh
+from agrisim.scene.texturing import labels_at_samples, opaque_samples, sample_surface, sample_triangles
+from agrisim.evaluation.views import View
 
 ALL = "all"
 #: how densely reconstructed meshes are sampled to be measured, points per square metre

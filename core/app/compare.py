@@ -12,7 +12,7 @@ from the files on disk. Outputs under ``OUT``:
 ``compare.json`` the plan (plants, modes, the base configuration), one record per episode
                  (Ray task id, worker pid, wall time, peak RSS) and the table's rows
 
-The table itself (rows, markdown, CSV, chart) is :mod:`agrisim.table`.
+The table itself (rows, markdown, CSV, chart) is :mod:`agrisim.app.table`.
 
 The module is split into pure parts (planning and validating the episodes, building rows from
 metrics dictionaries, formatting) and the parts with effects (:func:`execute` runs the Ray
@@ -37,10 +37,10 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from agrisim.atomic import write_bytes, write_json
+from agrisim.files.atomic import write_bytes, write_json
 from agrisim.config import BackendChoice, RunConfig, backend_options, build_config, merge
 from agrisim.errors import ConfigError, OutputError, UserError
-from agrisim.table import (  # noqa: F401 - the table is part of compare's API
+from agrisim.app.table import (  # noqa: F401 - the table is part of compare's API
     is_file_plant,
     plant_key,
     SEG_MODES,

@@ -9,41 +9,14 @@ clouds and metrics. Back-projection follows the paper's Eq. 1 and OpenCV's pixel
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 from PIL import Image
 
-from agrisim.encoding import depth_to_mm
+from agrisim.files.encoding import depth_to_mm
 from agrisim.errors import UserError
-from agrisim.interfaces import CameraModel, Capture
-
-
-@dataclass
-class View:
-    """One camera's images at one setpoint (OpenCV optical frame, H x W pixel grid)."""
-
-    frame: str
-    camera: CameraModel
-    world_T_camera: np.ndarray  # 4x4
-    rgb: np.ndarray  # uint8 H x W x 3
-    labels: np.ndarray  # uint8 H x W label ids
-    depth_mm: np.ndarray  # uint16 H x W planar depth in millimetres, 0 = no hit
-    instances: np.ndarray | None = None  # uint16 H x W leaf instance ids, 0 = none
-
-    def images(self) -> dict[str, np.ndarray]:
-        """The images as a :class:`agrisim.interfaces.Capture` carries them (depth in metres)."""
-        out = {"rgb": self.rgb, "labels": self.labels, "depth": self.depth}
-        if self.instances is not None:
-            out["instances"] = self.instances
-        return out
-
-    @property
-    def depth(self) -> np.ndarray:
-        """Planar depth in metres (float32, 0 = no hit), as Open3D reads the depth PNG with
-        ``depth_scale = 1000``."""
-        return self.depth_mm.astype(np.float32) / np.float32(1000.0)
+from agrisim.interfaces import CameraModel, Capture, View
 
 
 def view_from_capture(capture: Capture) -> View:

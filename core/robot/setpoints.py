@@ -8,10 +8,10 @@ from pathlib import Path
 
 import numpy as np
 
-from agrisim.cell import Cell
+from agrisim.scene.cell import Cell
 from agrisim.config import RoutineConfig, parse_grid
 from agrisim.errors import UserError
-from agrisim.geometry import look_at, pose, rpy_matrix
+from agrisim.scene.transforms import look_at, pose, rpy_matrix
 
 
 @dataclass(frozen=True)

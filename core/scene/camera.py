@@ -3,9 +3,31 @@
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
+
+import numpy as np
 
 from agrisim.errors import UserError
-from agrisim.interfaces import CameraModel
+
+
+@dataclass
+class CameraModel:
+    """A pinhole camera (OpenCV conventions; pixel centres at integer coordinates)."""
+
+    width: int
+    height: int
+    fx: float
+    fy: float
+    cx: float
+    cy: float
+
+    @property
+    def K(self) -> np.ndarray:  # noqa: N802 - the field's name for it
+        return np.array([[self.fx, 0.0, self.cx], [0.0, self.fy, self.cy], [0.0, 0.0, 1.0]])
+
+    @property
+    def hfov_deg(self) -> float:
+        return float(np.degrees(2.0 * np.arctan(self.width / (2.0 * self.fx))))
 
 
 def from_fov(hfov_deg: float, width: int, height: int) -> CameraModel:

@@ -25,7 +25,7 @@ from typing import TYPE_CHECKING, Literal
 
 import numpy as np
 
-from agrisim.geometry import pose, rpy_matrix
+from agrisim.scene.transforms import pose, rpy_matrix
 
 if TYPE_CHECKING:
     import trimesh
@@ -94,7 +94,7 @@ def link_visuals(urdf: str) -> dict[str, list[Visual]]:
     """The visuals of every link of the URDF text ``urdf`` that has any, by link name.
 
     Mesh file names are returned as written (``package://`` URIs are not resolved here:
-    :func:`agrisim.robot.ur10_with_camera` already made them absolute).
+    :func:`agrisim.robot.urdf.ur10_with_camera` already made them absolute).
     """
     root = ET.fromstring(urdf)
     # Materials may be defined once at top level and referenced by name in visuals.

@@ -30,9 +30,9 @@ from typing import Any
 import numpy as np
 from PIL import Image
 
-from agrisim.atomic import write_bytes, write_json
+from agrisim.files.atomic import write_bytes, write_json
 from agrisim.errors import UserError
-from agrisim.rundir import read_json
+from agrisim.files.rundir import read_json
 
 #: OpenCV optical frame -> OpenGL camera frame (negate y and z), as a right factor on camera-to-world
 CV_TO_GL = np.diag([1.0, -1.0, -1.0, 1.0])

@@ -14,7 +14,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import pinocchio as pin
 
-from agrisim.cell import Arm
+from agrisim.scene.cell import Arm
 
 
 @dataclass

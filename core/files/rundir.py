@@ -16,7 +16,7 @@ import numpy as np
 
 from agrisim.errors import UserError
 from agrisim.interfaces import CameraModel
-from agrisim.scene import Label, LabelTable
+from agrisim.scene.model import Label, LabelTable
 
 
 def read_json(path: Path, missing: str, error: type[UserError] = UserError, prefix: str = "") -> dict[str, Any]:

@@ -220,7 +220,7 @@ def _apply_sets(tree: dict[str, Any], items: Sequence[str]) -> None:
 
 def _cmd_run(args: argparse.Namespace) -> int:
     from agrisim.episode import Episode
-    from agrisim.progress import EpisodeProgress
+    from agrisim.app.progress import EpisodeProgress
 
     overrides = overrides_from_args(args)
     if args.resume:
@@ -250,8 +250,8 @@ def _cmd_run(args: argparse.Namespace) -> int:
 
 
 def _cmd_recon(args: argparse.Namespace) -> int:
-    from agrisim.progress import EpisodeProgress
-    from agrisim.reconstruct import reconstruct_saved_run
+    from agrisim.app.progress import EpisodeProgress
+    from agrisim.evaluation.session import reconstruct_saved_run
 
     overrides: dict[str, Any] = {}
     if args.recon:
@@ -307,7 +307,7 @@ def _cmd_plugins(args: argparse.Namespace) -> int:
 
 def _cmd_plants(args: argparse.Namespace) -> int:
     from agrisim.registry import Registry, make_plugin_manager
-    from agrisim.texturing import cutaway_fraction
+    from agrisim.scene.texturing import cutaway_fraction
 
     if args.seed < 0:
         raise UserError(f"--seed must be 0 or more, got {args.seed}")
@@ -328,7 +328,7 @@ def _cmd_plants(args: argparse.Namespace) -> int:
 
 
 def _cmd_export(args: argparse.Namespace) -> int:
-    from agrisim.exports import write_nerfstudio
+    from agrisim.files.nerfstudio import write_nerfstudio
 
     out = write_nerfstudio(args.run_dir)
     print(f"wrote {out}")
@@ -336,9 +336,9 @@ def _cmd_export(args: argparse.Namespace) -> int:
 
 
 def _cmd_compare(args: argparse.Namespace) -> int:
-    from agrisim.compare import SEG_MODES, compare, default_out, markdown_table, parse_names, plan_compare
+    from agrisim.app.compare import SEG_MODES, compare, default_out, markdown_table, parse_names, plan_compare
     from agrisim.config import merge
-    from agrisim.progress import EpisodeProgress
+    from agrisim.app.progress import EpisodeProgress
 
     if args.workers is not None and args.workers < 1:
         raise UserError(f"--workers must be 1 or more, got {args.workers}")

@@ -16,13 +16,13 @@ from typing import Any
 
 import numpy as np
 
-from agrisim.atomic import write_bytes, write_json
+from agrisim.files.atomic import write_bytes, write_json
 from agrisim.errors import OutputError, UserError
 from agrisim.interfaces import Cloud, Reconstruction, Reconstructor, SurfaceMesh
-from agrisim.rundir import camera_from_json, label_table_from_json, read_run
-from agrisim.metrics import ALL, GroundTruth, ViewStats, evaluate
-from agrisim.scene import LabelTable
-from agrisim.views import View, load_view
+from agrisim.files.rundir import camera_from_json, label_table_from_json, read_run
+from agrisim.evaluation.metrics import ALL, GroundTruth, ViewStats, evaluate
+from agrisim.scene.model import LabelTable
+from agrisim.evaluation.views import View, load_view
 
 CloudCallback = Callable[[str, Cloud, bool], None]
 
@@ -172,7 +172,7 @@ def _atomic(path: Path, write: Callable[[str], bool]) -> None:
 
 def truth_from_run(run_dir: Path, samples: int, seed: int = 0) -> GroundTruth | None:
     """The ground truth of a saved run: its ``scene/plant.glb`` (world coordinates)."""
-    from agrisim.assets import load_plant
+    from agrisim.files.plant_asset import load_plant
 
     path = run_dir / "scene" / "plant.glb"
     if not path.is_file():

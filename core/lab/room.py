@@ -1,11 +1,11 @@
-"""The lab around the robot cell as a :class:`agrisim.scene.Scene`: room, furniture, lights,
+"""The lab around the robot cell as a :class:`agrisim.scene.model.Scene`: room, furniture, lights,
 the seeded clutter randomizer of the paper (section 3.3), and the plant placed in its pot.
 
 Backend-free (numpy only). Everything is built in world coordinates:
 
 * a room (10 x 8 m, 3 m high by default, centred on the plant) with a tiled floor, painted
   walls with a skirting board and an acoustic-tile ceiling;
-* the table, the pot and the robot stands drawn from :attr:`agrisim.cell.Cell.obstacles`, with
+* the table, the pot and the robot stands drawn from :attr:`agrisim.scene.cell.Cell.obstacles`, with
   exactly the physics bodies' sizes and poses (renders and collisions agree); the pot is a clay
   shell with a rim and a soil disc set ``SOIL_INSET`` below its rim;
 * the plant moved from its own frame (origin at the centre of the soil surface) onto the soil;
@@ -30,10 +30,10 @@ from typing import Literal
 
 import numpy as np
 
-from agrisim import lab_textures as tex
-from agrisim.cell import Box, Cell, Cylinder
-from agrisim.geometry import translation, yaw_matrix
-from agrisim.scene import Label, LabelTable, Light, Material, Mesh, Plant, Scene
+from agrisim.lab import textures as tex
+from agrisim.scene.cell import Box, Cell, Cylinder
+from agrisim.scene.transforms import translation, yaw_matrix
+from agrisim.scene.model import Label, LabelTable, Light, Material, Mesh, Plant, Scene
 
 SOIL_INSET = 0.015
 """Depth of the soil surface below the pot's rim, m (capped at a third of the pot's height)."""

@@ -1,0 +1,1 @@
+"""The application: the command line, the Ray comparison, its table, progress display."""

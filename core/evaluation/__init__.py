@@ -1,0 +1,1 @@
+"""Evaluation: views read back from a run, the reconstruction session and accuracy metrics."""

@@ -1,0 +1,49 @@
+"""The kinds of backend and what a provider hook returns for one: :class:`BackendSpec`.
+
+Kept apart from the registry so that the hook specifications can name these types without
+importing the plugin manager.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any, Literal
+
+from pydantic import BaseModel
+
+from agrisim.options import Options
+
+Kind = Literal["physics", "renderer", "planner", "reconstructor", "plant", "sink"]
+
+#: kind -> provider hook name
+PROVIDER_HOOKS: dict[str, str] = {
+    "physics": "agrisim_physics",
+    "renderer": "agrisim_renderers",
+    "planner": "agrisim_planners",
+    "reconstructor": "agrisim_reconstructors",
+    "plant": "agrisim_plants",
+    "sink": "agrisim_sinks",
+}
+
+
+class NoOptions(Options):
+    """Options model for a backend that takes none."""
+
+
+@dataclass(frozen=True)
+class BackendSpec:
+    """What a provider hook returns for one backend.
+
+    ``factory(options, **context)`` builds the backend; ``options`` is an instance of
+    ``options_model`` validated from the user's configuration (its field docstrings are the
+    documentation users see).
+    """
+
+    name: str
+    factory: Callable[..., Any]
+    description: str
+    options_model: type[BaseModel] = NoOptions
+    limits: str = ""
+    #: filled in by the registry: the distribution that provided the spec
+    distribution: str = field(default="", compare=False)

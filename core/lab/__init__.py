@@ -1,0 +1,1 @@
+"""The laboratory room around the cell: geometry and procedural textures."""

@@ -1,0 +1,1 @@
+"""The robot: its URDF, kinematics, trajectory time-parametrisation, segment checks and setpoints."""

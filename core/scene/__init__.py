@@ -1,0 +1,1 @@
+"""The scene model: meshes, labels, lights, the robot cell and the camera."""
