@@ -45,6 +45,7 @@ from agrisim.robot.segments import segment_is_valid
 from agrisim.evaluation.session import ReconSession, summary_metrics
 from agrisim.files.rundir import read_json
 from agrisim.scene.model import Plant, Scene
+from agrisim.capabilities import check_renderer
 from agrisim.records import Run, RunSummary, SetpointResult
 from agrisim.registry import BackendSpec, Registry, make_plugin_manager
 from agrisim.robot.setpoints import Setpoint, routine
@@ -107,6 +108,9 @@ class Episode:
             check_plant_name(self.registry, config)
         else:
             self.renderer_spec, self.renderer_options = self._backend("renderer", config.renderer)
+            check_renderer(
+                self.renderer_spec, self.registry.specs("renderer"), [config.render.seg_mode], config.render.labels
+            )
             with _timed(self._prep_wall, "plant"):
                 self.plant = resolve_plant(self.registry, config)
             with _timed(self._prep_wall, "scene"):

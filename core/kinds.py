@@ -45,5 +45,8 @@ class BackendSpec:
     description: str
     options_model: type[BaseModel] = NoOptions
     limits: str = ""
+    #: what the backend can do (:mod:`agrisim.capabilities`); None: the kind's defaults, which
+    #: promise the least
+    capabilities: Any = None
     #: filled in by the registry: the distribution that provided the spec
     distribution: str = field(default="", compare=False)

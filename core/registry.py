@@ -19,6 +19,7 @@ import pluggy
 from pydantic import BaseModel
 
 from agrisim import hookspecs
+from agrisim.capabilities import CAPABILITIES
 from agrisim.errors import PluginError
 from agrisim.kinds import PROVIDER_HOOKS, BackendSpec, Kind, NoOptions
 
@@ -108,7 +109,14 @@ class Registry:
                     raise PluginError(
                         f"{kind} backend {spec.name!r} is provided twice: by {found[spec.name].distribution} and by {dist}"
                     )
-                found[spec.name] = BackendSpec(**{**spec.__dict__, "distribution": dist})
+                caps_type = CAPABILITIES.get(kind)
+                caps = spec.capabilities
+                if caps is None and caps_type is not None:
+                    caps = caps_type()
+                elif caps is not None and (caps_type is None or not isinstance(caps, caps_type)):
+                    wanted = f"an agrisim.capabilities.{caps_type.__name__}" if caps_type else "None"
+                    raise PluginError(f"{kind} {spec.name!r} of {dist}: capabilities must be {wanted}, got {caps!r}")
+                found[spec.name] = BackendSpec(**{**spec.__dict__, "capabilities": caps, "distribution": dist})
         return dict(sorted(found.items()))
 
     def get(self, kind: str, name: str) -> BackendSpec:

@@ -123,9 +123,14 @@ CASES = [
     pytest.param(["--seg-mode", "paint"], ["--seg-mode", "texture", "repopa"], id="unknown-seg-mode"),
     pytest.param(["--renderer", "nope"], ["renderer", "'nope'", "raycast"], id="unknown-renderer"),
     pytest.param(
-        ["--renderer", "pybullet", "--labels", "organs", "--plant", "hydrangea"],
-        ["pybullet", "--labels plant"],
+        ["--renderer", "pybullet", "--seg-mode", "repopa", "--labels", "organs", "--plant", "hydrangea"],
+        ["renderer backend 'pybullet'", "organ labels", "renderers that can: raycast"],
         id="pybullet-renderer-has-no-organs",
+    ),
+    pytest.param(
+        ["--renderer", "pybullet"],
+        ["renderer backend 'pybullet'", "segmentation mode 'texture'", "renderers that can: raycast"],
+        id="pybullet-renderer-ignores-opacity",
     ),
 ]
 

@@ -238,6 +238,9 @@ def no_ray(monkeypatch: pytest.MonkeyPatch) -> None:
         (["--workers", "0"], "--workers must be 1 or more"),
         (["--physics", "nope"], "unknown physics backend 'nope'"),
         (["--renderer", "none"], "needs a renderer"),
+        # TinyRenderer ignores opacity: its "texture" column would repeat RepOpa's without a word
+        (["--renderer", "pybullet"], "renderer backend 'pybullet' cannot draw segmentation mode 'texture'"),
+        (["--renderer", "pybullet", "--seg-modes", "repopa", "--labels", "organs"], "cannot draw organ labels"),
         (["--set", "output.rrd=x.rrd"], "output.rrd cannot be shared"),
         (["--overwrite", "--resume"], "exclude each other"),
         (["--ray-address", "127.0.0.1:1"], "--ray-address 127.0.0.1:1: cannot reach"),

@@ -24,7 +24,7 @@ from agrisim import hookspecs
 from agrisim.scene.cell import build_cell
 from agrisim.app.cli import main
 from agrisim.config import CellConfig, MotionConfig, build_config
-from agrisim.errors import PluginError
+from agrisim.errors import PluginError, UserError
 from agrisim.interfaces import PlanningFailed
 from agrisim.robot.kinematics import ArmKinematics
 from agrisim.robot.segments import path_is_valid, segment_samples
@@ -109,7 +109,7 @@ def listed(text: str, kind: str) -> dict[str, str]:
     for line in text.splitlines():
         if not line.startswith(" "):
             section = line.rstrip(":")
-        elif section == kind and line.strip() and not line.strip().startswith(("limits:", "(none")):
+        elif section == kind and line.strip() and not line.strip().startswith(("limits:", "can:", "(none")):
             out[line.split()[0]] = line
     return out
 
@@ -548,3 +548,53 @@ def test_every_builtin_backend_takes_agrisim_options() -> None:
     for kind in PROVIDER_HOOKS:
         for spec in registry.specs(kind).values():
             assert issubclass(spec.options_model, agrisim.Options), (kind, spec.name)
+
+
+# ------------------------------------------------------------------ capabilities
+
+
+def test_capabilities_of_the_wrong_kind_name_the_plugin(site: Path) -> None:
+    source = """
+        from agrisim import BackendSpec, hookimpl
+        from agrisim.capabilities import PhysicsCapabilities
+        from agrisim.plugins.planners.direct import DirectPlanner
+
+        @hookimpl
+        def agrisim_renderers():
+            return [BackendSpec(name="odd", factory=DirectPlanner, description="x", capabilities=PhysicsCapabilities())]
+    """
+    make_dist(site, "agrisim-odd-caps", {"odd_caps": source}, {"odd-caps": "odd_caps"})
+    with pytest.raises(PluginError) as exc:
+        Registry(make_plugin_manager()).specs("renderer")
+    message = str(exc.value)
+    assert "'odd'" in message and "agrisim-odd-caps 0.1.0" in message and "RendererCapabilities" in message
+
+
+def test_a_renderer_that_declares_nothing_gets_the_least(site: Path) -> None:
+    """Undeclared capabilities promise the least: texture labels only, so asking such a
+    renderer for organs is refused before anything is built."""
+    source = """
+        from agrisim import BackendSpec, hookimpl
+        from agrisim.plugins.planners.direct import DirectPlanner
+
+        @hookimpl
+        def agrisim_renderers():
+            return [BackendSpec(name="plain", factory=DirectPlanner, description="x")]
+    """
+    make_dist(site, "agrisim-plain", {"plain_renderer": source}, {"plain": "plain_renderer"})
+    from agrisim.capabilities import RendererCapabilities, check_renderer
+
+    registry = Registry(make_plugin_manager())
+    spec = registry.get("renderer", "plain")
+    assert spec.capabilities == RendererCapabilities()
+    check_renderer(spec, registry.specs("renderer"), ["texture"], "plant")  # within what it declares
+    with pytest.raises(UserError, match="'plain' cannot draw organ labels.*renderers that can: raycast"):
+        check_renderer(spec, registry.specs("renderer"), ["texture"], "organs")
+
+
+def test_the_pybullet_renderer_is_accepted_for_what_it_declares(tmp_path: Path) -> None:
+    from agrisim.episode import Episode
+
+    layer = {"renderer": {"backend": "pybullet"}, "render": {"seg_mode": "repopa"}, "output": {"out": str(tmp_path / "r")}}
+    episode = Episode(build_config(layer))  # validated, nothing written
+    assert episode.renderer_spec.name == "pybullet" and not (tmp_path / "r").exists()

@@ -285,6 +285,7 @@ def _resume_config(args: argparse.Namespace, overrides: dict[str, Any]) -> RunCo
 
 
 def _cmd_plugins(args: argparse.Namespace) -> int:
+    from agrisim.capabilities import describe
     from agrisim.registry import PROVIDER_HOOKS, Registry, make_plugin_manager
 
     registry = Registry(make_plugin_manager())
@@ -298,6 +299,8 @@ def _cmd_plugins(args: argparse.Namespace) -> int:
             print(f"  {name:<{width}}  {spec.description}  [{spec.distribution}]")
             if spec.limits:
                 print(f"  {'':<{width}}  limits: {spec.limits}")
+            if spec.capabilities is not None:
+                print(f"  {'':<{width}}  can: {describe(spec.capabilities)}")
             if args.options:
                 for field, info in spec.options_model.model_fields.items():
                     doc = (info.description or "").replace("\n", " ")

@@ -37,6 +37,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from agrisim.capabilities import check_renderer
 from agrisim.files.atomic import write_bytes, write_json
 from agrisim.config import BackendChoice, RunConfig, backend_options, build_config, merge
 from agrisim.errors import ConfigError, OutputError, UserError
@@ -209,6 +210,8 @@ def plan_compare(
     if clash:
         raise UserError(f"--plants: two plants would share the run directory {clash[0]!r}")
     _check_backends(registry, probe)
+    renderer = registry.get("renderer", probe.renderer.backend)
+    check_renderer(renderer, registry.specs("renderer"), seg_modes, probe.render.labels)
 
     out = Path(out).expanduser().absolute()  # absolute: Ray workers need not share our cwd
     _check_out(out, overwrite=overwrite, resume=resume)

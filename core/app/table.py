@@ -17,8 +17,8 @@ from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-#: the segmentation modes compared: the paper's method ("Ours") first, then EasySynth's
-SEG_MODES: tuple[str, ...] = ("texture", "repopa")
+from agrisim.capabilities import SEG_MODES
+
 #: how the table names the modes (the paper's column heads)
 MODE_TITLES: dict[str, str] = {"texture": "Ours", "repopa": "RepOpa"}
 #: the accuracy measures of ``metrics.json`` that carry one value per threshold

@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 from pydantic import Field
 
+from agrisim.capabilities import PhysicsCapabilities
 from agrisim import BackendSpec, Options, hookimpl
 from agrisim.scene.cell import Box, Cell, Cylinder
 from agrisim.scene.transforms import quat_xyzw
@@ -382,5 +383,6 @@ def agrisim_physics() -> list[BackendSpec]:
             description="pybullet dynamics (DIRECT), joint position motors with configurable gains and force limits",
             options_model=BulletOptions,
             limits="rigid bodies only; contacts are detected and reported, not resolved into the plan",
+            capabilities=PhysicsCapabilities(dynamics=True),
         )
     ]

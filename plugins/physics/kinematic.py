@@ -30,6 +30,7 @@ import numpy as np
 import pinocchio as pin
 from pydantic import Field
 
+from agrisim.capabilities import PhysicsCapabilities
 from agrisim import BackendSpec, Options, hookimpl
 from agrisim.scene.cell import Box, Cell, Cylinder, Obstacle
 from agrisim.interfaces import Execution, JointTrajectory, PhysicsBackend
@@ -385,5 +386,6 @@ def agrisim_physics() -> list[BackendSpec]:
             description="perfect tracking on Pinocchio kinematics with coal collision checks; no dynamics, no pybullet",
             options_model=KinematicOptions,
             limits="no dynamics: arms follow plans exactly and contacts are reported, never resolved or felt",
+            capabilities=PhysicsCapabilities(dynamics=False),
         )
     ]

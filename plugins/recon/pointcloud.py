@@ -10,6 +10,7 @@ from __future__ import annotations
 
 from pydantic import Field
 
+from agrisim.capabilities import ReconstructorCapabilities
 from agrisim import BackendSpec, Options, hookimpl
 from agrisim.interfaces import Cloud, Reconstruction, Reconstructor
 from agrisim.scene.model import LabelTable
@@ -65,5 +66,6 @@ def agrisim_reconstructors() -> list[BackendSpec]:
             factory=PointCloudReconstructor,
             options_model=PointCloudOptions,
             description="the paper's method: back-projected labelled pixels merged on a 1 mm voxel grid, per label",
+            capabilities=ReconstructorCapabilities(clouds=True, meshes=False),
         )
     ]

@@ -13,6 +13,7 @@ from __future__ import annotations
 import numpy as np
 from pydantic import Field, model_validator
 
+from agrisim.capabilities import ReconstructorCapabilities
 from agrisim import BackendSpec, Options, hookimpl
 from agrisim.interfaces import Cloud, Reconstruction, Reconstructor, SurfaceMesh
 from agrisim.scene.model import LabelTable
@@ -134,5 +135,6 @@ def agrisim_reconstructors() -> list[BackendSpec]:
             factory=TsdfReconstructor,
             options_model=TsdfOptions,
             description="Open3D TSDF fusion (VoxelBlockGrid) of the labelled depth to a surface mesh, per label",
+            capabilities=ReconstructorCapabilities(clouds=True, meshes=True),
         )
     ]

@@ -19,10 +19,10 @@ import numpy as np
 from PIL import Image
 from pydantic import Field
 
+from agrisim.capabilities import RendererCapabilities
 from agrisim import BackendSpec, Options, hookimpl
 from agrisim.robot import meshes as robot_meshes
 from agrisim.scene.cell import Cell
-from agrisim.errors import UserError
 from agrisim.scene.transforms import quat_xyzw
 from agrisim.interfaces import CameraModel, Frame, Renderer
 from agrisim.util.native_output import native_output_silenced
@@ -75,8 +75,6 @@ class PybulletRenderer(Renderer):
 
     def __init__(self, scene: Scene, cell: Cell, settings: object, options: PybulletRenderOptions) -> None:
         super().__init__(scene, cell, settings, options)
-        if getattr(settings, "labels", "plant") == "organs":
-            raise UserError("the pybullet renderer has object-level masks only: use --labels plant (or --renderer raycast)")
         self._tmp = tempfile.TemporaryDirectory(prefix="agrisim-tinyrenderer-")
         with native_output_silenced():
             self.client = BulletClient(connection_mode=pb.DIRECT)
@@ -205,5 +203,6 @@ def agrisim_renderers() -> list[BackendSpec]:
             options_model=PybulletRenderOptions,
             limits="no opacity cut-outs (masks are RepOpa-like), object-level mask only (label 1 = plant, "
             "no organs), one directional light, hard shadows only, depth ~0.5% off on large tilted triangles",
+            capabilities=RendererCapabilities(seg_modes=frozenset({"repopa"}))  # TinyRenderer ignores opacity,
         )
     ]

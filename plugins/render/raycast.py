@@ -59,6 +59,7 @@ from typing import Literal
 import numpy as np
 from pydantic import Field
 
+from agrisim.capabilities import SEG_MODES, RendererCapabilities
 from agrisim import BackendSpec, Options, hookimpl
 from agrisim.scene.cell import Cell
 from agrisim.interfaces import CameraModel, Frame, Renderer
@@ -701,5 +702,12 @@ def agrisim_renderers() -> list[BackendSpec]:
             options_model=RaycastOptions,
             limits="Lambert shading with direct light and an ambient term (no indirect light, no specular); "
             "no texture mipmaps; alpha is a step at the cutoff (no blending)",
+            capabilities=RendererCapabilities(
+                seg_modes=frozenset(SEG_MODES),
+                organ_labels=True,
+                leaf_instances=True,
+                soft_shadows=True,
+                supersampling=True,
+            ),
         )
     ]

@@ -1,0 +1,99 @@
+"""What a backend declares it can do, and the check the core makes before anything runs.
+
+A provider states its backend's capabilities in its :class:`~agrisim.kinds.BackendSpec`; a
+spec that states none gets the kind's defaults, which promise the least. The core refuses a
+setting the chosen backend cannot honour with one line naming the backend, what it cannot do,
+and the backends that can, before anything is built or written.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Mapping
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
+
+from agrisim.errors import UserError
+
+if TYPE_CHECKING:
+    from agrisim.kinds import BackendSpec
+
+#: the segmentation modes: the paper's labels cut out by opacity ("Ours"), then EasySynth's (RepOpa)
+SEG_MODES = ("texture", "repopa")
+
+
+@dataclass(frozen=True)
+class RendererCapabilities:
+    """What a renderer draws."""
+
+    seg_modes: frozenset[str] = field(default_factory=lambda: frozenset({"texture"}))
+    """Segmentation modes it honours: ``texture`` (labels cut out by opacity, the paper's) and
+    ``repopa`` (labels ignore opacity, EasySynth's)."""
+    organ_labels: bool = False
+    """One label per organ (``--labels organs``), not only one for the whole plant."""
+    leaf_instances: bool = False
+    """A leaf-instance image beside the labels."""
+    soft_shadows: bool = False
+    """Area lights sampled for soft shadows."""
+    supersampling: bool = False
+    """More than one RGB ray per pixel."""
+
+
+@dataclass(frozen=True)
+class PhysicsCapabilities:
+    """What a physics backend simulates."""
+
+    dynamics: bool = False
+    """Simulates dynamics (controllers, settling); without it the arms follow plans exactly."""
+
+
+@dataclass(frozen=True)
+class ReconstructorCapabilities:
+    """What a reconstructor produces."""
+
+    clouds: bool = True
+    """A point cloud per label."""
+    meshes: bool = False
+    """A surface mesh per label."""
+
+
+#: kind -> its capabilities type (kinds without one declare nothing)
+CAPABILITIES: dict[str, type] = {
+    "renderer": RendererCapabilities,
+    "physics": PhysicsCapabilities,
+    "reconstructor": ReconstructorCapabilities,
+}
+
+
+def describe(capabilities: object) -> str:
+    """One line for ``agrisim plugins``: what is on, e.g. ``seg modes texture, repopa; organ labels``."""
+    parts = []
+    for name, value in vars(capabilities).items():
+        if isinstance(value, frozenset):
+            parts.append(f"{name.replace('_', ' ')} {', '.join(sorted(value)) or 'none'}")
+        elif value is True:
+            parts.append(name.replace("_", " "))
+    return "; ".join(parts) or "none"
+
+
+def check_renderer(spec: BackendSpec, renderers: Mapping[str, BackendSpec], seg_modes: Iterable[str], labels: str) -> None:
+    """Refuse rendering with ``spec`` in ``seg_modes`` with ``labels`` if it cannot do them.
+
+    ``renderers`` are all installed renderers, to name those that could.
+    """
+
+    def missing(caps: RendererCapabilities) -> list[str]:
+        out = [f"segmentation mode {m!r}" for m in seg_modes if m not in caps.seg_modes]
+        if labels == "organs" and not caps.organ_labels:
+            out.append("organ labels")
+        return out
+
+    lacking = missing(spec.capabilities)
+    if lacking:
+        able = [name for name, other in renderers.items() if not missing(other.capabilities)]
+        offer = f"; renderers that can: {', '.join(able)}" if able else ""
+        modes = ", ".join(sorted(spec.capabilities.seg_modes))
+        raise UserError(
+            f"renderer backend {spec.name!r} cannot draw {' or '.join(lacking)} "
+            f"(it does segmentation modes {modes}{', organ labels' if spec.capabilities.organ_labels else ', no organ labels'})"
+            f"{offer}"
+        )
