@@ -19,9 +19,12 @@ from agrisim.config import CellConfig, build_config
 from agrisim.episode import Episode
 from agrisim.scene.transforms import look_at
 from agrisim.robot.kinematics import ArmKinematics
-from agrisim.plugins.physics.bullet import BulletOptions, BulletPhysics
-from agrisim.plugins.physics.kinematic import KinematicOptions, KinematicPhysics
-from agrisim.plugins.planners.ompl_planner import OmplOptions, OmplPlanner
+from agrisim.plugins.physics.pybullet_physics import BulletOptions
+from agrisim.plugins.physics.pybullet_physics.backend import BulletPhysics
+from agrisim.plugins.physics.kinematic import KinematicOptions
+from agrisim.plugins.physics.kinematic.backend import KinematicPhysics
+from agrisim.plugins.planners.ompl_planner import OmplOptions
+from agrisim.plugins.planners.ompl_planner.backend import OmplPlanner
 from agrisim.robot.trajectory import Limits, time_parametrize
 
 

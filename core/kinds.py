@@ -6,6 +6,7 @@ importing the plugin manager.
 
 from __future__ import annotations
 
+import importlib
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any, Literal
@@ -50,3 +51,33 @@ class BackendSpec:
     capabilities: Any = None
     #: filled in by the registry: the distribution that provided the spec
     distribution: str = field(default="", compare=False)
+
+
+class LazyFactory:
+    """A factory named by ``"module:attribute"`` and imported on its first call.
+
+    Describing a backend (``agrisim plugins``, validating a configuration) then imports none of
+    its libraries; building it does. A provider writes ``factory=lazy("pkg.backend:MyBackend")``.
+    """
+
+    def __init__(self, target: str) -> None:
+        module, sep, attribute = target.partition(":")
+        if not (module and sep and attribute):
+            raise ValueError(f"lazy factory {target!r}: expected 'module:attribute'")
+        self.target = target
+
+    def resolve(self) -> Callable[..., Any]:
+        """The factory itself (imports its module)."""
+        module, _, attribute = self.target.partition(":")
+        return getattr(importlib.import_module(module), attribute)
+
+    def __call__(self, *args: Any, **kwargs: Any) -> Any:
+        return self.resolve()(*args, **kwargs)
+
+    def __repr__(self) -> str:
+        return f"lazy({self.target!r})"
+
+
+def lazy(target: str) -> LazyFactory:
+    """A factory for ``"module:attribute"`` imported when the backend is first built."""
+    return LazyFactory(target)

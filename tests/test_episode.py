@@ -12,7 +12,8 @@ from agrisim.scene.cell import build_cell
 from agrisim.config import CellConfig, build_config
 from agrisim.episode import Episode
 from agrisim.scene.transforms import pose_error
-from agrisim.plugins.physics.kinematic import KinematicOptions, KinematicPhysics
+from agrisim.plugins.physics.kinematic import KinematicOptions
+from agrisim.plugins.physics.kinematic.backend import KinematicPhysics
 from agrisim.registry import hookimpl
 
 
@@ -199,7 +200,7 @@ def test_run_json_records_the_run(pybullet_run):
 
 def test_arms_take_turns_when_moving_together_would_collide(tmp_path, monkeypatch):
     """When the joint check says the simultaneous motions collide, one arm waits."""
-    from agrisim.plugins.physics.kinematic import KinematicPhysics as K
+    from agrisim.plugins.physics.kinematic.backend import KinematicPhysics as K
 
     monkeypatch.setattr(K, "arms_in_collision", lambda self, configs: True)
     episode, run, summary, recorder = _run(

@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 from agrisim.scene.transforms import look_at, pose_error
-from agrisim.plugins.physics.bullet import BulletOptions, BulletPhysics
+from agrisim.plugins.physics.pybullet_physics import BulletOptions
+from agrisim.plugins.physics.pybullet_physics.backend import BulletPhysics
 
 
 @pytest.fixture(scope="module")

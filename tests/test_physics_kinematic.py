@@ -21,7 +21,8 @@ from agrisim.config import CellConfig
 from agrisim.scene.transforms import look_at, pose
 from agrisim.interfaces import JointTrajectory
 from agrisim.robot.kinematics import ArmKinematics
-from agrisim.plugins.physics.kinematic import KinematicOptions, KinematicPhysics, agrisim_physics
+from agrisim.plugins.physics.kinematic import KinematicOptions, agrisim_physics
+from agrisim.plugins.physics.kinematic.backend import KinematicPhysics
 from agrisim.robot.urdf import CAMERA_BODY
 
 RATE = 240.0
@@ -314,7 +315,7 @@ def test_contacts_between_arms_moving_together(cell, physics, kin):
 
 def test_registration_and_options():
     (spec,) = agrisim_physics()
-    assert spec.name == "kinematic" and spec.factory is KinematicPhysics
+    assert spec.name == "kinematic" and spec.factory.resolve() is KinematicPhysics
     assert spec.options_model is KinematicOptions and spec.description and spec.limits
     assert KinematicOptions().rate == 240.0
     with pytest.raises(ValueError):
@@ -328,9 +329,9 @@ def test_registered_through_entry_point(monkeypatch):
 
     monkeypatch.setenv("AGRISIM_LOAD_PLUGINS", "physics-kinematic")
     spec = Registry(make_plugin_manager(autoload=True)).get("physics", "kinematic")
-    assert spec.factory is KinematicPhysics
+    assert spec.factory.resolve() is KinematicPhysics
 
 
 def test_module_does_not_import_pybullet():
-    code = "import sys, agrisim.plugins.physics.kinematic; sys.exit('pybullet' in sys.modules)"
+    code = "import sys, agrisim.plugins.physics.kinematic.backend; sys.exit('pybullet' in sys.modules)"
     assert subprocess.run([sys.executable, "-c", code], check=False).returncode == 0

@@ -28,7 +28,8 @@ from agrisim.errors import PluginError, UserError
 from agrisim.interfaces import PlanningFailed
 from agrisim.robot.kinematics import ArmKinematics
 from agrisim.robot.segments import path_is_valid, segment_samples
-from agrisim.plugins.physics.kinematic import KinematicOptions, KinematicPhysics
+from agrisim.plugins.physics.kinematic import KinematicOptions
+from agrisim.plugins.physics.kinematic.backend import KinematicPhysics
 from agrisim.plugins.planners.direct import DirectPlanner
 from agrisim.registry import PROVIDER_HOOKS, NoOptions, Registry, make_plugin_manager
 

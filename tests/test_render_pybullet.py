@@ -7,9 +7,9 @@ import pytest
 
 from agrisim.scene.camera import from_fov
 from agrisim.config import RenderConfig
-from agrisim.errors import UserError
 from agrisim.scene.transforms import look_at
-from agrisim.plugins.render.pybullet_render import PybulletRenderer, PybulletRenderOptions
+from agrisim.plugins.render.pybullet_render import PybulletRenderOptions, agrisim_renderers
+from agrisim.plugins.render.pybullet_render.renderer import PybulletRenderer
 from agrisim.scene.model import Label, LabelTable, Light, Material, Mesh, Scene
 
 
@@ -81,9 +81,12 @@ def test_no_opacity_cutouts_the_whole_card_is_plant(renderer):
     assert xs.min() < cam.cx - 5 and xs.max() > cam.cx + 5
 
 
-def test_organ_labels_are_refused(scene, cell):
-    with pytest.raises(UserError, match="--labels plant"):
-        PybulletRenderer(scene, cell, RenderConfig(labels="organs"), PybulletRenderOptions())
+def test_it_declares_what_the_test_above_shows():
+    """Whole cards are plant (RepOpa's masks) and there is one plant label: the spec says so,
+    and the core refuses texture labels and organs for it (test_cli_errors, test_compare)."""
+    (spec,) = agrisim_renderers()
+    assert spec.capabilities.seg_modes == {"repopa"}
+    assert not spec.capabilities.organ_labels and not spec.capabilities.leaf_instances
 
 
 def test_arms_are_drawn_at_their_link_poses(scene, cell, kin):

@@ -18,8 +18,9 @@ from agrisim.scene.camera import from_fov
 from agrisim.config import RenderConfig
 from agrisim.interfaces import CameraModel
 from agrisim.scene.model import Label, LabelTable, Light, Material, Mesh, Scene
-from agrisim.plugins.render.materials import SRGB_TO_LINEAR, MaterialTable
-from agrisim.plugins.render.raycast import RaycastOptions, RaycastRenderer
+from agrisim.plugins.render.raycast.materials import SRGB_TO_LINEAR, MaterialTable
+from agrisim.plugins.render.raycast import RaycastOptions
+from agrisim.plugins.render.raycast.renderer import RaycastRenderer
 
 CAMERA = from_fov(60.0, 160, 120)
 

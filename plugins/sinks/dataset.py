@@ -29,7 +29,7 @@ from agrisim.files.glb import export_glb
 from agrisim.files.atomic import write_bytes, write_json
 from agrisim.files.encoding import depth_to_mm
 from agrisim.files.nerfstudio import write_nerfstudio
-from agrisim.episode import Run, RunSummary, SetpointResult
+from agrisim.records import Run, RunSummary, SetpointResult
 from agrisim.interfaces import CameraModel, Capture
 from agrisim.evaluation.session import write_reconstruction
 

@@ -1,34 +1,18 @@
-"""The ``ompl`` planner: any OMPL geometric planner by name (default RRTConnect).
-
-As in the paper's ROS set-up: 2 s of planning time per attempt, 5 attempts, then OMPL's path
-simplification. Collision checking is agrisim's validity callable (the physics backend's
-query), at the motion resolution the episode asks for.
-"""
+"""The OMPL planner: its bindings, the process-wide seed, and planning in an arm's joint space (see the package)."""
 
 from __future__ import annotations
 
 import numpy as np
-from pydantic import Field, field_validator
 
-from agrisim import BackendSpec, Options, hookimpl
 from agrisim.interfaces import Planner, PlanningFailed, Validity
+from agrisim.plugins.planners.ompl_planner import OmplOptions
+from agrisim.plugins.planners.ompl_planner.names import available_planners  # noqa: F401 - part of the backend's API
 from agrisim.robot.segments import path_is_valid, require_within_limits, segment_is_valid
 from agrisim.util.native_output import silence_native_output_at_exit
 
-from ompl import base as ob  # noqa: E402  (after agrisim imports: keeps the import order stable)
-from ompl import geometric as og
-from ompl import util as ou
-
-
-def available_planners() -> list[str]:
-    """Names of the OMPL geometric planners these bindings expose."""
-    return sorted(
-        name
-        for name in dir(og)
-        if isinstance(getattr(og, name), type)
-        and issubclass(getattr(og, name), ob.Planner)
-        and name not in ("Planner",)
-    )
+from ompl import base as ob  # noqa: E402, I001  (after agrisim imports: keeps the import order stable)
+from ompl import geometric as og  # noqa: E402
+from ompl import util as ou  # noqa: E402
 
 
 _seeded = False
@@ -40,35 +24,6 @@ def _seed_once(seed: int) -> None:
     if not _seeded:
         ou.RNG.setSeed((seed & 0x7FFFFFFF) + 1)  # OMPL refuses 0
         _seeded = True
-
-
-class OmplOptions(Options):
-    """Options of the OMPL planner."""
-
-    algorithm: str = "RRTConnect"
-    """An OMPL geometric planner by name (see ``agrisim plugins``)."""
-    time: float = Field(2.0, gt=0.0, le=600.0)
-    """Planning time per attempt, s (paper: 2)."""
-    attempts: int = Field(5, ge=1, le=100)
-    """Attempts before the setpoint is given up (paper: 5)."""
-    simplify: bool = True
-    """Shorten and smooth the found path with OMPL's path simplifier."""
-    try_direct: bool = True
-    """Return the straight line at once when it is collision-free (as most setpoints are)."""
-    seed: int = Field(0, ge=0, le=2**31 - 1)
-    """Seed of OMPL's global random generator (taken once per process, before any planning)."""
-    search_resolution: float = Field(0.1, gt=0.0, le=1.0)
-    """Joint step (rad) at which OMPL checks edges while searching. Coarser than the motion
-    resolution so the search explores more in its time; the found path is then re-checked at
-    the motion resolution and the attempt repeated if that fails."""
-
-    @field_validator("algorithm")
-    @classmethod
-    def _known(cls, v: str) -> str:
-        names = available_planners()
-        if v not in names:
-            raise ValueError(f"unknown OMPL planner {v!r}; available: {', '.join(names)}")
-        return v
 
 
 class OmplPlanner(Planner):
@@ -136,16 +91,3 @@ class OmplPlanner(Planner):
         raise PlanningFailed(
             f"{self.options.algorithm} found no path in {self.options.attempts} x {self.options.time:g} s ({last})"
         )
-
-
-@hookimpl
-def agrisim_planners() -> list[BackendSpec]:
-    return [
-        BackendSpec(
-            name="ompl",
-            factory=OmplPlanner,
-            description="any OMPL geometric planner by name (default RRTConnect), 2 s x 5 attempts, simplified",
-            options_model=OmplOptions,
-            limits=f"geometric planners: {', '.join(available_planners())}",
-        )
-    ]

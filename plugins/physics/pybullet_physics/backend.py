@@ -1,10 +1,4 @@
-"""The ``pybullet`` physics backend: the cell simulated with dynamics in DIRECT mode.
-
-Arms are driven by pybullet's joint position motors (gains and force limits configurable: the
-paper's "arm dynamics options") stepping at ``rate`` Hz; what the arms actually did is reported
-back. Collision queries for planners run in a second, kinematic-only pybullet world so that
-probing configurations never disturbs the simulated state.
-"""
+"""The pybullet physics backend: the world, its bodies and motors, and trajectory execution (see the package)."""
 
 from __future__ import annotations
 
@@ -13,36 +7,16 @@ from collections.abc import Callable, Mapping
 from pathlib import Path
 
 import numpy as np
-from pydantic import Field
 
-from agrisim.capabilities import PhysicsCapabilities
-from agrisim import BackendSpec, Options, hookimpl
+from agrisim.interfaces import Execution, JointTrajectory, PhysicsBackend
+from agrisim.plugins.physics.pybullet_physics import BulletOptions
 from agrisim.scene.cell import Box, Cell, Cylinder
 from agrisim.scene.transforms import quat_xyzw
-from agrisim.interfaces import Execution, JointTrajectory, PhysicsBackend
 from agrisim.util.native_output import native_output_silenced
 
 with native_output_silenced():  # pybullet prints its build time on import
     import pybullet as pb
     from pybullet_utils.bullet_client import BulletClient
-
-
-class BulletOptions(Options):
-    """Options of the pybullet physics backend."""
-
-    rate: float = Field(240.0, ge=240.0, le=10000.0)
-    """Simulation steps per second (at least 240 Hz)."""
-    position_gain: float = Field(0.3, gt=0.0, le=1.0)
-    """Position gain of the joint motors (pybullet's ``positionGain``)."""
-    velocity_gain: float = Field(1.0, ge=0.0, le=10.0)
-    """Velocity gain of the joint motors (pybullet's ``velocityGain``)."""
-    force_scale: float = Field(1.0, gt=0.0, le=10.0)
-    """Scale on the URDF's joint effort limits used as motor force limits."""
-    gravity: float = Field(9.81, ge=0.0, le=100.0)
-    """Gravity, m/s^2 (pointing down)."""
-    clearance: float = Field(0.005, ge=0.0, le=0.2)
-    """Distance below which planning queries count as a collision, m: room for the arm's
-    tracking error, so executed motions stay collision-free."""
 
 
 class _World:
@@ -372,17 +346,3 @@ class BulletPhysics(PhysicsBackend):
         self.sim.close()
         self.query.close()
         self._tmp.cleanup()
-
-
-@hookimpl
-def agrisim_physics() -> list[BackendSpec]:
-    return [
-        BackendSpec(
-            name="pybullet",
-            factory=BulletPhysics,
-            description="pybullet dynamics (DIRECT), joint position motors with configurable gains and force limits",
-            options_model=BulletOptions,
-            limits="rigid bodies only; contacts are detected and reported, not resolved into the plan",
-            capabilities=PhysicsCapabilities(dynamics=True),
-        )
-    ]

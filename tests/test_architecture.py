@@ -1,0 +1,115 @@
+"""The architecture holds: no import cycle among agrisim's modules (counting imports made only
+for type hints or inside functions), and the contracts and plugin discovery stay light."""
+
+from __future__ import annotations
+
+import ast
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+REPO = Path(__file__).resolve().parents[1]
+PACKAGES = {"agrisim": REPO / "core", "agrisim.plugins": REPO / "plugins"}
+HEAVY = ("open3d", "pybullet", "pinocchio", "coal", "ompl", "rerun", "ray")
+
+
+def modules() -> dict[str, Path]:
+    """Every agrisim module by dotted name."""
+    out = {}
+    for package, root in PACKAGES.items():
+        for path in root.rglob("*.py"):
+            parts = list(path.relative_to(root).with_suffix("").parts)
+            if parts[-1] == "__init__":
+                parts = parts[:-1]
+            out[".".join([package, *parts])] = path
+    return out
+
+
+def import_graph() -> dict[str, set[str]]:
+    """Module -> the agrisim modules it imports anywhere in its source."""
+    mods = modules()
+    graph: dict[str, set[str]] = {}
+    for name, path in mods.items():
+        deps: set[str] = set()
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
+                for alias in node.names:
+                    full = f"{node.module}.{alias.name}"
+                    deps.add(full if full in mods else node.module)
+            elif isinstance(node, ast.Import):
+                deps |= {alias.name for alias in node.names}
+        graph[name] = {d for d in deps if d in mods and d != name}
+    return graph
+
+
+def cycles(graph: dict[str, set[str]]) -> list[list[str]]:
+    """Strongly connected components of more than one module (Tarjan)."""
+    index: dict[str, int] = {}
+    low: dict[str, int] = {}
+    stack: list[str] = []
+    on_stack: set[str] = set()
+    found: list[list[str]] = []
+
+    def visit(v: str) -> None:
+        index[v] = low[v] = len(index)
+        stack.append(v)
+        on_stack.add(v)
+        for w in graph[v]:
+            if w not in index:
+                visit(w)
+                low[v] = min(low[v], low[w])
+            elif w in on_stack:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            component = []
+            while True:
+                w = stack.pop()
+                on_stack.discard(w)
+                component.append(w)
+                if w == v:
+                    break
+            if len(component) > 1:
+                found.append(sorted(component))
+
+    for v in graph:
+        if v not in index:
+            visit(v)
+    return found
+
+
+def test_no_import_cycles() -> None:
+    graph = import_graph()
+    assert len(graph) > 60  # the walk found the packages
+    assert cycles(graph) == []
+
+
+def test_the_cycle_finder_finds_a_cycle() -> None:
+    graph = import_graph()
+    graph["agrisim.scene.camera"] = graph["agrisim.scene.camera"] | {"agrisim.interfaces"}  # the old cycle
+    assert any({"agrisim.interfaces", "agrisim.scene.camera"} <= set(c) for c in cycles(graph))
+
+
+def _loaded_after(code: str) -> set[str]:
+    """Modules a fresh interpreter has loaded after running ``code``."""
+    probe = f"import sys, io, contextlib\n{code}\nprint(' '.join(sorted(sys.modules)))"
+    proc = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0, proc.stderr
+    return set(proc.stdout.split())
+
+
+@pytest.mark.parametrize(
+    "code",
+    [
+        "import agrisim.interfaces",
+        "import agrisim.hookspecs, agrisim.kinds, agrisim.capabilities, agrisim.records",
+        "from agrisim.app.cli import main\nwith contextlib.redirect_stdout(io.StringIO()): main(['plugins', '--options'])",
+    ],
+    ids=["interfaces", "contracts", "agrisim-plugins"],
+)
+def test_contracts_and_discovery_import_no_heavy_library(code: str) -> None:
+    loaded = _loaded_after(code)
+    assert not {m for m in loaded if m.split(".")[0] in HEAVY}
+    if "plugins" not in code:  # the contracts do not load the configuration or the robot either
+        assert not {"agrisim.config", "agrisim.robot.urdf", "agrisim.scene.cell", "agrisim.episode"} & loaded
