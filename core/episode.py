@@ -47,13 +47,12 @@ from agrisim.files.rundir import read_json
 from agrisim.scene.model import Plant, Scene
 from agrisim.capabilities import check_renderer
 from agrisim.records import Run, RunSummary, SetpointResult
+from agrisim.kinds import KINDS
 from agrisim.registry import BackendSpec, Registry, make_plugin_manager
 from agrisim.robot.setpoints import Setpoint, routine
 from agrisim.robot.trajectory import Limits, TimedPath, time_parametrize
 from agrisim.evaluation.views import View, load_view, view_from_capture
 
-#: the config section choosing a backend of each kind
-_SECTIONS = {"physics": "physics", "planner": "planner", "renderer": "renderer", "reconstructor": "recon"}
 #: rate at which planned trajectories are sampled for physics and sinks, Hz
 TRAJECTORY_RATE = 240.0
 
@@ -124,7 +123,7 @@ class Episode:
     def _backend(self, kind: str, choice: BackendChoice) -> tuple[BackendSpec, BaseModel]:
         """The chosen backend of ``kind`` and its options, validated by its own model."""
         spec = self.registry.get(kind, choice.backend)
-        choice.check_tables(_SECTIONS[kind], self.registry.specs(kind))
+        choice.check_tables(KINDS[kind].section, self.registry.specs(kind))
         options = backend_options(spec.options_model, choice.options_for(spec.name), f"{kind} backend {spec.name!r}")
         return spec, options
 
@@ -133,18 +132,20 @@ class Episode:
         """Run the episode; returns the run (with per-setpoint results) and its summary."""
         # Backends first: if one cannot be built, nothing has been written yet.
         with blame("physics", self.physics_spec, " to start"):
-            physics: PhysicsBackend = self.physics_spec.factory(self.cell, self.physics_options)
+            physics: PhysicsBackend = self.registry.build("physics", self.physics_spec, self.cell, self.physics_options)
         renderer: Renderer | None = None
         try:
             with blame("planner", self.planner_spec, " to start"):
-                planner: Planner = self.planner_spec.factory(self.planner_options)
+                planner: Planner = self.registry.build("planner", self.planner_spec, self.planner_options)
             if self.renderer_spec is not None:
                 with blame("renderer", self.renderer_spec, " to start"):
-                    renderer = self.renderer_spec.factory(self.scene, self.cell, self.config.render, self.renderer_options)
+                    renderer = self.registry.build(
+                        "renderer", self.renderer_spec, self.scene, self.cell, self.config.render, self.renderer_options
+                    )
             recon: Reconstructor | None = None
             if self.recon_spec is not None:
                 with blame("reconstructor", self.recon_spec, " to start"):
-                    recon = self.recon_spec.factory(self.scene.labels, self.recon_options)
+                    recon = self.registry.build("reconstructor", self.recon_spec, self.scene.labels, self.recon_options)
             prepare_out_dir(self.out_dir, self.config)
             if self.config.output.resume:
                 remove_partial(self.out_dir)  # half-written files of a killed run
@@ -244,7 +245,7 @@ class Episode:
         sinks: list[object] = []
         try:
             for spec in self.registry.specs("sink").values():
-                sink = spec.factory(run)
+                sink = self.registry.build("sink", spec, run)
                 if sink is not None:
                     self.pm.register(sink, name=f"sink:{spec.name}:{run.run_id}")
                     sinks.append(sink)
@@ -501,7 +502,7 @@ def resolve_plant(registry: Registry, config: RunConfig) -> Plant:
             table["age"] = config.plant_age
         options = backend_options(spec.options_model, table, f"plant {name!r}")
         with blame("plant", spec, f" growing {name!r}"):
-            plant: Plant = spec.factory(options).build(config.seed)
+            plant: Plant = registry.build("plant", spec, options).build(config.seed)
         return plant
     if config.plant_age is not None and (Path(name).suffix.lower() in FORMATS or Path(name).exists()):
         raise UserError(f"--plant-age: plant file {name} has no age; it applies to species that grow (helios:*)")

@@ -34,27 +34,36 @@ hookspec = pluggy.HookspecMarker(PROJECT)
 
 @hookspec
 def agrisim_physics() -> list[BackendSpec]:
-    """Physics backends: each factory returns a :class:`agrisim.interfaces.PhysicsBackend`."""
+    """Physics backends. The core calls ``factory(cell: Cell, options) -> PhysicsBackend``:
+    the robot cell (arms, obstacles) and the backend's validated options; the result must be an
+    :class:`agrisim.interfaces.PhysicsBackend`."""
 
 
 @hookspec
 def agrisim_renderers() -> list[BackendSpec]:
-    """Renderers: each factory returns a :class:`agrisim.interfaces.Renderer`."""
+    """Renderers. The core calls ``factory(scene: Scene, cell: Cell, settings: RenderConfig,
+    options) -> Renderer``: what to draw, the arms' URDFs, the run-wide rendering settings and
+    the backend's options; the result must be an :class:`agrisim.interfaces.Renderer`. Declare
+    :class:`agrisim.capabilities.RendererCapabilities` in the spec."""
 
 
 @hookspec
 def agrisim_planners() -> list[BackendSpec]:
-    """Motion planners: each factory returns a :class:`agrisim.interfaces.Planner`."""
+    """Motion planners. The core calls ``factory(options) -> Planner``; the result must be an
+    :class:`agrisim.interfaces.Planner`."""
 
 
 @hookspec
 def agrisim_reconstructors() -> list[BackendSpec]:
-    """Reconstructors: each factory returns a :class:`agrisim.interfaces.Reconstructor`."""
+    """Reconstructors. The core calls ``factory(labels: LabelTable, options) -> Reconstructor``:
+    the run's label table and the backend's options; the result must be an
+    :class:`agrisim.interfaces.Reconstructor`."""
 
 
 @hookspec
 def agrisim_plants() -> list[BackendSpec]:
-    """Plant species: each factory returns a :class:`agrisim.interfaces.PlantSpecies`."""
+    """Plant species. The core calls ``factory(options) -> PlantSpecies`` and then
+    ``.build(seed)``; the result must be an :class:`agrisim.interfaces.PlantSpecies`."""
 
 
 @hookspec(firstresult=True)
@@ -66,7 +75,7 @@ def agrisim_plant_unavailable(name: str) -> str | None:
 
 @hookspec
 def agrisim_sinks() -> list[BackendSpec]:
-    """Sinks: each factory takes the :class:`agrisim.episode.Run` and returns an object whose
+    """Sinks. The core calls ``factory(run: Run)`` with the :class:`agrisim.records.Run`; it returns an object whose
     event hook implementations are registered for that run only (or ``None`` to stay out of
     it, e.g. the Rerun sink under ``--no-rrd``). Per-run objects keep sinks' state out of
     module globals."""

@@ -17,6 +17,7 @@ from agrisim.scene.camera import CameraModel
 from agrisim.scene.model import LabelTable, Plant, Scene
 
 if TYPE_CHECKING:
+    from agrisim.config import RenderConfig
     from agrisim.scene.cell import Cell
 
 Validity = Callable[[np.ndarray], bool]
@@ -182,7 +183,7 @@ class Renderer(ABC):
     (segmentation mode, shadow samples, ...) and ``options`` the backend's own options.
     """
 
-    def __init__(self, scene: Scene, cell: Cell, settings: Any, options: Any) -> None:
+    def __init__(self, scene: Scene, cell: Cell, settings: RenderConfig, options: Any) -> None:
         self.scene = scene
         self.cell = cell
         self.settings = settings

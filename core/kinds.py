@@ -17,15 +17,43 @@ from agrisim.options import Options
 
 Kind = Literal["physics", "renderer", "planner", "reconstructor", "plant", "sink"]
 
+
+@dataclass(frozen=True)
+class KindInfo:
+    """One kind of backend: how it is provided, configured and built."""
+
+    hook: str
+    """The provider hook returning its :class:`BackendSpec` list."""
+    section: str | None
+    """The configuration section choosing one (``[physics] backend = ...``); None: not chosen
+    by a setting (every plant is selectable by name, every sink is on)."""
+    abc: str | None
+    """``module:Class`` every factory result must be an instance of (None: any object, as a
+    sink is a plugin object with event hooks)."""
+    factory: str
+    """The factory's signature, as the core calls it."""
+
+
+#: The kinds of backend: the one table the registry, the episode, compare and the CLI read.
+KINDS: dict[str, KindInfo] = {
+    "physics": KindInfo("agrisim_physics", "physics", "agrisim.interfaces:PhysicsBackend",
+                        "factory(cell: Cell, options) -> PhysicsBackend"),
+    "renderer": KindInfo("agrisim_renderers", "renderer", "agrisim.interfaces:Renderer",
+                         "factory(scene: Scene, cell: Cell, settings: RenderConfig, options) -> Renderer"),
+    "planner": KindInfo("agrisim_planners", "planner", "agrisim.interfaces:Planner",
+                        "factory(options) -> Planner"),
+    "reconstructor": KindInfo("agrisim_reconstructors", "recon", "agrisim.interfaces:Reconstructor",
+                              "factory(labels: LabelTable, options) -> Reconstructor"),
+    "plant": KindInfo("agrisim_plants", None, "agrisim.interfaces:PlantSpecies",
+                      "factory(options) -> PlantSpecies"),
+    "sink": KindInfo("agrisim_sinks", None, None, "factory(run: Run) -> a plugin object with event hooks"),
+}  # fmt: skip
+
 #: kind -> provider hook name
-PROVIDER_HOOKS: dict[str, str] = {
-    "physics": "agrisim_physics",
-    "renderer": "agrisim_renderers",
-    "planner": "agrisim_planners",
-    "reconstructor": "agrisim_reconstructors",
-    "plant": "agrisim_plants",
-    "sink": "agrisim_sinks",
-}
+PROVIDER_HOOKS: dict[str, str] = {kind: info.hook for kind, info in KINDS.items()}
+
+#: configuration section -> the kind it chooses
+SECTIONS: dict[str, str] = {info.section: kind for kind, info in KINDS.items() if info.section}
 
 
 class NoOptions(Options):

@@ -14,16 +14,17 @@ import importlib
 import os
 import sys
 from importlib import metadata
+from typing import Any
 
 import pluggy
 from pydantic import BaseModel
 
 from agrisim import hookspecs
 from agrisim.capabilities import CAPABILITIES
-from agrisim.errors import PluginError
-from agrisim.kinds import PROVIDER_HOOKS, BackendSpec, Kind, NoOptions
+from agrisim.errors import BackendFailure, PluginError
+from agrisim.kinds import KINDS, PROVIDER_HOOKS, BackendSpec, Kind, NoOptions
 
-__all__ = ["PROVIDER_HOOKS", "BackendSpec", "Kind", "NoOptions", "Registry", "hookimpl", "make_plugin_manager"]
+__all__ = ["KINDS", "PROVIDER_HOOKS", "BackendSpec", "Kind", "NoOptions", "Registry", "hookimpl", "make_plugin_manager"]
 
 hookimpl = pluggy.HookimplMarker(hookspecs.PROJECT)
 
@@ -118,6 +119,27 @@ class Registry:
                     raise PluginError(f"{kind} {spec.name!r} of {dist}: capabilities must be {wanted}, got {caps!r}")
                 found[spec.name] = BackendSpec(**{**spec.__dict__, "capabilities": caps, "distribution": dist})
         return dict(sorted(found.items()))
+
+    def build(self, kind: str, spec: BackendSpec, *args: Any) -> Any:
+        """Call ``spec``'s factory with the kind's arguments (:data:`agrisim.kinds.KINDS`) and
+        check that it returned an instance of the kind's ABC.
+
+        Raises:
+            BackendFailure: the factory returned something else; names the plugin and its
+                distribution. (Exceptions of the factory itself propagate unchanged.)
+        """
+        built = spec.factory(*args)
+        abc = KINDS[kind].abc
+        if abc is not None:
+            module, _, name = abc.partition(":")
+            expected = getattr(importlib.import_module(module), name)
+            if not isinstance(built, expected):
+                origin = f" (from {spec.distribution})" if spec.distribution else ""
+                raise BackendFailure(
+                    f"{kind} backend {spec.name!r}{origin}: its factory returned {type(built).__name__}, "
+                    f"not an {module}.{name}"
+                )
+        return built
 
     def get(self, kind: str, name: str) -> BackendSpec:
         """The backend ``name`` of ``kind``; an unknown name lists the available ones."""

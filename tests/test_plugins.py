@@ -24,8 +24,8 @@ from agrisim import hookspecs
 from agrisim.scene.cell import build_cell
 from agrisim.app.cli import main
 from agrisim.config import CellConfig, MotionConfig, build_config
-from agrisim.errors import PluginError, UserError
-from agrisim.interfaces import PlanningFailed
+from agrisim.errors import BackendFailure, PluginError, UserError
+from agrisim.interfaces import PlanningFailed, PlantSpecies, Reconstructor, Renderer
 from agrisim.robot.kinematics import ArmKinematics
 from agrisim.robot.segments import path_is_valid, segment_samples
 from agrisim.plugins.physics.kinematic import KinematicOptions
@@ -383,10 +383,12 @@ def test_every_kind_is_discovered_from_a_distribution(site: Path, capsys) -> Non
     make_dist(site, "agrisim-fakes", {"agrisim_fakes": source}, {"fakes": "agrisim_fakes"}, version="2.0")
     registry = Registry(make_plugin_manager())
     construct = {"renderer": (None, None, None, None), "reconstructor": (None, None), "plant": (None,)}
+    abcs = {"renderer": Renderer, "reconstructor": Reconstructor, "plant": PlantSpecies}
     for kind, name in (("renderer", "fake-render"), ("reconstructor", "fake-recon"), ("plant", "fake-plant")):
         spec = registry.get(kind, name)
         assert spec.distribution == "agrisim-fakes 2.0"
-        assert spec.factory(*construct[kind]) is not None
+        built = registry.build(kind, spec, *construct[kind])  # checked against the kind's ABC
+        assert isinstance(built, abcs[kind]) and type(built).__module__ == "agrisim_fakes"
     code, out, _ = plugins_cli(capsys)
     assert code == 0
     assert "[agrisim-fakes 2.0]" in listed(out, "reconstructor")["fake-recon"]
@@ -599,3 +601,38 @@ def test_the_pybullet_renderer_is_accepted_for_what_it_declares(tmp_path: Path) 
     layer = {"renderer": {"backend": "pybullet"}, "render": {"seg_mode": "repopa"}, "output": {"out": str(tmp_path / "r")}}
     episode = Episode(build_config(layer))  # validated, nothing written
     assert episode.renderer_spec.name == "pybullet" and not (tmp_path / "r").exists()
+
+
+def test_a_factory_returning_the_wrong_type_names_the_plugin(site: Path) -> None:
+    source = """
+        from agrisim import BackendSpec, hookimpl
+
+        @hookimpl
+        def agrisim_planners():
+            return [BackendSpec(name="dud", factory=lambda options: object(), description="returns nothing useful")]
+    """
+    make_dist(site, "agrisim-dud", {"agrisim_dud": source}, {"dud": "agrisim_dud"}, version="0.3")
+    registry = Registry(make_plugin_manager())
+    with pytest.raises(BackendFailure) as exc:
+        registry.build("planner", registry.get("planner", "dud"), NoOptions())
+    message = str(exc.value)
+    assert "'dud'" in message and "agrisim-dud 0.3" in message and "agrisim.interfaces.Planner" in message
+
+
+def test_the_kind_table_names_real_hooks_sections_and_abcs() -> None:
+    """One table of kinds: each hook is a hookspec, each section a configuration table that
+    chooses a backend, each ABC importable."""
+    import importlib
+
+    from agrisim.config import BackendChoice, RunConfig
+    from agrisim.kinds import KINDS
+
+    for kind, info in KINDS.items():
+        assert hasattr(hookspecs, info.hook), kind
+        if info.section is not None:
+            assert issubclass(RunConfig.model_fields[info.section].annotation, BackendChoice), kind
+        if info.abc is not None:
+            module, _, name = info.abc.partition(":")
+            assert isinstance(getattr(importlib.import_module(module), name), type), kind
+        doc = hookspecs.__dict__[info.hook].__doc__ or ""
+        assert "factory(" in doc or kind == "sink", f"hookspec {info.hook} does not document the factory"

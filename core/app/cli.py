@@ -322,7 +322,7 @@ def _cmd_plants(args: argparse.Namespace) -> int:
     width = max(len(n) for n in specs)
     print(f"{'species':<{width}}  {'triangles':>9}  {'cut away':>8}  labels  [distribution]")
     for name, spec in specs.items():
-        plant = spec.factory(spec.options_model()).build(args.seed)
+        plant = registry.build("plant", spec, spec.options_model()).build(args.seed)
         organs = ", ".join(lab.name for lab in plant.labels.labels if lab.id)
         cut = cutaway_fraction(plant.mesh, samples=100_000)
         print(f"{name:<{width}}  {len(plant.mesh.faces):>9,}  {cut:>7.1%}  {organs}  [{spec.distribution}]")

@@ -38,6 +38,7 @@ from pathlib import Path
 from typing import Any
 
 from agrisim.capabilities import check_renderer
+from agrisim.kinds import SECTIONS
 from agrisim.files.atomic import write_bytes, write_json
 from agrisim.config import BackendChoice, RunConfig, backend_options, build_config, merge
 from agrisim.errors import ConfigError, OutputError, UserError
@@ -72,8 +73,6 @@ PAPER_PLANTS: tuple[str, ...] = (
     "chinese_evergreen",
     "basket_grass",
 )
-#: config field -> registry kind, for validating backends before anything starts
-_BACKEND_KINDS = {"physics": "physics", "planner": "planner", "renderer": "renderer", "recon": "reconstructor"}
 
 
 # ---------------------------------------------------------------------------------- planning
@@ -249,7 +248,7 @@ def plan_compare(
 
 def _check_backends(registry: Any, config: RunConfig) -> None:
     """Every chosen backend exists and its options validate (the workers would fail late)."""
-    for name, kind in _BACKEND_KINDS.items():
+    for name, kind in SECTIONS.items():
         choice = getattr(config, name, None)
         if not isinstance(choice, BackendChoice) or choice.backend == "none":
             continue

@@ -254,7 +254,7 @@ def reconstruct_saved_run(
     out = out_dir if out_dir is not None else run_dir
     check_writable(out, labels, overwrite)
     truth = truth_from_run(run_dir, config.metrics.truth_samples)
-    session = rebuild(run_dir, spec.factory(labels, options), labels, run, cameras, truth, config.metrics.thresholds_mm, progress)
+    session = rebuild(run_dir, registry.build("reconstructor", spec, labels, options), labels, run, cameras, truth, config.metrics.thresholds_mm, progress)
     meta = {
         "plant": config.plant,
         "seg_mode": config.render.seg_mode,

@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 from PIL import Image
 
+from agrisim.config import RenderConfig
 from agrisim.interfaces import CameraModel, Frame, Renderer
 from agrisim.plugins.render.pybullet_render import PybulletRenderOptions
 from agrisim.robot import meshes as robot_meshes
@@ -50,7 +51,7 @@ def opengl_view(world_T_camera: np.ndarray) -> list[float]:
 class PybulletRenderer(Renderer):
     """TinyRenderer in its own DIRECT pybullet world holding the scene and the arms' visuals."""
 
-    def __init__(self, scene: Scene, cell: Cell, settings: object, options: PybulletRenderOptions) -> None:
+    def __init__(self, scene: Scene, cell: Cell, settings: RenderConfig, options: PybulletRenderOptions) -> None:
         super().__init__(scene, cell, settings, options)
         self._tmp = tempfile.TemporaryDirectory(prefix="agrisim-tinyrenderer-")
         with native_output_silenced():
@@ -61,7 +62,7 @@ class PybulletRenderer(Renderer):
             if mesh.name == scene.plant:
                 self.plant_bodies.update(bodies)
         self.arm_visuals: list[tuple[str, str, np.ndarray, int]] = []
-        if not getattr(settings, "hide_robots", False):
+        if not settings.hide_robots:
             for arm in cell.arms:
                 for links in robot_meshes.link_visuals(arm.urdf).values():
                     for v in links:
@@ -140,7 +141,7 @@ class PybulletRenderer(Renderer):
             T = link_poses[robot][link] @ link_T_visual
             c.resetBasePositionAndOrientation(body, T[:3, 3].tolist(), quat_xyzw(T[:3, :3]))
         o = self.options
-        shadow = 1 if getattr(self.settings, "shadow_samples", 0) > 0 else 0
+        shadow = 1 if self.settings.shadow_samples > 0 else 0
         _, _, rgba, zbuf, seg = c.getCameraImage(
             camera.width,
             camera.height,

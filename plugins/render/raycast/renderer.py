@@ -11,6 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from agrisim.config import RenderConfig
 from agrisim.interfaces import CameraModel, Frame, Renderer
 from agrisim.plugins.render.raycast import RaycastOptions
 from agrisim.plugins.render.raycast.arm_meshes import arm_link_meshes
@@ -109,13 +110,13 @@ class _Hits:
 class RaycastRenderer(Renderer):
     """Embree ray casting through Open3D: exact depth and labels, alpha-tested cards, soft shadows."""
 
-    def __init__(self, scene: Scene, cell: Cell, settings: object, options: RaycastOptions) -> None:
+    def __init__(self, scene: Scene, cell: Cell, settings: RenderConfig, options: RaycastOptions) -> None:
         super().__init__(scene, cell, settings, options)
-        self.seg_mode = getattr(settings, "seg_mode", "texture")
-        self.shadow_samples = int(getattr(settings, "shadow_samples", 1))
-        self.supersample = int(getattr(settings, "supersample", 1))
-        self.hide_robots = bool(getattr(settings, "hide_robots", False))
-        organs = getattr(settings, "labels", "plant") == "organs"
+        self.seg_mode = settings.seg_mode
+        self.shadow_samples = settings.shadow_samples
+        self.supersample = settings.supersample
+        self.hide_robots = settings.hide_robots
+        organs = settings.labels == "organs"
         self.label_map = np.arange(256, dtype=np.uint8) if organs else (np.arange(256) > 0).astype(np.uint8)
         self.threads = options.threads
 
