@@ -74,10 +74,35 @@ def test_a_complete_run_is_not_resumed(tmp_path, capsys):
     assert "complete; nothing to continue" in capsys.readouterr().err
 
 
-def test_resume_refuses_a_changed_configuration(tmp_path, capsys):
+#: the command line that makes the run ARGS describes
+CLI = ["run", "--plant", "coltsfoot", "--shadow-samples", "2", "--physics", "kinematic", "--setpoints", "1x3",
+       "--resolution", "160x90", "--no-rrd"]
+
+
+def test_the_same_command_with_resume_appended_continues(tmp_path, capsys):
+    """People re-run the command they ran, with --resume: equal settings continue the run."""
+    _run(tmp_path / "whole")
+    _run(tmp_path / "cut")
+    _interrupt(tmp_path / "cut", keep=2)
+    assert main([*CLI, "--out", str(tmp_path / "cut"), "--resume"]) == 0
+    assert _files(tmp_path / "cut") == _files(tmp_path / "whole")
+
+
+@pytest.mark.parametrize(
+    "change, key",
+    [
+        (["--plant", "boxwood"], "plant = 'coltsfoot'"),
+        (["--resolution", "320x180"], "camera.resolution = '160x90'"),
+        (["--set", "render.shadow_samples=3"], "render.shadow_samples = 2"),
+    ],
+)
+def test_resume_refuses_a_setting_that_differs_and_names_it(tmp_path, capsys, change, key):
     _run(tmp_path / "cut")
     _interrupt(tmp_path / "cut", keep=1)
+    before = json.loads((tmp_path / "cut" / "run.json").read_text())
     with pytest.raises(SystemExit) as exc:
-        main(["run", "--resume", "--out", str(tmp_path / "cut"), "--plant", "boxwood"])
+        main([*CLI, "--out", str(tmp_path / "cut"), "--resume", *change])
     assert exc.value.code == 2
-    assert "saved configuration" in capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and key in err, err
+    assert json.loads((tmp_path / "cut" / "run.json").read_text()) == before  # nothing touched

@@ -15,7 +15,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any, NoReturn
 
-from agrisim.config import RunConfig, build_config, load_toml
+from agrisim.config import RunConfig, build_config, load_toml, merge
 from agrisim.errors import BackendFailure, UserError
 
 if sys.version_info >= (3, 11):
@@ -271,17 +271,52 @@ def _cmd_recon(args: argparse.Namespace) -> int:
 
 
 def _resume_config(args: argparse.Namespace, overrides: dict[str, Any]) -> RunConfig:
-    """The saved configuration of the run in --out, with only output flags applied."""
+    """The saved configuration of the run in --out, with the output flags of this command.
+
+    The command that started the run, with ``--resume`` appended, continues it: every setting it
+    gives (flags, ``--set``, ``--config``) must equal the saved one; the first that differs is
+    refused, naming it.
+    """
     from agrisim.episode import saved_run
 
     if args.overwrite:
         raise UserError("--overwrite and --resume exclude each other")
     if args.out is None:
         raise UserError("--resume needs --out DIR: the run to continue")
-    if args.config is not None or set(overrides) - {"output"}:
-        raise UserError("--resume continues the run's saved configuration: give only --out and output options")
-    saved = saved_run(args.out)["config"]
-    return build_config(saved, {"output": {**overrides["output"], "overwrite": False}})
+    saved_doc = saved_run(args.out)["config"]
+    saved = build_config(saved_doc)
+    asked = {k: v for k, v in overrides.items() if k != "output"}
+    base = load_toml(args.config) if args.config else {}
+    if asked or base:
+        wanted = build_config(base, asked).model_dump(mode="json")
+        have = saved.model_dump(mode="json")
+        for key in sorted(_dotted_keys(merge(base, asked))):
+            now, was = _lookup(wanted, key), _lookup(have, key)
+            if now != was:
+                raise UserError(
+                    f"--resume: the run in {args.out} was made with {key} = {was!r}, this command asks for "
+                    f"{now!r}; give the run's own settings (or leave them out) to continue it"
+                )
+    return build_config(saved_doc, {"output": {**overrides["output"], "overwrite": False}})
+
+
+def _dotted_keys(tree: dict[str, Any], prefix: str = "") -> list[str]:
+    """``{"render": {"labels": "organs"}}`` -> ``["render.labels"]``."""
+    keys = []
+    for key, value in tree.items():
+        if isinstance(value, dict) and value:
+            keys += _dotted_keys(value, f"{prefix}{key}.")
+        else:
+            keys.append(f"{prefix}{key}")
+    return keys
+
+
+def _lookup(tree: dict[str, Any], dotted: str) -> Any:
+    for part in dotted.split("."):
+        if not isinstance(tree, dict) or part not in tree:
+            return None
+        tree = tree[part]
+    return tree
 
 
 def _cmd_plugins(args: argparse.Namespace) -> int:
