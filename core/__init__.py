@@ -21,7 +21,7 @@ if TYPE_CHECKING:
     from agrisim.episode import Episode, run_episode
     from agrisim.records import Run, RunSummary, SetpointResult
 
-__version__ = "0.1.0"
+from agrisim.version import __version__  # noqa: E402 - re-exported
 
 _LAZY = {
     "RunConfig": "agrisim.config",

@@ -23,6 +23,7 @@ from pydantic import BaseModel
 
 from agrisim.files.plant_asset import FORMATS, load_plant
 from agrisim.files.atomic import remove_partial
+from agrisim.files.dataset import DatasetWriter
 from agrisim.scene.camera import preset
 from agrisim.scene.cell import build_cell
 from agrisim.config import BackendChoice, RunConfig, backend_options
@@ -242,7 +243,10 @@ class Episode:
         return run, summary
 
     def _register_sinks(self, run: Run) -> list[object]:
-        sinks: list[object] = []
+        # The run directory's writer first, always: resume, recon, export and compare need its files.
+        writer = DatasetWriter(run)
+        self.pm.register(writer, name=f"dataset:{run.run_id}")
+        sinks: list[object] = [writer]
         try:
             for spec in self.registry.specs("sink").values():
                 sink = self.registry.build("sink", spec, run)

@@ -56,3 +56,26 @@ def test_files_match_the_rendered_frames(tmp_path):
     np.testing.assert_allclose(plant.mesh.vertices, truth.vertices, atol=1e-6)
     # triangles may be regrouped by material: compare them as a set, by their areas
     np.testing.assert_allclose(np.sort(plant.mesh.areas), np.sort(truth.areas), rtol=1e-4, atol=1e-10)
+
+
+def test_the_run_directory_is_written_whatever_plugins_are_loaded(tmp_path, monkeypatch):
+    """The run directory is the core's: with only the backends a run needs loaded (no sink
+    plugin at all), run.json and cameras.json are still written, so --resume, recon, the
+    exports and compare keep working."""
+    monkeypatch.setenv("AGRISIM_LOAD_PLUGINS", "physics-kinematic,planner-ompl,plants-procedural")
+    out = tmp_path / "run"
+    config = build_config(
+        {
+            "physics": {"backend": "kinematic"},
+            "renderer": {"backend": "none"},
+            "routine": {"setpoints": "1x1"},
+            "cell": {"arms": 1},
+            "output": {"out": str(out), "no_rrd": True},
+        }
+    )
+    episode = Episode(config)
+    assert episode.registry.specs("sink") == {}
+    run, summary = episode.run()
+    doc = json.loads((out / "run.json").read_text())
+    assert doc["status"] == summary.status == "complete"
+    assert len(doc["results"]) == summary.setpoints == 1

@@ -1,4 +1,8 @@
-"""The ``dataset`` sink: the run's files on disk (DESIGN.md's output layout).
+"""The run directory's writer: the run's files on disk (DESIGN.md's output layout).
+
+Core code, always on, not a plugin: ``--resume``, ``agrisim recon``, the exports and
+``agrisim compare`` read what it writes. The episode registers it for every run before any
+sink plugin; it observes the run through the same event hooks.
 
 ``run.json`` is rewritten atomically after every setpoint, so at any moment it tells how far the
 run got (``status`` running / complete / failed / interrupted) and what each setpoint did.
@@ -13,9 +17,9 @@ says ``complete``.
 from __future__ import annotations
 
 import io
-from concurrent.futures import Future, ThreadPoolExecutor
 import platform
 import sys
+from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import asdict
 from importlib import metadata
 from pathlib import Path
@@ -24,14 +28,15 @@ from typing import Any
 import numpy as np
 from PIL import Image
 
-from agrisim import BackendSpec, __version__, hookimpl
-from agrisim.files.glb import export_glb
+from agrisim.evaluation.session import write_reconstruction
 from agrisim.files.atomic import write_bytes, write_json
 from agrisim.files.encoding import depth_to_mm
+from agrisim.files.glb import export_glb
 from agrisim.files.nerfstudio import write_nerfstudio
-from agrisim.records import Run, RunSummary, SetpointResult
 from agrisim.interfaces import CameraModel, Capture
-from agrisim.evaluation.session import write_reconstruction
+from agrisim.records import Run, RunSummary, SetpointResult
+from agrisim.registry import hookimpl
+from agrisim.version import __version__
 
 #: distributions whose versions a run records
 VERSIONED = (
@@ -83,7 +88,7 @@ def _result_row(r: SetpointResult) -> dict[str, Any]:
     return row
 
 
-class DatasetSink:
+class DatasetWriter:
     """Writes the run's files under its output directory.
 
     Images are encoded and written by one background thread (PNG encoding releases the GIL),
@@ -216,13 +221,3 @@ def write_frame(out: Path, frame: str, images: dict[str, np.ndarray], palette: n
     if images.get("instances") is not None:
         write_png(out / "instances" / name, images["instances"].astype(np.uint16))
 
-
-@hookimpl
-def agrisim_sinks() -> list[BackendSpec]:
-    return [
-        BackendSpec(
-            name="dataset",
-            factory=DatasetSink,
-            description="run.json (config, versions, per-setpoint results, summary) and cameras.json under --out",
-        )
-    ]
