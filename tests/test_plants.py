@@ -277,3 +277,20 @@ def test_scale_and_density_options():
     small_tex = grow("common_fern", 4, ProceduralPlantOptions(texture_size=256))
     assert small_tex.mesh.materials[0].albedo.shape[:2] == (256, 256)
     assert set(SPECIES) == set(NAMES)
+
+
+def test_every_plant_source_uses_the_one_palette(plants):
+    """Procedural species, Helios crops and files read without colours all take their label
+    colours from agrisim.scene.palette, which holds the paper's four; within a plant no two
+    labels share a colour."""
+    from agrisim.files.plant_asset import load_plant  # noqa: F401 - the reader whose defaults come from PALETTE
+    from agrisim.plugins.plants.helios_convert import ORGANS
+    from agrisim.scene.palette import PALETTE, PAPER
+
+    assert PAPER == {"leaf": (0, 255, 0), "flower_white": (0, 0, 255), "flower_purple": (255, 0, 0), "stem": (96, 0, 128)}
+    tables = [plant.labels.labels for plant in plants.values()] + [list(ORGANS)]
+    for labels in tables:
+        named = [lab for lab in labels if lab.id != 0]
+        for lab in named:
+            assert lab.color == PALETTE[lab.name], (lab.name, lab.color)
+        assert len({lab.color for lab in named}) == len(named), named

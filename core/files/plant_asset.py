@@ -75,6 +75,7 @@ from PIL import Image
 from agrisim.files.asset_reading import AssetError, label_ids_plain, RawMesh, decode_image, locate, read_bytes_of, resolve_root
 from agrisim.files.gltf import read_gltf
 from agrisim.files.obj import read_obj
+from agrisim.scene.palette import BACKGROUND, PALETTE, PAPER
 from agrisim.scene.model import Label, LabelTable, Material, Mesh, Plant
 
 __all__ = ["AssetError", "FORMATS", "MAX_SIZE", "load_plant"]
@@ -85,15 +86,6 @@ FORMATS = (".glb", ".gltf", ".obj")
 MAX_SIZE = 3.0
 """Largest sane plant, m (longest side of its bounding box)."""
 
-#: Label colours of the paper (Fig. 3): leaves green, white flowers blue, purple flowers red,
-#: stems deep purple.
-ORGAN_COLORS: dict[str, tuple[int, int, int]] = {
-    "plant": (0, 255, 0),
-    "leaf": (0, 255, 0),
-    "flower_white": (0, 0, 255),
-    "flower_purple": (255, 0, 0),
-    "stem": (96, 0, 128),
-}
 _MORE_COLORS = [
     (255, 255, 0), (0, 255, 255), (255, 0, 255), (255, 128, 0), (128, 255, 0), (0, 128, 255),
     (255, 0, 128), (128, 128, 255), (255, 128, 128), (128, 255, 128), (160, 82, 45), (255, 255, 255),
@@ -177,7 +169,7 @@ def load_plant(
         materials, table = raw.materials, raw.labels
     else:
         materials = [dataclasses.replace(m, labels=None, label=1) for m in raw.materials]
-        table = LabelTable([Label(0, "background", (0, 0, 0)), Label(1, "plant", ORGAN_COLORS["plant"])])
+        table = LabelTable([Label(0, "background", BACKGROUND), Label(1, "plant", PALETTE["plant"])])
     if alpha_cutoff is not None:
         materials = [
             dataclasses.replace(m, alpha_cutoff=float(alpha_cutoff)) if m.alpha_mode != "OPAQUE" else m
@@ -211,7 +203,7 @@ def load_plant(
 def _table(entries: list[tuple[int, str, tuple[int, int, int] | None]]) -> LabelTable:
     labels = [Label(0, "background", (0, 0, 0))]
     for k, (i, n, c) in enumerate(entries):
-        labels.append(Label(i, n, c or ORGAN_COLORS.get(n) or _MORE_COLORS[k % len(_MORE_COLORS)]))
+        labels.append(Label(i, n, c or PALETTE.get(n) or _MORE_COLORS[k % len(_MORE_COLORS)]))
     return LabelTable(labels)
 
 
@@ -313,7 +305,7 @@ def _label_ids(
     non_black = [(int(-counts[k]), int(colours[k]), k) for k in range(len(colours)) if colours[k] != 0]
     non_black.sort()
     lut = np.zeros(len(colours), np.uint8)
-    by_colour = {v: k for k, v in ORGAN_COLORS.items() if k != "plant"}
+    by_colour = {v: k for k, v in PAPER.items()}
     lower = {str(k).lower(): v for k, v in names.items() if isinstance(k, str)}
     entries = []
     for new_id, (_, code_k, k) in enumerate(non_black, 1):

@@ -33,18 +33,15 @@ import numpy as np
 
 from agrisim.scene.model import Label, LabelTable, Material, Mesh
 
+from agrisim.scene.palette import PALETTE
+
 from .textures import srgb_to_linear
 
 #: The organ labels of every Helios plant. Ids are fixed across models and ages, so a dataset of
 #: several Helios plants uses one id per organ; a plant's table lists only the organs it has.
-#: Colours follow the paper's spirit: leaves green, stalks purple shades, flowers blue, fruit red.
-ORGANS: tuple[Label, ...] = (
-    Label(1, "leaf", (0, 255, 0)),
-    Label(2, "stem", (96, 0, 128)),  # internodes, the paper's deep purple
-    Label(3, "petiole", (200, 0, 255)),
-    Label(4, "peduncle", (255, 0, 170)),
-    Label(5, "flower", (0, 0, 255)),
-    Label(6, "fruit", (255, 0, 0)),
+#: Colours are agrisim's one palette (the paper's); "stem" is Helios's internodes.
+ORGANS: tuple[Label, ...] = tuple(
+    Label(i, name, PALETTE[name]) for i, name in enumerate(("leaf", "stem", "petiole", "peduncle", "flower", "fruit"), 1)
 )
 ORGAN_IDS: dict[str, int] = {lab.name: lab.id for lab in ORGANS}
 

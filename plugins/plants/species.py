@@ -22,6 +22,8 @@ import numpy as np
 
 from agrisim.scene.model import Label, LabelTable
 
+from agrisim.scene.palette import BACKGROUND, PALETTE
+
 from . import painters as P
 from .geometry import MeshBuilder, bezier, direction, plate_cards, solid_leaves, strip_cards, tubes, unit
 from .textures import Atlas, Tile
@@ -29,25 +31,12 @@ from .textures import Atlas, Tile
 LEAF, STEM, FLOWER = 1, 2, 3
 FLOWER_WHITE, FLOWER_PURPLE = 3, 4
 
-GREEN = (0, 255, 0)
-DEEP_PURPLE = (100, 0, 140)
-BLUE = (0, 0, 255)
-RED = (255, 0, 0)
-YELLOW = (255, 255, 0)
-
 CARDS, STEMS, WOOD = 0, 1, 2  # material slots
 
 
 def labels_for(*organs: str) -> LabelTable:
     """The label table of a species with these organs (ids in this order from 1)."""
-    colours = {
-        "leaf": GREEN,
-        "stem": DEEP_PURPLE,
-        "flower": YELLOW,
-        "flower_white": BLUE,
-        "flower_purple": RED,
-    }
-    return LabelTable([Label(0, "background", (0, 0, 0))] + [Label(i + 1, n, colours[n]) for i, n in enumerate(organs)])
+    return LabelTable([Label(0, "background", BACKGROUND)] + [Label(i + 1, n, PALETTE[n]) for i, n in enumerate(organs)])
 
 
 @dataclass
