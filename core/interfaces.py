@@ -22,6 +22,10 @@ if TYPE_CHECKING:
 
 Validity = Callable[[np.ndarray], bool]
 
+#: The name under which a reconstructor gives every labelled point together, beside one entry
+#: per label.
+ALL = "all"
+
 
 @dataclass
 class JointTrajectory:

@@ -22,7 +22,7 @@ from agrisim.episode import Episode, resolve_plant
 from agrisim.errors import UserError
 from agrisim.plugins.plants import helios as H
 from agrisim.plugins.plants import helios_convert as hc
-from agrisim.plugins.plants.procedural import FIT_HEIGHT, FIT_RADIUS
+from agrisim.scene.model import PLANT_FIT_HEIGHT as FIT_HEIGHT, PLANT_FIT_RADIUS as FIT_RADIUS
 from agrisim.registry import Registry, make_plugin_manager
 from agrisim.scene.texturing import interpolate_uv, opaque
 

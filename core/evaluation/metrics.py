@@ -24,12 +24,11 @@ from typing import Any
 
 import numpy as np
 
-from agrisim.interfaces import Reconstruction
+from agrisim.interfaces import ALL, Reconstruction
 from agrisim.scene.model import LabelTable, Mesh
 from agrisim.scene.texturing import labels_at_samples, opaque_samples, sample_surface, sample_triangles
 from agrisim.evaluation.views import View
 
-ALL = "all"
 #: how densely reconstructed meshes are sampled to be measured, points per square metre
 MESH_SAMPLES_PER_M2 = 4.0e6  # 0.5 mm spacing
 MESH_SAMPLES_MAX = 3_000_000

@@ -8,19 +8,17 @@ the same session. :func:`write_reconstruction` writes ``clouds/`` and ``metrics.
 
 from __future__ import annotations
 
-import os
-import tempfile
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from agrisim.files.atomic import write_bytes, write_json
+from agrisim.files.atomic import write_bytes, write_json, write_through
 from agrisim.errors import OutputError, UserError
-from agrisim.interfaces import Cloud, Reconstruction, Reconstructor, SurfaceMesh
+from agrisim.interfaces import ALL, Cloud, Reconstruction, Reconstructor, SurfaceMesh
 from agrisim.files.rundir import camera_from_json, label_table_from_json, read_run
-from agrisim.evaluation.metrics import ALL, GroundTruth, ViewStats, evaluate
+from agrisim.evaluation.metrics import GroundTruth, ViewStats, evaluate
 from agrisim.scene.model import LabelTable
 from agrisim.evaluation.views import View, load_view
 
@@ -133,7 +131,7 @@ def write_reconstruction(out_dir: Path, result: Reconstruction, metrics: dict[st
             continue
         pcd = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(cloud.points))
         pcd.colors = o3d.utility.Vector3dVector(cloud.colors.astype(np.float64) / 255.0)
-        _atomic(clouds / f"{name}.ply", lambda tmp, g=pcd: o3d.io.write_point_cloud(tmp, g, write_ascii=False))
+        write_through(clouds / f"{name}.ply", lambda tmp, g=pcd: o3d.io.write_point_cloud(tmp, g, write_ascii=False))
     for name, mesh in result.meshes.items():
         if len(mesh.vertices) == 0:
             write_bytes(clouds / f"{name}_mesh.ply", _EMPTY_PLY)
@@ -142,7 +140,7 @@ def write_reconstruction(out_dir: Path, result: Reconstruction, metrics: dict[st
             o3d.utility.Vector3dVector(mesh.vertices), o3d.utility.Vector3iVector(mesh.triangles)
         )
         tm.vertex_colors = o3d.utility.Vector3dVector(_vertex_colors(mesh).astype(np.float64) / 255.0)
-        _atomic(clouds / f"{name}_mesh.ply", lambda tmp, g=tm: o3d.io.write_triangle_mesh(tmp, g, write_ascii=False))
+        write_through(clouds / f"{name}_mesh.ply", lambda tmp, g=tm: o3d.io.write_triangle_mesh(tmp, g, write_ascii=False))
     write_json(out_dir / "metrics.json", metrics)
 
 
@@ -150,21 +148,6 @@ _EMPTY_PLY = (
     b"ply\nformat binary_little_endian 1.0\nelement vertex 0\nproperty double x\nproperty double y\n"
     b"property double z\nproperty uchar red\nproperty uchar green\nproperty uchar blue\nend_header\n"
 )
-
-
-def _atomic(path: Path, write: Callable[[str], bool]) -> None:
-    """Run a writer that takes a file name (Open3D's) on a temporary file, then rename."""
-    # Open3D picks the format by extension; the ".tmp" marks it as partial (see atomic.py)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=f".tmp{path.suffix}", dir=path.parent)
-    os.close(fd)
-    try:
-        if not write(tmp):
-            raise OSError(f"could not write {path}")
-        os.chmod(tmp, 0o644)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
 
 
 # -------------------------------------------------------------------- from a saved run

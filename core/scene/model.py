@@ -167,6 +167,13 @@ class Light:
     cone_deg: float = 90.0  # half angle of the cone, degrees
 
 
+#: The cylinder every plant must fit in at scale 1 to stay clear of the routine's cameras:
+#: radius from the stem axis and height above the soil, m (the brief's is 0.28 x 0.40 m; the
+#: species keep a centimetre to spare). Every plant source scales to it.
+PLANT_FIT_RADIUS = 0.27
+PLANT_FIT_HEIGHT = 0.39
+
+
 @dataclass
 class Plant:
     """A plant asset: its mesh in the plant frame and the label table its materials use.

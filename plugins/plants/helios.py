@@ -8,8 +8,8 @@ triangles, organ labels (leaf, stem, petiole, peduncle, flower, fruit) and one l
 Helios leaf object. The same seed and age give identical arrays.
 
 Plants are grown at their real size. The routine's cameras move on a 0.5 m hemisphere, so a plant
-larger than the procedural species' cylinder (:data:`.procedural.FIT_RADIUS` from the stem,
-:data:`.procedural.FIT_HEIGHT` above the soil) is scaled down uniformly, with a note in
+larger than the procedural species' cylinder (:data:`agrisim.scene.model.PLANT_FIT_RADIUS` from the stem,
+:data:`agrisim.scene.model.PLANT_FIT_HEIGHT` above the soil) is scaled down uniformly, with a note in
 ``Plant.notes``, or refused with ``fit = "refuse"``. The default ages keep most crops at or near
 their real size; trees and maize are young plants that still need shrinking.
 
@@ -29,13 +29,13 @@ from typing import Any, Literal
 import numpy as np
 from pydantic import Field
 
+from agrisim.scene.model import PLANT_FIT_HEIGHT, PLANT_FIT_RADIUS
 from agrisim import BackendSpec, Options, hookimpl
 from agrisim.errors import UserError
 from agrisim.interfaces import PlantSpecies
 from agrisim.scene.model import Mesh, Plant
 
 from . import helios_convert as hc
-from .procedural import FIT_HEIGHT, FIT_RADIUS
 
 PREFIX = "helios:"
 EXTRA_HINT = "pip install 'agrisim[helios]'"
@@ -197,11 +197,11 @@ def _fit(mesh: Mesh, name: str, age: float, fit: str) -> tuple[Mesh, str]:
     v = mesh.vertices
     radius = float(np.hypot(v[:, 0], v[:, 1]).max())
     height = float(v[:, 2].max())
-    scale = min(1.0, FIT_RADIUS / max(radius, 1e-9), FIT_HEIGHT / max(height, 1e-9))
+    scale = min(1.0, PLANT_FIT_RADIUS / max(radius, 1e-9), PLANT_FIT_HEIGHT / max(height, 1e-9))
     if scale >= 1.0:
         return mesh, ""
     size = f"{name} at {age:g} days reaches {radius:.2f} m from its stem and {height:.2f} m high"
-    limit = f"the routine's cameras allow {FIT_RADIUS:.2f} m and {FIT_HEIGHT:.2f} m"
+    limit = f"the routine's cameras allow {PLANT_FIT_RADIUS:.2f} m and {PLANT_FIT_HEIGHT:.2f} m"
     if fit == "refuse":
         raise UserError(f"{size}; {limit}: give a younger --plant-age or set plants.\"{name}\".fit = \"scale\"")
     scaled = Mesh(mesh.name, v * scale, mesh.faces, mesh.materials, mesh.face_material, mesh.uvs, mesh.face_instance)

@@ -15,15 +15,12 @@ from pydantic import Field
 
 from agrisim import BackendSpec, Options, hookimpl
 from agrisim.interfaces import PlantSpecies
-from agrisim.scene.model import Material, Mesh, Plant
+from agrisim.scene.model import PLANT_FIT_HEIGHT, PLANT_FIT_RADIUS, Material, Mesh, Plant
 
 from .species import SPECIES, Grown
 from .textures import srgb_to_linear
 
-FIT_RADIUS = 0.27
-"""Largest distance from the plant's axis at scale 1, m (the brief's cylinder is 0.28 m)."""
-FIT_HEIGHT = 0.39
-"""Largest height above the soil at scale 1, m (the brief's cylinder is 0.40 m)."""
+FIT_RADIUS, FIT_HEIGHT = PLANT_FIT_RADIUS, PLANT_FIT_HEIGHT  # the core's plant-fit cylinder
 SOIL_DEPTH = 0.012
 """How far stems and bulbs may reach into the soil, m."""
 

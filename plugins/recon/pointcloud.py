@@ -12,13 +12,12 @@ from pydantic import Field
 
 from agrisim.capabilities import ReconstructorCapabilities
 from agrisim import BackendSpec, Options, hookimpl
-from agrisim.interfaces import Cloud, Reconstruction, Reconstructor
+from agrisim.interfaces import ALL, Cloud, Reconstruction, Reconstructor
 from agrisim.scene.model import LabelTable
 from agrisim.evaluation.views import View, backproject
 
 from .voxel_grid import VoxelGrid
 
-ALL = "all"
 
 
 class PointCloudOptions(Options):

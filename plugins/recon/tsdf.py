@@ -15,11 +15,10 @@ from pydantic import Field, model_validator
 
 from agrisim.capabilities import ReconstructorCapabilities
 from agrisim import BackendSpec, Options, hookimpl
-from agrisim.interfaces import Cloud, Reconstruction, Reconstructor, SurfaceMesh
+from agrisim.interfaces import ALL, Cloud, Reconstruction, Reconstructor, SurfaceMesh
 from agrisim.scene.model import LabelTable
 from agrisim.evaluation.views import View, backproject
 
-from .pointcloud import ALL
 from .voxel_grid import VoxelGrid
 
 
