@@ -20,6 +20,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from agrisim.scene import colour
+
 #: painter(X, Y, px, rng) -> (coverage H x W float, rgb H x W x 3 float, labels H x W uint8)
 #: X = t * aspect / 2 (across, card-length units), Y = s (along), px = size of a texel in those units.
 Painter = Callable[[np.ndarray, np.ndarray, float, np.random.Generator], tuple[np.ndarray, np.ndarray, np.ndarray]]
@@ -207,6 +209,4 @@ def leaf_colour(
 
 def srgb_to_linear(c: tuple[float, float, float]) -> tuple[float, float, float]:
     """A colour given in sRGB (0..1) in linear units (for ``Material.color``)."""
-    a = np.asarray(c, float)
-    lin = np.where(a <= 0.04045, a / 12.92, ((a + 0.055) / 1.055) ** 2.4)
-    return tuple(float(x) for x in lin)  # type: ignore[return-value]
+    return tuple(float(x) for x in colour.srgb_to_linear(c))  # type: ignore[return-value]

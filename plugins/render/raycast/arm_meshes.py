@@ -15,6 +15,7 @@ from functools import lru_cache
 import numpy as np
 
 from agrisim.robot import meshes as robot_meshes
+from agrisim.scene.colour import srgb_to_linear
 from agrisim.scene.model import Material, Mesh
 
 log = logging.getLogger(__name__)
@@ -23,12 +24,6 @@ log = logging.getLogger(__name__)
 DEFAULT_COLOR = (0.45, 0.45, 0.47, 1.0)
 #: the camera body added to the flange by agrisim.robot.urdf (linear RGBA)
 CAMERA_COLOR = (0.02, 0.02, 0.02, 1.0)
-
-
-def srgb_to_linear(c: np.ndarray) -> np.ndarray:
-    """sRGB components in 0..1 to linear."""
-    c = np.asarray(c, np.float64)
-    return np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4)
 
 
 @dataclass

@@ -18,14 +18,13 @@ from __future__ import annotations
 
 import numpy as np
 
+from agrisim.scene.colour import srgb_to_linear
 from agrisim.scene.model import Material
 
 F32 = np.float32
 
 #: uint8 sRGB -> linear float32
-SRGB_TO_LINEAR = np.where(
-    np.arange(256) / 255.0 <= 0.04045, np.arange(256) / 255.0 / 12.92, ((np.arange(256) / 255.0 + 0.055) / 1.055) ** 2.4
-).astype(F32)
+SRGB_TO_LINEAR = srgb_to_linear(np.arange(256) / 255.0).astype(F32)
 
 
 def alpha_threshold(material: Material) -> int:

@@ -18,6 +18,7 @@ from agrisim.plugins.render.raycast.arm_meshes import arm_link_meshes
 from agrisim.plugins.render.raycast.lights import SHADOW_TFAR, LightTable, chunks
 from agrisim.plugins.render.raycast.materials import MaterialTable
 from agrisim.scene.cell import Cell
+from agrisim.scene.colour import linear_to_srgb
 from agrisim.scene.model import Material, Scene
 from agrisim.util.native_output import native_output_silenced
 
@@ -31,15 +32,11 @@ F32 = np.float32
 INVALID = np.uint32(0xFFFFFFFF)  # Open3D's geometry/primitive id of a miss
 
 
-def _linear_to_srgb(c: np.ndarray) -> np.ndarray:
-    return np.where(c <= 0.0031308, c * 12.92, 1.055 * np.power(np.maximum(c, 0.0031308), 1 / 2.4) - 0.055)
-
-
 #: linear in [0, 1] quantised to ENCODE_STEPS + 1 levels -> uint8 sRGB (finer than 8-bit sRGB steps)
 ENCODE_STEPS = 16383
 
 
-LINEAR_TO_SRGB8 = np.round(_linear_to_srgb(np.arange(ENCODE_STEPS + 1) / ENCODE_STEPS) * 255.0).astype(np.uint8)
+LINEAR_TO_SRGB8 = np.round(linear_to_srgb(np.arange(ENCODE_STEPS + 1) / ENCODE_STEPS) * 255.0).astype(np.uint8)
 
 
 def _dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
