@@ -19,12 +19,7 @@ import tempfile
 import time
 from pathlib import Path
 
-
-def cpu_model() -> str:
-    for line in Path("/proc/cpuinfo").read_text().splitlines():
-        if line.startswith("model name"):
-            return line.split(":", 1)[1].strip()
-    return "unknown CPU"
+from machine import cpu_model  # bench/machine.py: the script's own folder is on sys.path
 
 
 def frames_complete(out: Path) -> int:

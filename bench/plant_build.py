@@ -9,17 +9,11 @@ from __future__ import annotations
 import argparse
 import statistics
 import time
-from pathlib import Path
+
+from machine import cpu_model  # bench/machine.py: the script's own folder is on sys.path
 
 from agrisim.plugins.plants.procedural import grow
 from agrisim.plugins.plants.species import SPECIES
-
-
-def cpu_model() -> str:
-    for line in Path("/proc/cpuinfo").read_text().splitlines():
-        if line.startswith("model name"):
-            return line.split(":", 1)[1].strip()
-    return "unknown CPU"
 
 
 def main() -> None:
