@@ -134,6 +134,6 @@ def agrisim_reconstructors() -> list[BackendSpec]:
             factory=TsdfReconstructor,
             options_model=TsdfOptions,
             description="Open3D TSDF fusion (VoxelBlockGrid) of the labelled depth to a surface mesh, per label",
-            capabilities=ReconstructorCapabilities(clouds=True, meshes=True),
+            capabilities=ReconstructorCapabilities(clouds=False, meshes=True),  # merged() streams clouds; the result is meshes
         )
     ]

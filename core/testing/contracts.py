@@ -1,0 +1,270 @@
+"""The contract every backend of a kind must keep, as checks a test suite can run.
+
+agrisim's own suite runs them over every registered backend (``tests/contracts``); a plugin
+author runs them on their backend the same way::
+
+    from agrisim.registry import Registry, make_plugin_manager
+    from agrisim.testing.contracts import check
+
+    def test_my_renderer_keeps_the_contract():
+        check("renderer", "mine", Registry(make_plugin_manager()))
+
+Each check builds the backend through the registry (so its factory's result is type-checked),
+drives it on a small situation whose right answer is known from geometry, and raises
+``AssertionError`` saying what broke. They run on a CPU in seconds.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+
+from agrisim.config import CellConfig, RenderConfig
+from agrisim.interfaces import ALL, JointTrajectory, PlanningFailed, View
+from agrisim.kinds import KINDS, BackendSpec
+from agrisim.registry import Registry
+from agrisim.robot.segments import path_is_valid, segment_samples
+from agrisim.scene.camera import CameraModel, from_fov
+from agrisim.scene.cell import Cell, build_cell
+from agrisim.scene.model import PLANT_FIT_HEIGHT, PLANT_FIT_RADIUS, Label, LabelTable, Plant
+from agrisim.scene.transforms import look_at
+
+__all__ = ["check", "check_physics", "check_planner", "check_plant", "check_reconstructor", "check_renderer"]
+
+
+def check(kind: str, name: str, registry: Registry, options: Any = None) -> None:
+    """Run the contract of ``kind`` on the backend ``name`` (with its default options unless
+    ``options`` is given)."""
+    if kind not in CHECKS:
+        raise ValueError(f"no contract for kind {kind!r}; kinds with one: {', '.join(CHECKS)}")
+    spec = registry.get(kind, name)
+    CHECKS[kind](registry, spec, spec.options_model() if options is None else options)
+
+
+# ------------------------------------------------------------------------------- physics
+
+
+def check_physics(registry: Registry, spec: BackendSpec, options: Any) -> None:
+    """A short joint move of one arm in free air: the backend reports where the arms start,
+    executes the trajectory in simulated time, reaches the goal it was sent to, and leaves the
+    other arm where it was."""
+    cell = build_cell(CellConfig())
+    physics = registry.build("physics", spec, cell, options)
+    try:
+        homes = {arm.name: np.array(arm.home, float) for arm in cell.arms}
+        for name, home in homes.items():
+            assert np.allclose(physics.joint_positions(name), home, atol=1e-6), f"{name} does not start at home"
+        home = homes["r1"]
+        goal = home + np.array([0.3, -0.15, 0.1, 0.2, 0.0, 0.3])
+        assert not physics.in_collision("r1", home) and not physics.in_collision("r1", goal)
+        t = np.linspace(0.0, 1.0, 241)
+        s = 3 * t**2 - 2 * t**3  # rest to rest
+        plan = JointTrajectory(t, home + np.outer(s, goal - home))
+        t0 = physics.sim_time
+        out = physics.execute(
+            {"r1": plan}, lambda robot, q: float(np.max(np.abs(q - goal))) < 1e-3, timeout=5.0
+        )
+        ex = out["r1"]
+        assert ex.settled, f"r1 did not settle within 1e-3 rad of the goal (reached {physics.joint_positions('r1')})"
+        assert np.max(np.abs(physics.joint_positions("r1") - goal)) < 1e-3
+        assert physics.sim_time >= t0 + plan.duration - 1e-9, "less simulated time passed than the plan lasts"
+        times = ex.executed.t
+        assert len(times) > 1 and np.all(np.diff(times) > 0), "executed times must increase"
+        assert np.max(np.abs(ex.executed.q[0] - home)) < 0.05 and np.max(np.abs(ex.executed.q[-1] - goal)) < 1e-3
+        assert ex.contacts == [], f"contacts in free air: {ex.contacts}"
+        for name, home_other in homes.items():
+            if name != "r1":
+                assert np.allclose(physics.joint_positions(name), home_other, atol=1e-3), f"{name} moved"
+    finally:
+        physics.close()
+
+
+# ------------------------------------------------------------------------------- planners
+
+
+def _wall(q: np.ndarray) -> bool:
+    """Joint space with a slab across joint 0, open only where joint 1 is above 1.5 rad."""
+    return not (abs(q[0]) < 0.3 and q[1] < 1.5)
+
+
+def check_planner(registry: Registry, spec: BackendSpec, options: Any) -> None:
+    """A free problem gets a path; a problem with a wall in the way gets a path that keeps
+    clear of it at the stated resolution, or :class:`PlanningFailed`; never a path that is not
+    valid, nor one that does not join start and goal."""
+    planner = registry.build("planner", spec, options)
+    lower, upper = np.full(6, -np.pi), np.full(6, np.pi)
+    resolution = 0.02
+    free = planner.plan(np.zeros(6), np.full(6, 0.5), lambda q: True, lower, upper, 0, resolution)
+    _assert_joins(free, np.zeros(6), np.full(6, 0.5))
+    start, goal = np.array([-2.0, 0, 0, 0, 0, 0]), np.array([2.0, 0, 0, 0, 0, 0])
+    try:
+        path = planner.plan(start, goal, _wall, lower, upper, 0, resolution)
+    except PlanningFailed:
+        return
+    _assert_joins(path, start, goal)
+    assert path_is_valid(np.asarray(path), _wall, resolution), "the path crosses the wall at the stated resolution"
+
+
+def _assert_joins(path: np.ndarray, start: np.ndarray, goal: np.ndarray) -> None:
+    path = np.asarray(path, float)
+    assert path.ndim == 2 and path.shape[1] == len(start) and len(path) >= 2, f"path of shape {path.shape}"
+    assert np.allclose(path[0], start) and np.allclose(path[-1], goal), "the path must run from start to goal"
+
+
+# ------------------------------------------------------------------------------- renderers
+
+
+def _plant_scene(registry: Registry, cell: Cell, labels: str) -> tuple[Any, Plant]:
+    """The lab with the hydrangea (four organs, leaf instances), grown through the registry."""
+    from agrisim.lab.room import build_scene
+
+    spec = registry.get("plant", "hydrangea")
+    plant = registry.build("plant", spec, spec.options_model()).build(0)
+    return build_scene(cell, plant, labels=labels), plant
+
+
+def check_renderer(registry: Registry, spec: BackendSpec, options: Any) -> None:
+    """Draws what the interface promises, where the geometry says it is.
+
+    * Looking straight down 1 m above bare floor (arms hidden): depth is the planar 1 m
+      everywhere, every pixel is background.
+    * Looking down at the plant: plant pixels exist, carry ids of the plant's label table, and
+      back-project into the plant's bounding box; declared capabilities hold (organ labels
+      give more than one organ; leaf instances are uint16 and lie exactly on the leaf pixels).
+    """
+    caps = spec.capabilities
+    cell = build_cell(CellConfig())
+    mode = "texture" if "texture" in caps.seg_modes else sorted(caps.seg_modes)[0]
+    labels = "organs" if caps.organ_labels else "plant"
+    scene, plant = _plant_scene(registry, cell, labels)
+    settings = RenderConfig(seg_mode=mode, labels=labels, shadow_samples=0, hide_robots=True)
+    renderer = registry.build("renderer", spec, scene, cell, settings, options)
+    camera = from_fov(60.0, 160, 120)
+    poses: dict[str, dict[str, np.ndarray]] = {}
+    try:
+        floor = renderer.render(camera, look_at(np.array([0.0, 1.2, 1.0]), np.array([0.0, 1.2, 0.0])), poses)
+        _assert_frame(floor, camera)
+        assert not floor.labels.any(), "bare floor labelled as plant"
+        assert np.allclose(floor.depth, 1.0, atol=0.01), f"floor depth {floor.depth.min():.4f}..{floor.depth.max():.4f}, not 1 m"
+
+        top = cell.plant_center + np.array([0.0, 0.0, 1.0])
+        world_T_camera = look_at(top, cell.plant_center)
+        frame = renderer.render(camera, world_T_camera, poses)
+        _assert_frame(frame, camera)
+        plant_px = frame.labels > 0
+        assert plant_px.sum() > 100, "the plant below the camera is (almost) not drawn"
+        ids = set(np.unique(frame.labels[plant_px]).tolist())
+        assert ids <= {lab.id for lab in scene.labels.labels if lab.id}, f"label ids {ids} not in the table"
+        if caps.organ_labels:
+            assert len(ids) > 1, "declares organ labels, drew one label"
+        points = _backproject(frame.depth, plant_px, camera, world_T_camera)
+        placed = scene.mesh(scene.plant).vertices  # the plant where the scene put it, world frame
+        lo, hi = placed.min(axis=0) - 0.01, placed.max(axis=0) + 0.01
+        inside = np.all((points >= lo) & (points <= hi), axis=1).mean()
+        assert inside > 0.99, f"only {inside:.1%} of plant pixels back-project into the plant's bounds"
+        if caps.leaf_instances:
+            assert frame.instances is not None and frame.instances.dtype == np.uint16
+            leaf = scene.labels.by_name("leaf").id
+            assert np.array_equal(frame.instances > 0, frame.labels == leaf), "instances off the leaf pixels"
+    finally:
+        renderer.close()
+
+
+def _assert_frame(frame: Any, camera: CameraModel) -> None:
+    h, w = camera.height, camera.width
+    assert frame.rgb.shape == (h, w, 3) and frame.rgb.dtype == np.uint8, f"rgb {frame.rgb.shape} {frame.rgb.dtype}"
+    assert frame.labels.shape == (h, w) and frame.labels.dtype == np.uint8, "labels must be H x W uint8"
+    assert frame.depth.shape == (h, w) and frame.depth.dtype == np.float32, "depth must be H x W float32"
+    assert np.all(np.isfinite(frame.depth)) and np.all(frame.depth >= 0), "depth must be finite, 0 for no hit"
+
+
+def _backproject(depth: np.ndarray, mask: np.ndarray, camera: CameraModel, world_T_camera: np.ndarray) -> np.ndarray:
+    v, u = np.nonzero(mask)
+    z = depth[v, u].astype(np.float64)
+    xyz = np.column_stack([(u - camera.cx) / camera.fx * z, (v - camera.cy) / camera.fy * z, z])
+    return xyz @ world_T_camera[:3, :3].T + world_T_camera[:3, 3]
+
+
+# --------------------------------------------------------------------------- reconstructors
+
+
+def check_reconstructor(registry: Registry, spec: BackendSpec, options: Any) -> None:
+    """Two views, 5 cm apart, of the plane z = 1 m from 0.5 m above, its half x < 0 labelled
+    leaf and x > 0 stem: the merged clouds (per label and ``"all"``) lie on the plane in world
+    coordinates, each label on its own half; declared result clouds and meshes too."""
+    table = LabelTable([Label(0, "background", (0, 0, 0)), Label(1, "leaf", (0, 255, 0)), Label(2, "stem", (96, 0, 128))])
+    recon = registry.build("reconstructor", spec, table, options)
+    camera = from_fov(60.0, 120, 90)
+    plane_z = 1.0  # the plane z = 1 m, seen from 0.5 m above
+    for k, x in enumerate((0.0, 0.05)):
+        # Image right is world +x; the plane's half x < 0 is leaf, x > 0 stem, in every view.
+        world_T_camera = look_at(np.array([x, 0.0, plane_z + 0.5]), np.array([x, 0.0, plane_z]), up=np.array([0.0, 1.0, 0.0]))
+        world_x = x + (np.arange(camera.width) - camera.cx) / camera.fx * 0.5
+        labels = np.where(world_x < 0.0, 1, 2).astype(np.uint8)[None, :].repeat(camera.height, 0)
+        view = View(
+            frame=f"r1_{k:03d}",
+            camera=camera,
+            world_T_camera=world_T_camera,
+            rgb=np.full((camera.height, camera.width, 3), 128, np.uint8),
+            labels=labels,
+            depth_mm=np.full((camera.height, camera.width), 500, np.uint16),
+        )
+        recon.integrate(view)
+    merged = recon.merged()
+    result = recon.result()
+    caps = spec.capabilities
+    assert {ALL, "leaf", "stem"} <= set(merged), f"merged clouds {sorted(merged)}"
+    for where, clouds in (("merged", merged), ("result", result.clouds if caps.clouds else {})):
+        for name in (ALL, "leaf", "stem") if clouds or where == "merged" else ():
+            pts = clouds[name].points
+            assert len(pts) > 100, f"{where} {name}: {len(pts)} points"
+            assert np.max(np.abs(pts[:, 2] - plane_z)) < 0.003, f"{where} {name}: points off the plane z = {plane_z} m"
+    assert _labels_on_their_halves(merged), "labels landed on the wrong halves of the plane"
+    if caps.meshes:
+        for name in (ALL, "leaf", "stem"):
+            mesh = result.meshes[name]
+            assert len(mesh.triangles) > 0, f"mesh {name} is empty"
+            assert np.max(np.abs(mesh.vertices[:, 2] - plane_z)) < 0.01, f"mesh {name} off the plane"
+
+
+def _labels_on_their_halves(clouds: dict[str, Any]) -> bool:
+    """Leaf points at x < 0 and stem points at x > 0, up to a voxel or two."""
+    return bool(clouds["leaf"].points[:, 0].max() < 0.003 and clouds["stem"].points[:, 0].min() > -0.003)
+
+
+# ------------------------------------------------------------------------------- plants
+
+
+def check_plant(registry: Registry, spec: BackendSpec, options: Any) -> None:
+    """Grows a valid plant: a mesh with labels from its own table (background 0), leaf
+    instances where declared, inside the plant-fit cylinder, the same for the same seed."""
+    species = registry.build("plant", spec, options)
+    plant = species.build(0)
+    assert isinstance(plant, Plant), f"build() returned {type(plant).__name__}"
+    mesh = plant.mesh
+    assert len(mesh.faces) > 0 and np.all(np.isfinite(mesh.vertices))
+    table = {lab.id for lab in plant.labels.labels}
+    assert 0 in table and len(table) >= 2, "the label table needs background 0 and a plant label"
+    used = {m.label for m in mesh.materials if m.labels is None}
+    for m in mesh.materials:
+        if m.labels is not None:
+            used |= set(np.unique(m.labels).tolist())
+    assert used <= table, f"materials use label ids {sorted(used - table)} outside the table"
+    radius = np.linalg.norm(mesh.vertices[:, :2], axis=1).max()
+    assert radius <= PLANT_FIT_RADIUS + 1e-6 and mesh.vertices[:, 2].max() <= PLANT_FIT_HEIGHT + 1e-6, (
+        f"the plant ({radius:.3f} m wide, {mesh.vertices[:, 2].max():.3f} m high) leaves the plant-fit cylinder"
+    )
+    again = species.build(0).mesh
+    assert np.array_equal(again.vertices, mesh.vertices), "the same seed grew another plant"
+
+
+CHECKS: dict[str, Callable[[Registry, BackendSpec, Any], None]] = {
+    "physics": check_physics,
+    "planner": check_planner,
+    "renderer": check_renderer,
+    "reconstructor": check_reconstructor,
+    "plant": check_plant,
+}
+assert set(CHECKS) <= set(KINDS)

@@ -1,0 +1,86 @@
+"""The contract suite: every registered backend of each kind keeps its kind's contract
+(:mod:`agrisim.testing.contracts`), the built-ins and any installed plugin alike."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from agrisim.registry import Registry, make_plugin_manager
+from agrisim.testing.contracts import CHECKS, check
+
+REGISTRY = Registry(make_plugin_manager())
+
+#: every plant source: the procedural species, and Helios crops when the extra is installed
+#: (two of its 31 models: each grows for about a second)
+PLANTS = [n for n in REGISTRY.specs("plant") if not n.startswith("helios:")] + [
+    n for n in ("helios:bean", "helios:strawberry") if n in REGISTRY.specs("plant")
+]
+
+CASES = [(kind, name) for kind in CHECKS if kind != "plant" for name in REGISTRY.specs(kind)]
+CASES += [("plant", name) for name in PLANTS]
+
+
+def test_every_kind_with_backends_is_covered() -> None:
+    for kind in CHECKS:
+        assert [name for k, name in CASES if k == kind], f"no {kind} backend to check"
+
+
+@pytest.mark.parametrize(("kind", "name"), CASES, ids=[f"{k}-{n}" for k, n in CASES])
+def test_backend_keeps_its_contract(kind: str, name: str) -> None:
+    check(kind, name, REGISTRY)
+
+
+# ------------------------------------------------------------- the contracts catch breakage
+
+
+def _broken(kind: str, name: str, wrap) -> None:
+    """Run ``kind``'s contract on backend ``name`` with its factory's result passed through
+    ``wrap``, which breaks it in one way."""
+    import dataclasses
+
+    from agrisim.testing.contracts import CHECKS
+
+    spec = REGISTRY.get(kind, name)
+    broken = dataclasses.replace(spec, factory=lambda *args: wrap(spec.factory(*args)))
+    CHECKS[kind](REGISTRY, broken, spec.options_model())
+
+
+def test_a_renderer_with_depth_2_percent_long_breaks_its_contract() -> None:
+    def wrap(renderer):
+        render = renderer.render
+
+        def longer(*args):
+            frame = render(*args)
+            frame.depth = frame.depth * np.float32(1.02)
+            return frame
+
+        renderer.render = longer
+        return renderer
+
+    with pytest.raises(AssertionError, match="depth"):
+        _broken("renderer", "raycast", wrap)
+
+
+def test_a_planner_that_ignores_collisions_breaks_its_contract() -> None:
+    def wrap(planner):
+        planner.plan = lambda start, goal, *rest: np.array([start, goal])
+        return planner
+
+    with pytest.raises(AssertionError, match="wall"):
+        _broken("planner", "ompl", wrap)
+
+
+def test_a_reconstructor_in_camera_coordinates_breaks_its_contract() -> None:
+    def wrap(recon):
+        integrate = recon.integrate
+
+        def camera_frame(view):
+            view.world_T_camera = np.eye(4)
+            return integrate(view)
+
+        recon.integrate = camera_frame
+        return recon
+
+    with pytest.raises(AssertionError, match="off the plane"):
+        _broken("reconstructor", "pointcloud", wrap)
