@@ -1,4 +1,5 @@
-"""Shared fixtures: the paper's cell and its arms' kinematics, built once per session."""
+"""Shared fixtures: the paper's cell and its arms' kinematics (built once per session), the CLI run
+in-process (``cli``), and a plugin that keeps every rendered frame (``frames``)."""
 
 from __future__ import annotations
 
@@ -20,7 +21,7 @@ def kin(cell: Cell) -> dict[str, ArmKinematics]:
     return {arm.name: ArmKinematics(arm) for arm in cell.arms}
 
 
-def run_cli(args: list[str], capsys: pytest.CaptureFixture[str]) -> tuple[int, str, str]:
+def _run_cli(args: list[str], capsys: pytest.CaptureFixture[str]) -> tuple[int, str, str]:
     """Run ``agrisim ARGS`` in-process: (exit status, stdout, stderr)."""
     from agrisim.app.cli import main
 
@@ -42,3 +43,15 @@ class Frames:
     @hookimpl
     def agrisim_capture(self, run, capture):  # noqa: ANN001 - pluggy passes what the hook names
         self.images[capture.frame] = {k: v.copy() for k, v in capture.images.items()}
+
+
+@pytest.fixture
+def cli(capsys: pytest.CaptureFixture[str]):  # noqa: ANN201 - returns the runner
+    """``cli(args)`` runs ``agrisim ARGS`` in-process and returns (exit status, stdout, stderr)."""
+    return lambda args: _run_cli(list(args), capsys)
+
+
+@pytest.fixture
+def frames() -> Frames:
+    """A plugin object to register on an episode: it keeps a copy of every capture's images."""
+    return Frames()

@@ -10,7 +10,7 @@ from pathlib import Path
 
 import pytest
 
-REPO = Path(__file__).resolve().parents[1]
+REPO = Path(__file__).resolve().parents[2]
 PACKAGES = {"agrisim": REPO / "core", "agrisim.plugins": REPO / "plugins"}
 HEAVY = ("open3d", "pybullet", "pinocchio", "coal", "ompl", "rerun", "ray")
 

@@ -16,7 +16,6 @@ import open3d as o3d
 import pytest
 from PIL import Image
 
-from conftest import run_cli
 from agrisim.files.plant_asset import load_plant
 from agrisim.config import build_config
 from agrisim.episode import Episode
@@ -231,9 +230,9 @@ def _copy_run(exported: tuple[Path, np.ndarray, np.ndarray], dest: Path) -> Path
     return dest
 
 
-def test_cli_export_writes_transforms(exported: tuple[Path, np.ndarray, np.ndarray], tmp_path: Path, capsys) -> None:
+def test_cli_export_writes_transforms(exported: tuple[Path, np.ndarray, np.ndarray], tmp_path: Path, cli) -> None:
     run = _copy_run(exported, tmp_path / "run")
-    code, out, err = run_cli(["export", "nerfstudio", str(run)], capsys)
+    code, out, err = cli(["export", "nerfstudio", str(run)])
     assert code == 0 and err == "", err
     assert out.strip() == f"wrote {run / 'transforms.json'}"
     assert _doc(run) == _doc(exported[0])
@@ -276,12 +275,12 @@ BROKEN = {
 
 
 @pytest.mark.parametrize("case", sorted(BROKEN))
-def test_bad_run_dir_exits_2_and_writes_nothing(case: str, exported, tmp_path: Path, capsys) -> None:
+def test_bad_run_dir_exits_2_and_writes_nothing(case: str, exported, tmp_path: Path, cli) -> None:
     run = _copy_run(exported, tmp_path / "run")
     breaker, expected = BROKEN[case]
     breaker(run)
     before = _snapshot(tmp_path)
-    code, out, err = run_cli(["export", "nerfstudio", str(run)], capsys)
+    code, out, err = cli(["export", "nerfstudio", str(run)])
     assert code == 2, err
     assert err.startswith("agrisim: error: ") and err.count("\n") == 1 and err.endswith("\n"), err
     assert all(word in err for word in expected), err
@@ -300,11 +299,11 @@ def test_bad_run_dir_exits_2_and_writes_nothing(case: str, exported, tmp_path: P
         (["export", "nerfstudio"], ["RUN_DIR"]),
     ],
 )
-def test_not_a_run_dir_exits_2(args: list[str], expected: list[str], tmp_path: Path, capsys) -> None:
+def test_not_a_run_dir_exits_2(args: list[str], expected: list[str], tmp_path: Path, cli) -> None:
     (tmp_path / "afile").write_text("not a run\n")
     (tmp_path / "empty").mkdir()
     before = _snapshot(tmp_path)
-    code, _, err = run_cli([a.format(tmp=tmp_path) for a in args], capsys)
+    code, _, err = cli([a.format(tmp=tmp_path) for a in args])
     assert code == 2 and err.count("\n") == 1, err
     assert all(word in err for word in expected), err
     assert _snapshot(tmp_path) == before

@@ -7,7 +7,6 @@ import json
 import numpy as np
 from PIL import Image
 
-from conftest import Frames
 from agrisim.files.plant_asset import load_plant
 from agrisim.config import build_config
 from agrisim.episode import Episode
@@ -15,7 +14,7 @@ from agrisim.episode import Episode
 
 
 
-def test_files_match_the_rendered_frames(tmp_path):
+def test_files_match_the_rendered_frames(tmp_path, frames):
     config = build_config(
         {
             "plant": "hydrangea",
@@ -27,7 +26,6 @@ def test_files_match_the_rendered_frames(tmp_path):
         }
     )
     episode = Episode(config)
-    frames = Frames()
     episode.pm.register(frames)
     run, summary = episode.run()
     out = run.out_dir

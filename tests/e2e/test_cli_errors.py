@@ -14,7 +14,6 @@ from pathlib import Path
 
 import pytest
 
-from conftest import run_cli
 from agrisim.errors import UserError
 from agrisim.robot.urdf import ur10_with_camera
 
@@ -136,13 +135,13 @@ CASES = [
 
 
 @pytest.mark.parametrize(("args", "expected"), CASES)
-def test_bad_input(args: list[str], expected: list[str], workdir: Path, capsys) -> None:
+def test_bad_input(args: list[str], expected: list[str], workdir: Path, cli) -> None:
     out = workdir / "out"
     before = snapshot(workdir)
     argv = ["run", *(a.format(tmp=workdir) for a in args)]
     if not any(a.startswith(("--physics", "physics.")) for a in argv[1:]):
         argv += ["--physics", "kinematic"]
-    code, stdout, err = run_cli([*argv, "--out", str(out)], capsys)
+    code, stdout, err = cli([*argv, "--out", str(out)])
     assert_one_line_error(code, err, expected)
     assert stdout == ""
     assert not out.exists()
@@ -165,12 +164,12 @@ def _readonly_dir(workdir: Path) -> Path:
 
 
 @pytest.mark.parametrize("where", ["readonly-dir", "under-a-file"])
-def test_unwritable_out(where: str, workdir: Path, capsys) -> None:
+def test_unwritable_out(where: str, workdir: Path, cli) -> None:
     parent = _readonly_dir(workdir) if where == "readonly-dir" else workdir / "afile"
     out = parent / "run"
     before = snapshot(workdir)
     try:
-        code, stdout, err = run_cli(["run", "--physics", "kinematic", "--renderer", "none", "--out", str(out)], capsys)
+        code, stdout, err = cli(["run", "--physics", "kinematic", "--renderer", "none", "--out", str(out)])
     finally:
         if parent.is_dir():
             parent.chmod(0o700)
@@ -179,17 +178,17 @@ def test_unwritable_out(where: str, workdir: Path, capsys) -> None:
     assert snapshot(workdir) == before
 
 
-def test_out_is_a_file(workdir: Path, capsys) -> None:
+def test_out_is_a_file(workdir: Path, cli) -> None:
     before = snapshot(workdir)
-    code, _, err = run_cli(["run", "--physics", "kinematic", "--renderer", "none", "--out", str(workdir / "afile")], capsys)
+    code, _, err = cli(["run", "--physics", "kinematic", "--renderer", "none", "--out", str(workdir / "afile")])
     assert_one_line_error(code, err, ["--out", "afile", "not a directory"])
     assert snapshot(workdir) == before
 
 
-def test_existing_out_needs_overwrite(workdir: Path, capsys) -> None:
+def test_existing_out_needs_overwrite(workdir: Path, cli) -> None:
     existing = workdir / "existing"
     before = snapshot(workdir)
-    code, _, err = run_cli(["run", "--physics", "kinematic", "--renderer", "none", "--setpoints", "1x1", "--out", str(existing)], capsys)
+    code, _, err = cli(["run", "--physics", "kinematic", "--renderer", "none", "--setpoints", "1x1", "--out", str(existing)])
     assert_one_line_error(code, err, ["--out", "already exists", "--overwrite"])
     assert snapshot(workdir) == before  # contents and mtimes untouched
     assert (existing / "keep.txt").read_text() == "precious results\n"

@@ -15,7 +15,6 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from conftest import run_cli
 
 #: a valid, cheap run: each example breaks it
 BASE: dict[str, Any] = {
@@ -135,9 +134,9 @@ def sandbox(tmp_path_factory: pytest.TempPathFactory, monkeypatch: pytest.Monkey
     return root
 
 
-def _expect_refusal(args: list[str], root: Path, capsys: pytest.CaptureFixture[str]) -> str:
+def _expect_refusal(args: list[str], root: Path, cli) -> str:
     before = _tree(root)
-    code, out, err = run_cli(args, capsys)
+    code, out, err = cli(args)
     assert code == 2, f"exit {code} for {args}: {err or out}"
     assert err.count("\n") == 1 and err.startswith("agrisim: error: "), err
     assert "Traceback" not in err
@@ -148,11 +147,11 @@ def _expect_refusal(args: list[str], root: Path, capsys: pytest.CaptureFixture[s
 
 @settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow])
 @given(tree=broken_configs())
-def test_broken_config_files_are_refused(tree: dict[str, Any], sandbox: Path, capsys: pytest.CaptureFixture[str]) -> None:
+def test_broken_config_files_are_refused(tree: dict[str, Any], sandbox: Path, cli) -> None:
     path = sandbox / "input" / "config.toml"
     path.parent.mkdir(exist_ok=True)
     path.write_text(_toml(tree))
-    _expect_refusal(["run", "--config", str(path), "--out", str(sandbox / f"out-{uuid.uuid4().hex}")], sandbox, capsys)
+    _expect_refusal(["run", "--config", str(path), "--out", str(sandbox / f"out-{uuid.uuid4().hex}")], sandbox, cli)
 
 
 @settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
@@ -160,7 +159,7 @@ def test_broken_config_files_are_refused(tree: dict[str, Any], sandbox: Path, ca
     key=st.sampled_from([k for k, _ in FIELDS]),
     text=st.one_of(st.sampled_from(["nan", "inf", "-1", "[", "{a=", "1e999", "''", "[1, 'x']"]), st.text(max_size=8)),
 )
-def test_broken_set_flags_are_refused(key: str, text: str, sandbox: Path, capsys: pytest.CaptureFixture[str]) -> None:
+def test_broken_set_flags_are_refused(key: str, text: str, sandbox: Path, cli) -> None:
     """``--set KEY=VALUE`` with values parsed as TOML: whatever comes out is invalid for KEY,
     or the KEY itself is misspelt."""
     out = str(sandbox / f"out-{uuid.uuid4().hex}")
@@ -176,7 +175,7 @@ def test_broken_set_flags_are_refused(key: str, text: str, sandbox: Path, capsys
         key = key + "_x"
     except UserError:
         pass
-    _expect_refusal([*base, "--set", f"{key}={text}"], sandbox, capsys)
+    _expect_refusal([*base, "--set", f"{key}={text}"], sandbox, cli)
 
 
 @settings(max_examples=30, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
@@ -184,7 +183,7 @@ def test_broken_set_flags_are_refused(key: str, text: str, sandbox: Path, capsys
     breakage=st.sampled_from(["nan", "inf", "face", "uv", "truncated", "huge", "empty", "binary", "degenerate"]),
     where=st.integers(0, 2),
 )
-def test_broken_assets_are_refused(breakage: str, where: int, sandbox: Path, capsys: pytest.CaptureFixture[str]) -> None:
+def test_broken_assets_are_refused(breakage: str, where: int, sandbox: Path, cli) -> None:
     lines = ["v 0 0 0", "v 0.1 0 0", "v 0 0.1 0", "vt 0 0", "vt 1 0", "vt 0 1", "f 1/1 2/2 3/3"]
     if breakage in ("nan", "inf", "huge"):
         value = {"nan": "nan", "inf": "-inf", "huge": "1e300"}[breakage]
@@ -205,10 +204,10 @@ def test_broken_assets_are_refused(breakage: str, where: int, sandbox: Path, cap
         path.write_bytes(bytes(range(256)) * 4)
     else:
         path.write_text("\n".join(lines) + "\n")
-    _expect_refusal(["run", "--plant", str(path), "--out", str(sandbox / f"out-{uuid.uuid4().hex}")], sandbox, capsys)
+    _expect_refusal(["run", "--plant", str(path), "--out", str(sandbox / f"out-{uuid.uuid4().hex}")], sandbox, cli)
 
 
-def test_label_texture_of_only_background_is_refused(sandbox: Path, capsys: pytest.CaptureFixture[str]) -> None:
+def test_label_texture_of_only_background_is_refused(sandbox: Path, cli) -> None:
     import numpy as np
     from PIL import Image
 
@@ -219,13 +218,13 @@ def test_label_texture_of_only_background_is_refused(sandbox: Path, capsys: pyte
     err = _expect_refusal(
         ["run", "--plant", str(obj), "--set", f"plant_file.label_texture={sandbox / 'input' / 'labels.png'}", "--out", "o"],
         sandbox,
-        capsys,
+        cli,
     )
     assert "only background" in err
 
 
-def test_output_under_a_regular_file_is_refused(sandbox: Path, capsys: pytest.CaptureFixture[str]) -> None:
+def test_output_under_a_regular_file_is_refused(sandbox: Path, cli) -> None:
     (sandbox / "input").mkdir()
     (sandbox / "input" / "afile").write_text("x")
-    err = _expect_refusal(["run", "--renderer", "none", "--out", str(sandbox / "input" / "afile" / "run")], sandbox, capsys)
+    err = _expect_refusal(["run", "--renderer", "none", "--out", str(sandbox / "input" / "afile" / "run")], sandbox, cli)
     assert "afile" in err

@@ -15,7 +15,6 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from conftest import Frames, run_cli
 from agrisim.app.cli import _parser, overrides_from_args
 from agrisim.config import RunConfig, build_config
 from agrisim.episode import Episode, resolve_plant
@@ -203,7 +202,7 @@ def test_plants_fit_the_routine_or_are_refused():
 # ------------------------------------------------------------------------------ flags and errors
 
 
-def test_plant_age_flag_and_settings(tmp_path, capsys):
+def test_plant_age_flag_and_settings(tmp_path, cli):
     args = _parser().parse_args(["run", "--plant", "helios:tomato", "--plant-age", "25"])
     assert build_config(overrides_from_args(args)).plant_age == 25.0
     for extra in (["--set", "plant_age=25"], ["--set", "plants.helios:tomato.age=25"]):
@@ -212,26 +211,26 @@ def test_plant_age_flag_and_settings(tmp_path, capsys):
         assert "at 25 days" in plant.notes[0]
     out = tmp_path / "out"
     for bad in ("0", "-3", "nan", "inf", "1e9"):
-        code, _, err = run_cli(["run", "--plant", "helios:tomato", "--plant-age", bad, "--out", str(out)], capsys)
+        code, _, err = cli(["run", "--plant", "helios:tomato", "--plant-age", bad, "--out", str(out)])
         assert_one_line_error(code, err, "plant_age")
-    code, _, err = run_cli(["run", "--plant", "indian_cress", "--plant-age", "20", "--out", str(out)], capsys)
+    code, _, err = cli(["run", "--plant", "indian_cress", "--plant-age", "20", "--out", str(out)])
     assert_one_line_error(code, err, "--plant-age", "indian_cress")
     refuse = ["--set", "plants.helios:tomato.fit=refuse"]
-    code, _, err = run_cli(["run", "--plant", "helios:tomato", "--plant-age", "40", *refuse, "--out", str(out)], capsys)
+    code, _, err = cli(["run", "--plant", "helios:tomato", "--plant-age", "40", *refuse, "--out", str(out)])
     assert_one_line_error(code, err, "helios:tomato at 40 days", "--plant-age")
-    code, _, err = run_cli(["run", "--plant", "helios:nosuchcrop", "--out", str(out)], capsys)
+    code, _, err = cli(["run", "--plant", "helios:nosuchcrop", "--out", str(out)])
     assert_one_line_error(code, err, "nosuchcrop", "tomato")
     assert not out.exists()
 
 
-def test_without_pyhelios_helios_plants_name_the_extra(tmp_path, capsys, monkeypatch):
+def test_without_pyhelios_helios_plants_name_the_extra(tmp_path, monkeypatch, cli):
     monkeypatch.setattr(H, "helios_available", lambda: False)
     H.available_models.cache_clear()
     try:
         assert not [n for n in Registry(make_plugin_manager()).specs("plant") if n.startswith("helios:")]
-        code, out, _ = run_cli(["plugins"], capsys)
+        code, out, _ = cli(["plugins"])
         assert code == 0 and "helios:" not in out and "indian_cress" in out
-        code, _, err = run_cli(["run", "--plant", "helios:tomato", "--out", str(tmp_path / "out")], capsys)
+        code, _, err = cli(["run", "--plant", "helios:tomato", "--out", str(tmp_path / "out")])
         assert_one_line_error(code, err, "helios:tomato", "agrisim[helios]")
     finally:
         monkeypatch.undo()
@@ -253,7 +252,7 @@ def test_without_pyhelios_helios_plants_name_the_extra(tmp_path, capsys, monkeyp
 
 
 
-def tiny_run(plant: str, out: Path, **output: object) -> tuple[Episode, Frames, object]:
+def tiny_run(plant: str, out: Path, frames, **output: object) -> tuple[Episode, object, object]:  # noqa: ANN001
     settings = {
         "plant": plant,
         "render": {"labels": "organs", "shadow_samples": 0},
@@ -265,7 +264,6 @@ def tiny_run(plant: str, out: Path, **output: object) -> tuple[Episode, Frames, 
     if "recon" in RunConfig.model_fields:  # the reconstruction is not what these tests check
         settings["recon"] = {"backend": "none"}
     episode = Episode(build_config(settings))
-    frames = Frames()
     episode.pm.register(frames)
     run, summary = episode.run()
     assert summary.reached == len(frames.images) == 6
@@ -273,10 +271,10 @@ def tiny_run(plant: str, out: Path, **output: object) -> tuple[Episode, Frames, 
 
 
 @pytest.mark.parametrize("model", CROPS)
-def test_crop_runs_the_routine_with_organs_and_instances(model, tmp_path):
+def test_crop_runs_the_routine_with_organs_and_instances(model, tmp_path, frames):
     rrd = tmp_path / "rec.rrd" if model == "tomato" else None
     recording = {"no_rrd": False, "rrd": str(rrd)} if rrd else {}
-    episode, frames, run = tiny_run(f"helios:{model}", tmp_path / "run", **recording)
+    episode, frames, run = tiny_run(f"helios:{model}", tmp_path / "run", frames, **recording)
     table = {lab.name: lab.id for lab in run.labels.labels}
     mesh_ids = set(np.unique(episode.plant.mesh.face_instance).tolist())
     seen: set[int] = set()
@@ -299,7 +297,7 @@ def test_crop_runs_the_routine_with_organs_and_instances(model, tmp_path):
         assert {f"world/{arm}/camera/instances" for arm in ("r1", "r2")} <= entities
 
 
-def test_compare_reports_the_repopa_excess_of_the_five_crops(tmp_path, capsys):
+def test_compare_reports_the_repopa_excess_of_the_five_crops(tmp_path, cli):
     """``agrisim compare`` over the five crops: RepOpa labels more pixels than the texture
     labels for each, the table says by how much, and every run counts the leaves it saw."""
     import csv
@@ -309,12 +307,10 @@ def test_compare_reports_the_repopa_excess_of_the_five_crops(tmp_path, capsys):
 
     out = tmp_path / "compare"
     plants = ",".join(f"helios:{m}" for m in CROPS)
-    code, _, err = run_cli(
+    code, _, err = cli(
         ["compare", "--plants", plants, "--workers", "2", "--out", str(out), "--physics", "kinematic",
          "--setpoints", "1x2", "--resolution", "160x90", "--shadow-samples", "0",
-         "--set", "metrics.truth_samples=20000"],
-        capsys,
-    )
+         "--set", "metrics.truth_samples=20000"])
     assert code == 0, err
     rows = {r["plant"]: r for r in csv.DictReader((out / "table.csv").open()) if r["label"] == "all"}
     assert set(rows) == {f"helios:{m}" for m in CROPS}

@@ -19,7 +19,6 @@ from typing import Any
 
 import pytest
 
-from conftest import run_cli
 from agrisim.app import compare as cmp
 from agrisim.app.cli import main
 from agrisim.errors import UserError
@@ -246,10 +245,10 @@ def no_ray(monkeypatch: pytest.MonkeyPatch) -> None:
         (["--ray-address", "127.0.0.1:1"], "--ray-address 127.0.0.1:1: cannot reach"),
     ],
 )
-def test_bad_input_exits_2_with_one_line(args, message, tmp_path, capsys, monkeypatch) -> None:
+def test_bad_input_exits_2_with_one_line(args, message, tmp_path, monkeypatch, cli) -> None:
     if "--ray-address" not in args:
         monkeypatch.setattr(cmp, "start_ray", _refuse_ray)
-    status, out, err = run_cli(["compare", "--out", str(tmp_path / "c"), *args], capsys)
+    status, out, err = cli(["compare", "--out", str(tmp_path / "c"), *args])
     assert status == 2
     assert err.count("\n") == 1 and message in err, err
     assert not (tmp_path / "c").exists()
@@ -321,18 +320,18 @@ def test_one_worker_gives_identical_results(two_workers, tmp_path: Path) -> None
     assert rows1 == rows2
 
 
-def test_existing_out_is_refused_and_resume_skips_complete_runs(two_workers, capsys, no_ray) -> None:
+def test_existing_out_is_refused_and_resume_skips_complete_runs(two_workers, no_ray, cli) -> None:
     out, _ = two_workers
     before = {p: p.stat().st_mtime_ns for p in out.rglob("*") if p.is_file()}
-    status, _, err = run_cli(["compare", "--plants", ",".join(PLANTS), "--out", str(out), *TINY], capsys)
+    status, _, err = cli(["compare", "--plants", ",".join(PLANTS), "--out", str(out), *TINY])
     assert status == 2 and "already exists; pass --overwrite" in err
-    status, _, err = run_cli(["compare", "--plants", ",".join(PLANTS), "--out", str(out), "--resume", *TINY[:-2]], capsys)
+    status, _, err = cli(["compare", "--plants", ",".join(PLANTS), "--out", str(out), "--resume", *TINY[:-2]])
     assert status == 2 and "metrics.truth_samples" in err  # made with other settings: never mixed
     after = {p: p.stat().st_mtime_ns for p in out.rglob("*") if p.is_file()}
     assert after == before
     table = (out / "table.csv").read_text()
     # every run complete: nothing runs (no_ray), the table is rebuilt from the run directories
-    status, stdout, _ = run_cli(["compare", "--plants", ",".join(PLANTS), "--out", str(out), "--resume", *TINY], capsys)
+    status, stdout, _ = cli(["compare", "--plants", ",".join(PLANTS), "--out", str(out), "--resume", *TINY])
     assert status == 0 and "were complete already" in stdout
     assert (out / "table.csv").read_text() == table
     assert all(e["status"] == "skipped" for e in json.loads((out / "compare.json").read_text())["episodes"])
