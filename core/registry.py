@@ -64,10 +64,14 @@ def make_plugin_manager(*, autoload: bool | None = None) -> pluggy.PluginManager
         pm.check_pending()
     except pluggy.PluginValidationError as exc:
         raise PluginError(f"plugin {exc.plugin!r} implements an unknown hook: {exc}") from exc
-    if os.environ.get("AGRISIM_TRACE_PLUGINS", "") not in ("", "0"):
+    if _tracing():
         pm.trace.root.setwriter(lambda msg: sys.stderr.write(msg))
         pm.enable_tracing()
     return pm
+
+
+def _tracing() -> bool:
+    return os.environ.get("AGRISIM_TRACE_PLUGINS", "") not in ("", "0")
 
 
 def _distribution_of(pm: pluggy.PluginManager, plugin: object) -> str:
@@ -98,7 +102,10 @@ class Registry:
         found: dict[str, BackendSpec] = {}
         for impl in caller.get_hookimpls():
             dist = _distribution_of(self.pm, impl.plugin)
-            result = impl.function()
+            result = impl.function()  # one implementation at a time, to know whose spec is whose
+            if _tracing():  # pluggy's tracer sees only calls through pm.hook
+                names = [getattr(spec, "name", repr(spec)) for spec in result or []]
+                sys.stderr.write(f"  {hook_name} [{dist}] -> {', '.join(names) or 'nothing'}\n")
             if not isinstance(result, (list, tuple)):
                 raise PluginError(f"{hook_name}() of {dist} must return a list of BackendSpec")
             for spec in result:
