@@ -21,6 +21,7 @@ import numpy as np
 import pluggy
 from pydantic import BaseModel
 
+from agrisim.files import layout
 from agrisim.files.plant_asset import FORMATS, load_plant
 from agrisim.files.atomic import remove_partial
 from agrisim.files.dataset import DatasetWriter
@@ -559,7 +560,7 @@ def resolve_out_dir(config: RunConfig) -> Path:
 
 def saved_run(out: Path) -> dict[str, Any]:
     """The ``run.json`` of an unfinished run in ``out`` (for ``--resume``)."""
-    path = out / "run.json"
+    path = out / layout.RUN_JSON
     doc = read_json(path, "not an agrisim run to continue", OutputError, prefix="--resume: ")
     if not isinstance(doc.get("config"), dict):
         raise OutputError(f"--resume: {path} holds no run configuration")

@@ -15,6 +15,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any, NoReturn
 
+from agrisim.files import layout
 from agrisim.config import RunConfig, build_config, load_toml, merge
 from agrisim.errors import BackendFailure, UserError
 
@@ -235,7 +236,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
         run, summary = episode.run(progress=progress.update)
     rrd = None
     if not config.output.no_rrd:
-        rrd = config.output.rrd or run.out_dir / "recording.rrd"
+        rrd = config.output.rrd or run.out_dir / layout.RECORDING
     print(f"reached {summary.reached}/{summary.setpoints} setpoints, {summary.collisions} with collisions")
     worst = max((r.ee_error_mm for r in run.results if r.reached and r.ee_error_mm is not None), default=None)
     if worst is not None:

@@ -37,6 +37,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from agrisim.files import layout
 from agrisim.capabilities import check_renderer
 from agrisim.kinds import SECTIONS
 from agrisim.files.atomic import write_bytes, write_json
@@ -281,12 +282,12 @@ def run_dir_state(run_dir: Path) -> str:
     if not run_dir.is_dir() or not any(run_dir.iterdir()):
         return "empty"
     try:
-        doc = json.loads((run_dir / "run.json").read_text())
+        doc = json.loads((run_dir / layout.RUN_JSON).read_text())
     except (OSError, ValueError):
         return "partial"
     if not isinstance(doc, dict) or doc.get("status") != "complete":
         return "unfinished"
-    return "complete" if (run_dir / "metrics.json").is_file() else "complete-no-metrics"
+    return "complete" if (run_dir / layout.METRICS_JSON).is_file() else "complete-no-metrics"
 
 
 def _episode_action(run_dir: Path, config: RunConfig) -> str:
@@ -299,7 +300,7 @@ def _episode_action(run_dir: Path, config: RunConfig) -> str:
         raise OutputError(
             f"--resume: {run_dir} is a complete run without metrics.json; pass --overwrite to run the compare again"
         )
-    saved = json.loads((run_dir / "run.json").read_text()).get("config") or {}
+    saved = json.loads((run_dir / layout.RUN_JSON).read_text()).get("config") or {}
     diff = first_difference(
         {k: v for k, v in saved.items() if k != "output"},
         {k: v for k, v in config.model_dump(mode="json").items() if k != "output"},

@@ -17,6 +17,7 @@ from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
+from agrisim.files import layout
 from agrisim.capabilities import SEG_MODES
 
 #: how the table names the modes (the paper's column heads)
@@ -29,7 +30,7 @@ TABLE_LABEL = "all"
 def read_metrics(run_dir: Path) -> dict[str, Any] | None:
     """A run directory's ``metrics.json``, or None when it is missing or unreadable."""
     try:
-        doc = json.loads((Path(run_dir) / "metrics.json").read_text())
+        doc = json.loads((Path(run_dir) / layout.METRICS_JSON).read_text())
     except (OSError, ValueError):
         return None
     return doc if isinstance(doc, dict) else None

@@ -14,6 +14,7 @@ from typing import Any
 
 import numpy as np
 
+from agrisim.files import layout
 from agrisim.files.atomic import write_bytes, write_json, write_through
 from agrisim.errors import OutputError, UserError
 from agrisim.interfaces import ALL, Cloud, Reconstruction, Reconstructor, SurfaceMesh
@@ -110,11 +111,10 @@ def summary_metrics(metrics: dict[str, Any]) -> dict[str, Any]:
 
 def output_files(out_dir: Path, result: Reconstruction) -> list[Path]:
     """The files :func:`write_reconstruction` writes for ``result``."""
-    clouds = out_dir / "clouds"
     return (
-        [clouds / f"{name}.ply" for name in result.clouds]
-        + [clouds / f"{name}_mesh.ply" for name in result.meshes]
-        + [out_dir / "metrics.json"]
+        [layout.cloud(out_dir, name) for name in result.clouds]
+        + [layout.surface(out_dir, name) for name in result.meshes]
+        + [out_dir / layout.METRICS_JSON]
     )
 
 
@@ -123,25 +123,24 @@ def write_reconstruction(out_dir: Path, result: Reconstruction, metrics: dict[st
     ``metrics.json``, each written atomically."""
     import open3d as o3d
 
-    clouds = out_dir / "clouds"
-    clouds.mkdir(parents=True, exist_ok=True)
+    (out_dir / layout.CLOUDS).mkdir(parents=True, exist_ok=True)
     for name, cloud in result.clouds.items():
         if len(cloud.points) == 0:  # Open3D refuses to write an empty cloud; readers accept one
-            write_bytes(clouds / f"{name}.ply", _EMPTY_PLY)
+            write_bytes(layout.cloud(out_dir, name), _EMPTY_PLY)
             continue
         pcd = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(cloud.points))
         pcd.colors = o3d.utility.Vector3dVector(cloud.colors.astype(np.float64) / 255.0)
-        write_through(clouds / f"{name}.ply", lambda tmp, g=pcd: o3d.io.write_point_cloud(tmp, g, write_ascii=False))
+        write_through(layout.cloud(out_dir, name), lambda tmp, g=pcd: o3d.io.write_point_cloud(tmp, g, write_ascii=False))
     for name, mesh in result.meshes.items():
         if len(mesh.vertices) == 0:
-            write_bytes(clouds / f"{name}_mesh.ply", _EMPTY_PLY)
+            write_bytes(layout.surface(out_dir, name), _EMPTY_PLY)
             continue
         tm = o3d.geometry.TriangleMesh(
             o3d.utility.Vector3dVector(mesh.vertices), o3d.utility.Vector3iVector(mesh.triangles)
         )
         tm.vertex_colors = o3d.utility.Vector3dVector(_vertex_colors(mesh).astype(np.float64) / 255.0)
-        write_through(clouds / f"{name}_mesh.ply", lambda tmp, g=tm: o3d.io.write_triangle_mesh(tmp, g, write_ascii=False))
-    write_json(out_dir / "metrics.json", metrics)
+        write_through(layout.surface(out_dir, name), lambda tmp, g=tm: o3d.io.write_triangle_mesh(tmp, g, write_ascii=False))
+    write_json(out_dir / layout.METRICS_JSON, metrics)
 
 
 _EMPTY_PLY = (
@@ -157,7 +156,7 @@ def truth_from_run(run_dir: Path, samples: int, seed: int = 0) -> GroundTruth | 
     """The ground truth of a saved run: its ``scene/plant.glb`` (world coordinates)."""
     from agrisim.files.plant_asset import load_plant
 
-    path = run_dir / "scene" / "plant.glb"
+    path = run_dir / layout.PLANT_GLB
     if not path.is_file():
         return None
     plant = load_plant(path, place=False)
@@ -191,8 +190,8 @@ def rebuild(
 def check_writable(out_dir: Path, labels: LabelTable, overwrite: bool) -> None:
     """Refuse, before any work, to replace a reconstruction's outputs unless ``overwrite``."""
     names = [lab.name for lab in labels.labels if lab.id != 0] + [ALL]
-    candidates = [out_dir / "metrics.json"] + [
-        out_dir / "clouds" / f"{name}{suffix}.ply" for name in names for suffix in ("", "_mesh")
+    candidates = [out_dir / layout.METRICS_JSON] + [
+        path for name in names for path in (layout.cloud(out_dir, name), layout.surface(out_dir, name))
     ]
     existing = [p for p in candidates if p.exists()]
     if existing and not overwrite:

@@ -14,6 +14,7 @@ from pathlib import Path
 import numpy as np
 from PIL import Image
 
+from agrisim.files import layout
 from agrisim.files.encoding import depth_to_mm
 from agrisim.errors import UserError
 from agrisim.interfaces import CameraModel, Capture, View
@@ -46,17 +47,16 @@ def _read_png(path: Path, what: str) -> np.ndarray:
 
 def load_view(run_dir: Path, frame: str, camera: CameraModel, world_T_camera: np.ndarray) -> View:
     """A frame of a dataset on disk (``rgb/``, ``labels/``, ``depth/``, ``instances/``)."""
-    name = f"{frame}.png"
-    rgb = _read_png(run_dir / "rgb" / name, "rgb")
-    labels = _read_png(run_dir / "labels" / name, "labels")
-    depth = _read_png(run_dir / "depth" / name, "depth")
+    rgb = _read_png(layout.image(run_dir, "rgb", frame), "rgb")
+    labels = _read_png(layout.image(run_dir, "labels", frame), "labels")
+    depth = _read_png(layout.image(run_dir, "depth", frame), "depth")
     shape = (camera.height, camera.width)
     if rgb.shape[:2] != shape or labels.shape != shape or depth.shape != shape:
         raise UserError(f"frame {frame} in {run_dir} is not {camera.width}x{camera.height} as cameras.json says")
     if rgb.ndim == 3 and rgb.shape[2] == 4:
         rgb = rgb[..., :3]
     instances = None
-    path = run_dir / "instances" / name
+    path = layout.image(run_dir, "instances", frame)
     if path.exists():
         instances = _read_png(path, "instances").astype(np.uint16)
     return View(frame, camera, np.asarray(world_T_camera, float), rgb, labels.astype(np.uint8), depth.astype(np.uint16), instances)

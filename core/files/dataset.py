@@ -28,6 +28,7 @@ from typing import Any
 import numpy as np
 from PIL import Image
 
+from agrisim.files import layout
 from agrisim.evaluation.session import write_reconstruction
 from agrisim.files.atomic import write_bytes, write_json
 from agrisim.files.encoding import depth_to_mm
@@ -150,7 +151,7 @@ class DatasetWriter:
         if cam is None:
             return
         write_json(
-            self.out / "cameras.json",
+            self.out / layout.CAMERAS_JSON,
             {
                 "convention": "OpenCV (x right, y down, z forward); pixel centres at integer coordinates",
                 "intrinsics": {"width": cam.width, "height": cam.height, "K": cam.K.tolist(), "hfov_deg": cam.hfov_deg},
@@ -160,13 +161,13 @@ class DatasetWriter:
 
     def _write(self, run: Run) -> None:
         self._collect()
-        write_json(self.out / "run.json", self._run_json(run))
+        write_json(self.out / layout.RUN_JSON, self._run_json(run))
 
     @hookimpl
     def agrisim_run_started(self, run: Run) -> None:
         if run.scene is not None and run.labels is not None:
             # the ground truth: the plant as placed in the world, with albedo and labels
-            export_glb(run.scene.mesh(run.scene.plant), self.out / "scene" / "plant.glb", run.labels)
+            export_glb(run.scene.mesh(run.scene.plant), self.out / layout.PLANT_GLB, run.labels)
         self._write(run)
 
     @hookimpl
@@ -201,7 +202,7 @@ class DatasetWriter:
             self._writer.shutdown(wait=True)
             self.status = summary.status
             self.summary = summary.to_dict()
-            write_json(self.out / "run.json", self._run_json(run))
+            write_json(self.out / layout.RUN_JSON, self._run_json(run))
         if self.frames and run.labels is not None:
             # after run.json: the export reads the frames it lists as complete
             write_nerfstudio(self.out)
@@ -209,15 +210,14 @@ class DatasetWriter:
 
 def write_frame(out: Path, frame: str, images: dict[str, np.ndarray], palette: np.ndarray | None) -> None:
     """One frame's image files (rgb, labels, labels_vis, depth, instances), each atomic."""
-    name = f"{frame}.png"
     if "rgb" in images:
-        write_png(out / "rgb" / name, images["rgb"])
+        write_png(layout.image(out, "rgb", frame), images["rgb"])
     if "labels" in images:
-        write_png(out / "labels" / name, images["labels"])
+        write_png(layout.image(out, "labels", frame), images["labels"])
         if palette is not None:
-            write_png(out / "labels_vis" / name, images["labels"], palette=palette)
+            write_png(layout.image(out, "labels_vis", frame), images["labels"], palette=palette)
     if "depth" in images:
-        write_png(out / "depth" / name, depth_to_mm(images["depth"]))
+        write_png(layout.image(out, "depth", frame), depth_to_mm(images["depth"]))
     if images.get("instances") is not None:
-        write_png(out / "instances" / name, images["instances"].astype(np.uint16))
+        write_png(layout.image(out, "instances", frame), images["instances"].astype(np.uint16))
 

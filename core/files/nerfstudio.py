@@ -30,14 +30,14 @@ from typing import Any
 import numpy as np
 from PIL import Image
 
+from agrisim.files import layout
+from agrisim.interfaces import ALL
 from agrisim.files.atomic import write_bytes, write_json
 from agrisim.errors import UserError
 from agrisim.files.rundir import read_json
 
 #: OpenCV optical frame -> OpenGL camera frame (negate y and z), as a right factor on camera-to-world
 CV_TO_GL = np.diag([1.0, -1.0, -1.0, 1.0])
-#: the images a frame needs for the nerfstudio export
-FRAME_IMAGES = ("rgb", "labels", "depth")
 
 
 class ExportError(UserError):
@@ -122,7 +122,7 @@ def write_nerfstudio(run_dir: Path) -> Path:
     run_dir = Path(run_dir)
     if not run_dir.is_dir():
         raise ExportError(f"{run_dir} is not a directory: give an agrisim run directory (agrisim run --out DIR)")
-    run = _read_json(run_dir / "run.json", "not an agrisim run directory")
+    run = _read_json(run_dir / layout.RUN_JSON, "not an agrisim run directory")
     status = run.get("status")
     if status == "running":
         raise ExportError(
@@ -136,7 +136,7 @@ def write_nerfstudio(run_dir: Path) -> Path:
         raise ExportError(f"the run in {run_dir} has no complete frames to export (status {status})")
     if not all(isinstance(name, str) and name for name in complete):
         raise ExportError(f"{run_dir / 'run.json'}: frames_complete must list frame names")
-    cameras = _read_json(run_dir / "cameras.json", "the run wrote no frames, or is half-written")
+    cameras = _read_json(run_dir / layout.CAMERAS_JSON, "the run wrote no frames, or is half-written")
     intrinsics, known = cameras.get("intrinsics"), cameras.get("frames")
     if not isinstance(known, dict) or not _valid_intrinsics(intrinsics):
         raise ExportError(f"{run_dir / 'cameras.json'} lacks intrinsics (K, width, height) or frames")
@@ -154,17 +154,17 @@ def write_nerfstudio(run_dir: Path) -> Path:
             ok = False
         if not ok:
             raise ExportError(f"{run_dir / 'cameras.json'}: frame {name} has no 4x4 world_T_camera")
-        for folder in FRAME_IMAGES:
-            if not (run_dir / folder / f"{name}.png").is_file():
-                raise ExportError(f"{run_dir / folder / (name + '.png')} is missing: a half-written run")
+        for folder in layout.REQUIRED_FOLDERS:
+            if not layout.image(run_dir, folder, name).is_file():
+                raise ExportError(f"{layout.image(run_dir, folder, name)} is missing: a half-written run")
     width, height = int(intrinsics["width"]), int(intrinsics["height"])
-    masks = {name: _mask_png(run_dir / "labels" / f"{name}.png", width, height) for name in complete}
+    masks = {name: _mask_png(layout.image(run_dir, "labels", name), width, height) for name in complete}
     doc = nerfstudio_transforms(intrinsics, {name: known[name] for name in complete})
-    if (run_dir / "clouds" / "all.ply").is_file():
-        doc["ply_file_path"] = "clouds/all.ply"  # splatfacto starts from it
+    if layout.cloud(run_dir, ALL).is_file():
+        doc["ply_file_path"] = layout.cloud(Path(), ALL).as_posix()  # splatfacto starts from it: clouds/all.ply
 
     for name, data in masks.items():
-        write_bytes(run_dir / "masks" / f"{name}.png", data)
-    out = run_dir / "transforms.json"
+        write_bytes(layout.image(run_dir, layout.MASKS, name), data)
+    out = run_dir / layout.TRANSFORMS_JSON
     write_json(out, doc)
     return out

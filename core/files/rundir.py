@@ -14,6 +14,7 @@ from typing import Any
 
 import numpy as np
 
+from agrisim.files import layout
 from agrisim.errors import UserError
 from agrisim.interfaces import CameraModel
 from agrisim.scene.model import Label, LabelTable
@@ -39,7 +40,7 @@ def read_run(run_dir: Path) -> tuple[dict[str, Any], dict[str, Any]]:
     running, was interrupted or failed is refused (its frames are not all there)."""
     if not run_dir.is_dir():
         raise UserError(f"{run_dir} is not a directory")
-    run, cameras = (read_json(run_dir / name, "not a rendered agrisim run") for name in ("run.json", "cameras.json"))
+    run, cameras = (read_json(run_dir / name, "not a rendered agrisim run") for name in (layout.RUN_JSON, layout.CAMERAS_JSON))
     status = run.get("status")
     if status != "complete":
         raise UserError(
@@ -56,9 +57,9 @@ def read_run(run_dir: Path) -> tuple[dict[str, Any], dict[str, Any]]:
     if missing:
         raise UserError(f"{run_dir / 'cameras.json'} lacks frames {', '.join(missing[:3])} that run.json lists")
     for name in complete:
-        for folder in ("rgb", "labels", "depth"):
-            if not (run_dir / folder / f"{name}.png").is_file():
-                raise UserError(f"missing {folder} image {run_dir / folder / name}.png: the run's frames are incomplete")
+        for folder in layout.REQUIRED_FOLDERS:
+            if not layout.image(run_dir, folder, name).is_file():
+                raise UserError(f"missing {folder} image {layout.image(run_dir, folder, name)}: the run's frames are incomplete")
     return run, cameras
 
 

@@ -25,7 +25,7 @@ from agrisim.config import CellConfig, RenderConfig
 from agrisim.interfaces import ALL, JointTrajectory, PlanningFailed, View
 from agrisim.kinds import KINDS, BackendSpec
 from agrisim.registry import Registry
-from agrisim.robot.segments import path_is_valid, segment_samples
+from agrisim.robot.segments import path_is_valid
 from agrisim.scene.camera import CameraModel, from_fov
 from agrisim.scene.cell import Cell, build_cell
 from agrisim.scene.model import PLANT_FIT_HEIGHT, PLANT_FIT_RADIUS, Label, LabelTable, Plant

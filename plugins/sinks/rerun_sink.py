@@ -41,6 +41,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from agrisim.files import layout
 from agrisim import BackendSpec, hookimpl
 from agrisim.files.encoding import depth_to_mm
 from agrisim.robot import meshes as robot_meshes
@@ -220,7 +221,7 @@ def recording_id(run: Run) -> str:
 def rrd_path(run: Run) -> Path:
     """Where the recording is saved: ``--rrd`` or ``OUT/recording.rrd``."""
     rrd = run.config.output.rrd
-    return Path(rrd).expanduser() if rrd is not None else Path(run.out_dir) / "recording.rrd"
+    return Path(rrd).expanduser() if rrd is not None else Path(run.out_dir) / layout.RECORDING
 
 
 def _robot_color(run: Run, robot: str) -> tuple[int, int, int]:

@@ -1,0 +1,49 @@
+"""The run directory's layout: where each file of a run lives, defined once.
+
+::
+
+    OUT/run.json               what ran and how far it got (status, per-setpoint results)
+    OUT/cameras.json           intrinsics and the pose of every complete frame
+    OUT/<folder>/<frame>.png   folder: rgb, labels, labels_vis, depth, instances
+    OUT/masks/<frame>.png      nerfstudio's masks (255 = plant)
+    OUT/clouds/<label>.ply     reconstructed clouds; <label>_mesh.ply for surfaces
+    OUT/metrics.json           accuracy against the true plant
+    OUT/transforms.json        the nerfstudio export
+    OUT/scene/plant.glb        the plant as rendered, with its label textures
+    OUT/recording.rrd          the Rerun recording (unless --rrd puts it elsewhere)
+
+The dataset writer writes it; ``--resume``, ``agrisim recon``, the exports and ``agrisim compare``
+read it, all through these names.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+RUN_JSON = "run.json"
+CAMERAS_JSON = "cameras.json"
+METRICS_JSON = "metrics.json"
+TRANSFORMS_JSON = "transforms.json"
+RECORDING = "recording.rrd"
+PLANT_GLB = Path("scene") / "plant.glb"
+CLOUDS = "clouds"
+MASKS = "masks"
+#: the image folders of a frame, each holding ``<frame>.png``
+FRAME_FOLDERS = ("rgb", "labels", "labels_vis", "depth", "instances")
+#: the folders every complete rendered frame has (instances only where leaves are numbered)
+REQUIRED_FOLDERS = ("rgb", "labels", "depth")
+
+
+def image(root: Path, folder: str, frame: str) -> Path:
+    """``root/<folder>/<frame>.png``."""
+    return Path(root) / folder / f"{frame}.png"
+
+
+def cloud(root: Path, label: str) -> Path:
+    """The reconstructed cloud of ``label``: ``root/clouds/<label>.ply``."""
+    return Path(root) / CLOUDS / f"{label}.ply"
+
+
+def surface(root: Path, label: str) -> Path:
+    """The reconstructed surface of ``label``: ``root/clouds/<label>_mesh.ply``."""
+    return Path(root) / CLOUDS / f"{label}_mesh.ply"
