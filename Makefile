@@ -18,8 +18,11 @@ bench: setup
 
 # Re-resolve requirements.lock from pyproject.toml's ranges (newest versions that fit), with
 # hashes, for every Python the project supports; then run `make test` before committing it.
+# `make lock UPGRADE=` keeps every pin that still fits and only adds what is new (a dependency
+# just added to pyproject.toml).
+UPGRADE ?= --upgrade
 lock: setup
-	$(VENV)/bin/uv pip compile pyproject.toml --extra dev --extra helios --upgrade --generate-hashes \
+	$(VENV)/bin/uv pip compile pyproject.toml --extra dev --extra helios $(UPGRADE) --generate-hashes \
 		--universal --python-version 3.10 --custom-compile-command "make lock" -o requirements.lock
 
 clean:
