@@ -13,7 +13,7 @@ import argparse
 import statistics
 import time
 
-from agrisim.plugins.plants import helios_convert as hc
+from agrisim.plugins.plants.helios import convert as hc
 from agrisim.plugins.plants.helios import HeliosPlantOptions, grow, helios_plant
 
 

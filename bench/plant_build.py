@@ -13,7 +13,7 @@ import time
 from machine import cpu_model  # bench/machine.py: the script's own folder is on sys.path
 
 from agrisim.plugins.plants.procedural import grow
-from agrisim.plugins.plants.species import SPECIES
+from agrisim.plugins.plants.procedural.species import SPECIES
 
 
 def main() -> None:

@@ -20,7 +20,7 @@ from agrisim.config import RunConfig, build_config
 from agrisim.episode import Episode, resolve_plant
 from agrisim.errors import UserError
 from agrisim.plugins.plants import helios as H
-from agrisim.plugins.plants import helios_convert as hc
+from agrisim.plugins.plants.helios import convert as hc
 from agrisim.scene.model import PLANT_FIT_HEIGHT as FIT_HEIGHT, PLANT_FIT_RADIUS as FIT_RADIUS
 from agrisim.registry import Registry, make_plugin_manager
 from agrisim.scene.texturing import interpolate_uv, opaque

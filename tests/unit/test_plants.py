@@ -10,7 +10,7 @@ import pytest
 from pydantic import ValidationError
 
 from agrisim.plugins.plants.procedural import ProceduralPlantOptions, grow
-from agrisim.plugins.plants.species import SPECIES
+from agrisim.plugins.plants.procedural.species import SPECIES
 from agrisim.registry import Registry, make_plugin_manager
 from agrisim.scene.model import Mesh, Plant
 from agrisim.scene.texturing import cutaway_fraction, interpolate_uv, label_at, opaque_samples, sample_surface
@@ -284,7 +284,7 @@ def test_every_plant_source_uses_the_one_palette(plants):
     colours from agrisim.scene.palette, which holds the paper's four; within a plant no two
     labels share a colour."""
     from agrisim.files.plant_asset import load_plant  # noqa: F401 - the reader whose defaults come from PALETTE
-    from agrisim.plugins.plants.helios_convert import ORGANS
+    from agrisim.plugins.plants.helios.convert import ORGANS
     from agrisim.scene.palette import PALETTE, PAPER
 
     assert PAPER == {"leaf": (0, 255, 0), "flower_white": (0, 0, 255), "flower_purple": (255, 0, 0), "stem": (96, 0, 128)}

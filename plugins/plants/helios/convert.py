@@ -33,9 +33,9 @@ import numpy as np
 
 from agrisim.scene.model import Label, LabelTable, Material, Mesh
 
+from agrisim.scene.colour import srgb_to_linear
 from agrisim.scene.palette import PALETTE
 
-from .textures import srgb_to_linear
 
 #: The organ labels of every Helios plant. Ids are fixed across models and ages, so a dataset of
 #: several Helios plants uses one id per organ; a plant's table lists only the organs it has.
@@ -237,7 +237,7 @@ def to_mesh(
         first = int(np.flatnonzero(prim_material == k)[0])
         texture = str(tex_names[t])
         organ = next(lab.name for lab in ORGANS if lab.id == label)
-        colour = (*srgb_to_linear(tuple(prims.colors[first])), 1.0)
+        colour = (*(float(c) for c in srgb_to_linear(prims.colors[first])), 1.0)
         double_sided = bool(double_sided)
         if texture:
             rgba, has_alpha = load_texture(texture)

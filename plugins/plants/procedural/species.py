@@ -25,7 +25,7 @@ from agrisim.scene.model import Label, LabelTable
 from agrisim.scene.palette import BACKGROUND, PALETTE
 
 from . import painters as P
-from .geometry import MeshBuilder, bezier, direction, plate_cards, solid_leaves, strip_cards, tubes, unit
+from .shapes import MeshBuilder, bezier, direction, plate_cards, solid_leaves, strip_cards, tubes, unit
 from .textures import Atlas, Tile
 
 LEAF, STEM, FLOWER = 1, 2, 3
@@ -799,7 +799,7 @@ def grow_coltsfoot(geo, tex, size, density) -> Grown:
 
 
 def _plate_e2(normal: np.ndarray) -> np.ndarray:
-    from .geometry import frame
+    from .shapes import frame
 
     return frame(normal, np.zeros(len(normal)))[1]
 

@@ -3,7 +3,7 @@
 Every model of the installed Helios plant-architecture library is a species ``helios:<model>``
 (``helios:tomato``, ``helios:bean``, ``helios:strawberry`` ...). ``build(seed)`` seeds Helios's
 random generator, grows one plant of the model to its age in days (``--plant-age``, or the
-model's default from :data:`DEFAULT_AGES`) and converts it with :mod:`.helios_convert`: textured
+model's default from :data:`DEFAULT_AGES`) and converts it with :mod:`.convert`: textured
 triangles, organ labels (leaf, stem, petiole, peduncle, flower, fruit) and one leaf instance per
 Helios leaf object. The same seed and age give identical arrays.
 
@@ -35,7 +35,7 @@ from agrisim.errors import UserError
 from agrisim.interfaces import PlantSpecies
 from agrisim.scene.model import Mesh, Plant
 
-from . import helios_convert as hc
+from . import convert as hc
 
 PREFIX = "helios:"
 EXTRA_HINT = "pip install 'agrisim[helios]'"
