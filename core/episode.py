@@ -9,8 +9,6 @@ reason and the run goes on.
 from __future__ import annotations
 
 import datetime as _dt
-import os
-import shutil
 import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
@@ -21,14 +19,13 @@ import numpy as np
 import pluggy
 from pydantic import BaseModel
 
-from agrisim.files import layout
 from agrisim.files.plant_asset import FORMATS, load_plant
 from agrisim.files.atomic import remove_partial
 from agrisim.files.dataset import DatasetWriter
 from agrisim.scene.camera import preset
 from agrisim.scene.cell import build_cell
 from agrisim.config import BackendChoice, RunConfig, backend_options
-from agrisim.errors import BackendFailure, OutputError, UserError
+from agrisim.errors import BackendFailure, UserError
 from agrisim.scene.transforms import pose_error
 from agrisim.interfaces import (
     Capture,
@@ -45,7 +42,7 @@ from agrisim.lab.room import build_scene
 from agrisim.evaluation.metrics import GroundTruth
 from agrisim.robot.segments import segment_is_valid
 from agrisim.evaluation.session import ReconSession, summary_metrics
-from agrisim.files.rundir import read_json
+from agrisim.files.rundir import prepare_out_dir, resolve_out_dir, saved_run  # noqa: F401 - saved_run: part of the API
 from agrisim.scene.model import Plant, Scene
 from agrisim.capabilities import check_renderer
 from agrisim.records import Run, RunSummary, SetpointResult
@@ -530,53 +527,6 @@ def resolve_plant(registry: Registry, config: RunConfig) -> Plant:
 
 
 # ---------------------------------------------------------------------- output directory
-
-
-def resolve_out_dir(config: RunConfig) -> Path:
-    """The output directory, checked (not created): exists only with --overwrite, writable."""
-    out = config.output.out
-    if out is None:
-        stamp = _dt.datetime.now().strftime("%Y%m%d-%H%M%S")
-        out = Path("runs") / stamp
-    out = out.expanduser()
-    if config.output.resume:
-        saved_run(out)  # raises unless there is an unfinished run to continue
-        return out
-    if out.exists():
-        if not out.is_dir():
-            raise OutputError(f"--out {out} exists and is not a directory")
-        if any(out.iterdir()) and not config.output.overwrite:
-            raise OutputError(f"--out {out} already exists; pass --overwrite to replace it")
-    rrd = config.output.rrd
-    if rrd is not None and rrd.exists() and not config.output.overwrite:
-        raise OutputError(f"--rrd {rrd} already exists; pass --overwrite to replace it")
-    parent = out
-    while not parent.exists():
-        parent = parent.parent
-    if not parent.is_dir() or not os.access(parent, os.W_OK | os.X_OK):
-        raise OutputError(f"--out {out} is not writable ({parent} does not allow creating files)")
-    return out
-
-
-def saved_run(out: Path) -> dict[str, Any]:
-    """The ``run.json`` of an unfinished run in ``out`` (for ``--resume``)."""
-    path = out / layout.RUN_JSON
-    doc = read_json(path, "not an agrisim run to continue", OutputError, prefix="--resume: ")
-    if not isinstance(doc.get("config"), dict):
-        raise OutputError(f"--resume: {path} holds no run configuration")
-    if doc.get("status") == "complete":
-        raise OutputError(f"--resume: the run in {out} is complete; nothing to continue")
-    return doc
-
-
-def prepare_out_dir(out: Path, config: RunConfig) -> None:
-    """Create the output directory, replacing an old one only under --overwrite."""
-    if out.exists() and config.output.overwrite:
-        shutil.rmtree(out)
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise OutputError(f"cannot create --out {out}: {exc}") from None
 
 
 def run_episode(config: RunConfig, *, pm: pluggy.PluginManager | None = None) -> tuple[Run, RunSummary]:

@@ -278,7 +278,7 @@ def _resume_config(args: argparse.Namespace, overrides: dict[str, Any]) -> RunCo
     gives (flags, ``--set``, ``--config``) must equal the saved one; the first that differs is
     refused, naming it.
     """
-    from agrisim.episode import saved_run
+    from agrisim.files.rundir import saved_run
 
     if args.overwrite:
         raise UserError("--overwrite and --resume exclude each other")

@@ -1,4 +1,5 @@
-"""Reading a run directory back: its JSON documents, checked, with one-line errors.
+"""The run directory from outside the writer: reading it back (its JSON documents, checked,
+with one-line errors), and checking and preparing the output directory of a new or resumed run.
 
 ``run.json`` and ``cameras.json`` are agrisim's own files, but a directory given on the command
 line may be anything: every reader here turns a missing, unreadable or malformed document into
@@ -8,16 +9,22 @@ why.
 
 from __future__ import annotations
 
+import datetime as _dt
 import json
+import os
+import shutil
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from agrisim.files import layout
-from agrisim.errors import UserError
+from agrisim.errors import OutputError, UserError
 from agrisim.interfaces import CameraModel
 from agrisim.scene.model import Label, LabelTable
+
+if TYPE_CHECKING:
+    from agrisim.config import RunConfig
 
 
 def read_json(path: Path, missing: str, error: type[UserError] = UserError, prefix: str = "") -> dict[str, Any]:
@@ -72,3 +79,53 @@ def camera_from_json(intrinsics: dict[str, Any]) -> CameraModel:
 def label_table_from_json(rows: list[dict[str, Any]]) -> LabelTable:
     """The label table ``run.json`` records."""
     return LabelTable([Label(int(r["id"]), str(r["name"]), tuple(int(c) for c in r["color"])) for r in rows])
+
+
+# ---------------------------------------------------------------- the output directory of a run
+
+
+def resolve_out_dir(config: RunConfig) -> Path:
+    """The output directory, checked (not created): exists only with --overwrite, writable."""
+    out = config.output.out
+    if out is None:
+        stamp = _dt.datetime.now().strftime("%Y%m%d-%H%M%S")
+        out = Path("runs") / stamp
+    out = out.expanduser()
+    if config.output.resume:
+        saved_run(out)  # raises unless there is an unfinished run to continue
+        return out
+    if out.exists():
+        if not out.is_dir():
+            raise OutputError(f"--out {out} exists and is not a directory")
+        if any(out.iterdir()) and not config.output.overwrite:
+            raise OutputError(f"--out {out} already exists; pass --overwrite to replace it")
+    rrd = config.output.rrd
+    if rrd is not None and rrd.exists() and not config.output.overwrite:
+        raise OutputError(f"--rrd {rrd} already exists; pass --overwrite to replace it")
+    parent = out
+    while not parent.exists():
+        parent = parent.parent
+    if not parent.is_dir() or not os.access(parent, os.W_OK | os.X_OK):
+        raise OutputError(f"--out {out} is not writable ({parent} does not allow creating files)")
+    return out
+
+
+def saved_run(out: Path) -> dict[str, Any]:
+    """The ``run.json`` of an unfinished run in ``out`` (for ``--resume``)."""
+    path = out / layout.RUN_JSON
+    doc = read_json(path, "not an agrisim run to continue", OutputError, prefix="--resume: ")
+    if not isinstance(doc.get("config"), dict):
+        raise OutputError(f"--resume: {path} holds no run configuration")
+    if doc.get("status") == "complete":
+        raise OutputError(f"--resume: the run in {out} is complete; nothing to continue")
+    return doc
+
+
+def prepare_out_dir(out: Path, config: RunConfig) -> None:
+    """Create the output directory, replacing an old one only under --overwrite."""
+    if out.exists() and config.output.overwrite:
+        shutil.rmtree(out)
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise OutputError(f"cannot create --out {out}: {exc}") from None
