@@ -42,7 +42,7 @@ from agrisim.lab.room import build_scene
 from agrisim.evaluation.metrics import GroundTruth
 from agrisim.robot.segments import segment_is_valid
 from agrisim.evaluation.session import ReconSession, summary_metrics
-from agrisim.files.rundir import prepare_out_dir, resolve_out_dir, saved_run  # noqa: F401 - saved_run: part of the API
+from agrisim.files.rundir import prepare_out_dir, resolve_out_dir, saved_run
 from agrisim.scene.model import Plant, Scene
 from agrisim.capabilities import check_renderer
 from agrisim.records import Run, RunSummary, SetpointResult

@@ -269,7 +269,7 @@ class Reconstructor(ABC):
 
     Built once per run as ``factory(labels, options)``: ``labels`` is the run's
     :class:`agrisim.scene.model.LabelTable`; every non-background label is reconstructed on its own and
-    all of them together as ``"all"``. Views arrive as :class:`agrisim.evaluation.views.View` (images as the
+    all of them together as ``"all"``. Views arrive as :class:`View` (images as the
     dataset stores them), in capture order.
     """
 

@@ -13,6 +13,7 @@ from typing import Any, Literal
 
 from pydantic import BaseModel
 
+from agrisim.interfaces import PhysicsBackend, Planner, PlantSpecies, Reconstructor, Renderer
 from agrisim.options import Options
 
 Kind = Literal["physics", "renderer", "planner", "reconstructor", "plant", "sink"]
@@ -27,24 +28,24 @@ class KindInfo:
     section: str | None
     """The configuration section choosing one (``[physics] backend = ...``); None: not chosen
     by a setting (every plant is selectable by name, every sink is on)."""
-    abc: str | None
-    """``module:Class`` every factory result must be an instance of (None: any object, as a
-    sink is a plugin object with event hooks)."""
+    abc: type | None
+    """The ABC every factory result must be an instance of (None: any object, as a sink is a
+    plugin object with event hooks)."""
     factory: str
     """The factory's signature, as the core calls it."""
 
 
 #: The kinds of backend: the one table the registry, the episode, compare and the CLI read.
 KINDS: dict[str, KindInfo] = {
-    "physics": KindInfo("agrisim_physics", "physics", "agrisim.interfaces:PhysicsBackend",
+    "physics": KindInfo("agrisim_physics", "physics", PhysicsBackend,
                         "factory(cell: Cell, options) -> PhysicsBackend"),
-    "renderer": KindInfo("agrisim_renderers", "renderer", "agrisim.interfaces:Renderer",
+    "renderer": KindInfo("agrisim_renderers", "renderer", Renderer,
                          "factory(scene: Scene, cell: Cell, settings: RenderConfig, options) -> Renderer"),
-    "planner": KindInfo("agrisim_planners", "planner", "agrisim.interfaces:Planner",
+    "planner": KindInfo("agrisim_planners", "planner", Planner,
                         "factory(options) -> Planner"),
-    "reconstructor": KindInfo("agrisim_reconstructors", "recon", "agrisim.interfaces:Reconstructor",
+    "reconstructor": KindInfo("agrisim_reconstructors", "recon", Reconstructor,
                               "factory(labels: LabelTable, options) -> Reconstructor"),
-    "plant": KindInfo("agrisim_plants", None, "agrisim.interfaces:PlantSpecies",
+    "plant": KindInfo("agrisim_plants", None, PlantSpecies,
                       "factory(options) -> PlantSpecies"),
     "sink": KindInfo("agrisim_sinks", None, None, "factory(run: Run) -> a plugin object with event hooks"),
 }  # fmt: skip

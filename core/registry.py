@@ -137,15 +137,12 @@ class Registry:
         """
         built = spec.factory(*args)
         abc = KINDS[kind].abc
-        if abc is not None:
-            module, _, name = abc.partition(":")
-            expected = getattr(importlib.import_module(module), name)
-            if not isinstance(built, expected):
-                origin = f" (from {spec.distribution})" if spec.distribution else ""
-                raise BackendFailure(
-                    f"{kind} backend {spec.name!r}{origin}: its factory returned {type(built).__name__}, "
-                    f"not an {module}.{name}"
-                )
+        if abc is not None and not isinstance(built, abc):
+            origin = f" (from {spec.distribution})" if spec.distribution else ""
+            raise BackendFailure(
+                f"{kind} backend {spec.name!r}{origin}: its factory returned {type(built).__name__}, "
+                f"not an {abc.__module__}.{abc.__qualname__}"
+            )
         return built
 
     def get(self, kind: str, name: str) -> BackendSpec:

@@ -267,7 +267,7 @@ def _cmd_recon(args: argparse.Namespace) -> int:
             scores = ", ".join(f"F@{t}mm {v:.3f}" for t, v in row["fscore"].items())
             line += f", {scores}, Chamfer {row['chamfer_mm']:.2f} mm" if row["chamfer_mm"] is not None else f", {scores}"
         print(line)
-    print(f"output: {out / 'clouds'}  {out / 'metrics.json'}")
+    print(f"output: {out / layout.CLOUDS}  {out / layout.METRICS_JSON}")
     return 0
 
 

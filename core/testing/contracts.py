@@ -216,8 +216,8 @@ def check_reconstructor(registry: Registry, spec: BackendSpec, options: Any) -> 
     result = recon.result()
     caps = spec.capabilities
     assert {ALL, "leaf", "stem"} <= set(merged), f"merged clouds {sorted(merged)}"
-    for where, clouds in (("merged", merged), ("result", result.clouds if caps.clouds else {})):
-        for name in (ALL, "leaf", "stem") if clouds or where == "merged" else ():
+    for where, clouds in [("merged", merged)] + ([("result", result.clouds)] if caps.clouds else []):
+        for name in (ALL, "leaf", "stem"):
             pts = clouds[name].points
             assert len(pts) > 100, f"{where} {name}: {len(pts)} points"
             assert np.max(np.abs(pts[:, 2] - plane_z)) < 0.003, f"{where} {name}: points off the plane z = {plane_z} m"

@@ -283,7 +283,6 @@ def test_every_plant_source_uses_the_one_palette(plants):
     """Procedural species, Helios crops and files read without colours all take their label
     colours from agrisim.scene.palette, which holds the paper's four; within a plant no two
     labels share a colour."""
-    from agrisim.files.plant_asset import load_plant  # noqa: F401 - the reader whose defaults come from PALETTE
     from agrisim.plugins.plants.helios.convert import ORGANS
     from agrisim.scene.palette import PALETTE, PAPER
 

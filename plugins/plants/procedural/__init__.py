@@ -3,8 +3,8 @@ ten Megascans assets (Table 1), built the way game artists build plants: alpha-t
 frond and blade cards on a shared RGBA atlas with a label texture at the same UVs, opaque tube
 stems, and (boxwood) dense solid leaf geometry.
 
-Every species fits, at ``scale = 1``, in a cylinder of radius :data:`FIT_RADIUS` and height
-:data:`FIT_HEIGHT` above the soil (plant frame: origin at the centre of the soil surface, z up).
+Every species fits, at ``scale = 1``, in a cylinder of radius :data:`agrisim.scene.model.PLANT_FIT_RADIUS` and height
+:data:`agrisim.scene.model.PLANT_FIT_HEIGHT` above the soil (plant frame: origin at the centre of the soil surface, z up).
 The same seed gives identical arrays.
 """
 
@@ -20,7 +20,6 @@ from agrisim.scene.model import PLANT_FIT_HEIGHT, PLANT_FIT_RADIUS, Material, Me
 from .species import SPECIES, Grown
 from .textures import srgb_to_linear
 
-FIT_RADIUS, FIT_HEIGHT = PLANT_FIT_RADIUS, PLANT_FIT_HEIGHT  # the core's plant-fit cylinder
 SOIL_DEPTH = 0.012
 """How far stems and bulbs may reach into the soil, m."""
 
@@ -64,7 +63,7 @@ def grow(species: str, seed: int, options: ProceduralPlantOptions | None = None)
     b = grown.builder
     # keep every plant within the camera-safe cylinder at scale 1 (shrink if a seed grew big)
     rmax, _zmin, zmax = b.bounds()
-    fit = min(1.0, FIT_RADIUS / rmax, FIT_HEIGHT / zmax)
+    fit = min(1.0, PLANT_FIT_RADIUS / rmax, PLANT_FIT_HEIGHT / zmax)
     b.transform(fit * float(opts.scale))
     # never deeper into the soil than SOIL_DEPTH (at any scale)
     for v in b.vertices:
