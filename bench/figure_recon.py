@@ -20,7 +20,6 @@ import numpy as np  # noqa: E402
 from agrisim.scene.camera import preset  # noqa: E402
 from agrisim.scene.cell import build_cell  # noqa: E402
 from agrisim.config import CellConfig, RenderConfig, RoutineConfig, build_config  # noqa: E402
-from agrisim.files.encoding import depth_to_mm  # noqa: E402
 from agrisim.episode import resolve_plant  # noqa: E402
 from agrisim.lab.room import build_scene  # noqa: E402
 from agrisim.evaluation.metrics import GroundTruth, SurfaceDistance  # noqa: E402
@@ -55,7 +54,7 @@ def main() -> None:
         session = ReconSession(PointCloudReconstructor(scene.labels), scene.labels, truth, [2.0])
         for i, T in enumerate(poses):
             f = renderer.render(camera, T, {})
-            session.add(View(f"v{i}", camera, T, f.rgb, f.labels, depth_to_mm(f.depth)))
+            session.add(View(f"v{i}", camera, T, f.stored()))
         result, metrics = session.finish()
         points = result.clouds["plant"].points
         d_mm = distance(points, 1) * 1e3

@@ -20,7 +20,6 @@ import open3d as o3d
 from agrisim.scene.camera import preset
 from agrisim.scene.cell import build_cell
 from agrisim.config import CellConfig, RenderConfig, RoutineConfig, build_config
-from agrisim.files.encoding import depth_to_mm
 from agrisim.episode import resolve_plant
 from agrisim.lab.room import build_scene
 from agrisim.evaluation.metrics import GroundTruth
@@ -54,11 +53,11 @@ def main() -> None:
     views = []
     for i, T in enumerate(poses):
         f = renderer.render(camera, T, {})
-        views.append(View(f"v{i:03d}", camera, T, f.rgb, f.labels, depth_to_mm(f.depth)))
+        views.append(View(f"v{i:03d}", camera, T, f.stored()))
     print(f"{args.plant}, {len(views)} views at {camera.width}x{camera.height}: rendered in {time.perf_counter() - t0:.1f} s")
 
     t0 = time.perf_counter()
-    per_view = [backproject(v, v.labels != 0, 1.0) for v in views]
+    per_view = [backproject(v, v.images.labels != 0, 1.0) for v in views]
     t_bp = time.perf_counter() - t0
     total = sum(len(p) for p, _ in per_view)
     print(f"  back-projection: {t_bp / len(views) * 1e3:.1f} ms per view, {total:,} plant points in all")

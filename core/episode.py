@@ -440,13 +440,10 @@ class Episode:
                     capture.replayed = True
                     if self._renderer is not None:
                         view = load_view(self.out_dir, capture.frame, self.camera, world_T_camera)
-                        capture.images = view.images()
+                        capture.images = view.images
                 elif self._renderer is not None and self.renderer_spec is not None:
                     with self._stage("render"), blame("renderer", self.renderer_spec, f" rendering {capture.frame}"):
-                        frame = self._renderer.render(self.camera, world_T_camera, self._link_poses())
-                    capture.images = {"rgb": frame.rgb, "labels": frame.labels, "depth": frame.depth}
-                    if frame.instances is not None:
-                        capture.images["instances"] = frame.instances
+                        capture.images = self._renderer.render(self.camera, world_T_camera, self._link_poses())
                     view = view_from_capture(capture)
                 with self._stage("capture"):
                     self.pm.hook.agrisim_capture(run=self._run, capture=capture)

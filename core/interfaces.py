@@ -13,6 +13,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from agrisim.files.encoding import depth_to_mm, mm_to_depth
 from agrisim.scene.camera import CameraModel
 from agrisim.scene.model import LabelTable, Plant, Scene
 
@@ -66,11 +67,37 @@ class Execution:
 
 
 @dataclass
+class Frame:
+    """One camera's images (OpenCV pixel grid, H x W): the one image type, from the renderer
+    through the capture hook to the sinks and the reconstruction."""
+
+    rgb: np.ndarray  # uint8 H x W x 3, sRGB
+    labels: np.ndarray  # uint8 H x W, label ids (0 = background)
+    depth: np.ndarray  # float32 H x W, planar z in metres, 0 where nothing was hit
+    instances: np.ndarray | None = None  # uint16 H x W leaf instance ids, 0 = none
+
+    def depth_mm(self) -> np.ndarray:
+        """Depth as the dataset's PNGs store it: uint16 whole millimetres, 0 = no hit."""
+        return depth_to_mm(self.depth)
+
+    def stored(self) -> Frame:
+        """These images as they read back from the run directory: depth rounded to whole
+        millimetres (float32 metres, as Open3D reads the PNG with ``depth_scale = 1000``), so
+        that a run, its ``--resume`` and ``agrisim recon`` integrate bit-identical data."""
+        return Frame(self.rgb, self.labels, mm_to_depth(self.depth_mm()), self.instances)
+
+    def copy(self) -> Frame:
+        """A deep copy (the arrays too)."""
+        return Frame(
+            self.rgb.copy(), self.labels.copy(), self.depth.copy(), None if self.instances is None else self.instances.copy()
+        )
+
+
+@dataclass
 class Capture:
     """A camera's capture at a reached setpoint (``agrisim_capture``).
 
-    ``images`` is empty until a renderer is configured; renderers fill ``rgb`` (H x W x 3 uint8),
-    ``labels`` (H x W uint8) and ``depth`` (H x W float32, metres, 0 = no hit).
+    ``images`` is the renderer's :class:`Frame`, or None when the run has no renderer.
     """
 
     robot: str
@@ -79,7 +106,7 @@ class Capture:
     sim_time: float
     world_T_camera: np.ndarray
     camera: CameraModel
-    images: dict[str, np.ndarray] = field(default_factory=dict)
+    images: Frame | None = None
     #: a frame already complete on disk from before ``--resume``: replayed, not rendered
     replayed: bool = False
 
@@ -168,16 +195,6 @@ class PlanningFailed(RuntimeError):
     """The planner found no path; the message is the reason recorded for the setpoint."""
 
 
-@dataclass
-class Frame:
-    """One camera's images (OpenCV pixel grid, H x W)."""
-
-    rgb: np.ndarray  # uint8 H x W x 3, sRGB
-    labels: np.ndarray  # uint8 H x W, label ids (0 = background)
-    depth: np.ndarray  # float32 H x W, planar z in metres, 0 where nothing was hit
-    instances: np.ndarray | None = None  # uint16 H x W leaf instance ids, 0 = none
-
-
 class Renderer(ABC):
     """Draws the scene and the arms (at the poses it is given) through a pinhole camera.
 
@@ -209,28 +226,14 @@ class Renderer(ABC):
 
 @dataclass
 class View:
-    """One camera's images at one setpoint (OpenCV optical frame, H x W pixel grid)."""
+    """One camera's images at one setpoint with its pose, as reconstruction sees them: the
+    images are :meth:`Frame.stored` (depth in whole millimetres), whether they come straight
+    from the renderer or are read back from the run directory."""
 
     frame: str
     camera: CameraModel
-    world_T_camera: np.ndarray  # 4x4
-    rgb: np.ndarray  # uint8 H x W x 3
-    labels: np.ndarray  # uint8 H x W label ids
-    depth_mm: np.ndarray  # uint16 H x W planar depth in millimetres, 0 = no hit
-    instances: np.ndarray | None = None  # uint16 H x W leaf instance ids, 0 = none
-
-    def images(self) -> dict[str, np.ndarray]:
-        """The images as a :class:`Capture` carries them (depth in metres)."""
-        out = {"rgb": self.rgb, "labels": self.labels, "depth": self.depth}
-        if self.instances is not None:
-            out["instances"] = self.instances
-        return out
-
-    @property
-    def depth(self) -> np.ndarray:
-        """Planar depth in metres (float32, 0 = no hit), as Open3D reads the depth PNG with
-        ``depth_scale = 1000``."""
-        return self.depth_mm.astype(np.float32) / np.float32(1000.0)
+    world_T_camera: np.ndarray  # 4x4, OpenCV optical frame
+    images: Frame
 
 
 @dataclass

@@ -9,6 +9,7 @@ from agrisim.scene.cell import Cell, build_cell
 from agrisim.config import CellConfig
 from agrisim.robot.kinematics import ArmKinematics
 from agrisim.registry import hookimpl
+from agrisim.interfaces import Frame
 
 
 @pytest.fixture(scope="session")
@@ -38,11 +39,11 @@ class Frames:
     """A plugin object that keeps a copy of every capture's images, by frame name."""
 
     def __init__(self) -> None:
-        self.images: dict[str, dict] = {}
+        self.images: dict[str, Frame] = {}
 
     @hookimpl
     def agrisim_capture(self, run, capture):  # noqa: ANN001 - pluggy passes what the hook names
-        self.images[capture.frame] = {k: v.copy() for k, v in capture.images.items()}
+        self.images[capture.frame] = capture.images.copy()
 
 
 @pytest.fixture

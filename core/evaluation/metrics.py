@@ -24,6 +24,7 @@ from typing import Any
 
 import numpy as np
 
+from agrisim.files.encoding import depth_to_mm
 from agrisim.interfaces import ALL, Reconstruction
 from agrisim.scene.model import LabelTable, Mesh
 from agrisim.scene.texturing import labels_at_samples, opaque_samples, sample_surface, sample_triangles
@@ -74,9 +75,9 @@ def visible_samples(truth: GroundTruth, view: View, among: np.ndarray | None = N
     inside = (col >= 0) & (col < cam.width) & (row >= 0) & (row < cam.height)
     k = front[inside]
     r, c = row[inside].astype(np.int64), col[inside].astype(np.int64)
-    d = view.depth_mm[r, c].astype(np.float64) * 1e-3
+    d = depth_to_mm(view.images.depth[r, c]).astype(np.float64) * 1e-3
     tol = 1e-3 + 2.0 * z[k] / cam.fx
-    seen[k] = (d > 0) & (np.abs(d - z[k]) <= tol) & (view.labels[r, c] == truth.labels[idx[k]])
+    seen[k] = (d > 0) & (np.abs(d - z[k]) <= tol) & (view.images.labels[r, c] == truth.labels[idx[k]])
     return seen
 
 
@@ -94,11 +95,12 @@ class ViewStats:
 
     def add(self, view: View) -> None:
         self.frames += 1
-        ids, counts = np.unique(view.labels[view.labels != 0], return_counts=True)
+        labels, instances = view.images.labels, view.images.instances
+        ids, counts = np.unique(labels[labels != 0], return_counts=True)
         self.pixels[ids] += counts
-        if view.instances is not None:
+        if instances is not None:
             self.has_instances = True
-            self.instances[np.unique(view.instances)] = True
+            self.instances[np.unique(instances)] = True
         if self.truth is not None:
             if self.seen is None:
                 self.seen = np.zeros(len(self.truth.points), bool)

@@ -15,24 +15,16 @@ import numpy as np
 from PIL import Image
 
 from agrisim.files import layout
-from agrisim.files.encoding import depth_to_mm
+from agrisim.files.encoding import mm_to_depth
 from agrisim.errors import UserError
-from agrisim.interfaces import CameraModel, Capture, View
+from agrisim.interfaces import CameraModel, Capture, Frame, View
 
 
 def view_from_capture(capture: Capture) -> View:
     """The view of a freshly rendered capture, with depth rounded to the millimetres the
     dataset stores."""
-    images = capture.images
-    return View(
-        frame=capture.frame,
-        camera=capture.camera,
-        world_T_camera=np.asarray(capture.world_T_camera, float),
-        rgb=images["rgb"],
-        labels=images["labels"],
-        depth_mm=depth_to_mm(images["depth"]),
-        instances=images.get("instances"),
-    )
+    assert capture.images is not None, "a capture without images has no view"
+    return View(capture.frame, capture.camera, np.asarray(capture.world_T_camera, float), capture.images.stored())
 
 
 def _read_png(path: Path, what: str) -> np.ndarray:
@@ -59,7 +51,8 @@ def load_view(run_dir: Path, frame: str, camera: CameraModel, world_T_camera: np
     path = layout.image(run_dir, "instances", frame)
     if path.exists():
         instances = _read_png(path, "instances").astype(np.uint16)
-    return View(frame, camera, np.asarray(world_T_camera, float), rgb, labels.astype(np.uint8), depth.astype(np.uint16), instances)
+    images = Frame(rgb, labels.astype(np.uint8), mm_to_depth(depth.astype(np.uint16)), instances)
+    return View(frame, camera, np.asarray(world_T_camera, float), images)
 
 
 def backproject(view: View, mask: np.ndarray, max_depth: float) -> tuple[np.ndarray, np.ndarray]:
@@ -71,8 +64,9 @@ def backproject(view: View, mask: np.ndarray, max_depth: float) -> tuple[np.ndar
     """
     # gather first, convert only the kept pixels: a full-frame float image costs more than the
     # back-projection itself at 1080p
-    v, u = np.nonzero(mask & (view.depth_mm > 0))
-    z32 = view.depth_mm[v, u].astype(np.float32) / np.float32(1000.0)  # as Open3D reads the PNG
+    depth = view.images.depth  # float32 metres from whole millimetres, as Open3D reads the PNG
+    v, u = np.nonzero(mask & (depth > 0))
+    z32 = depth[v, u]
     near = z32 <= np.float32(max_depth)
     v, u, z = v[near], u[near], z32[near].astype(np.float64)
     cam = view.camera
@@ -80,4 +74,4 @@ def backproject(view: View, mask: np.ndarray, max_depth: float) -> tuple[np.ndar
     y = (v - cam.cy) * z / cam.fy
     T = view.world_T_camera
     points = np.column_stack([x, y, z]) @ T[:3, :3].T + T[:3, 3]
-    return points, view.rgb[v, u]
+    return points, view.images.rgb[v, u]

@@ -31,10 +31,9 @@ from PIL import Image
 from agrisim.files import layout
 from agrisim.evaluation.session import write_reconstruction
 from agrisim.files.atomic import write_bytes, write_json
-from agrisim.files.encoding import depth_to_mm
 from agrisim.files.glb import export_glb
 from agrisim.files.nerfstudio import write_nerfstudio
-from agrisim.interfaces import CameraModel, Capture
+from agrisim.interfaces import CameraModel, Capture, Frame
 from agrisim.records import Run, RunSummary, SetpointResult
 from agrisim.registry import hookimpl
 from agrisim.version import __version__
@@ -188,7 +187,7 @@ class DatasetWriter:
             self.frames[capture.frame] = entry
             self._write_cameras()
             return
-        future = self._writer.submit(write_frame, self.out, capture.frame, dict(capture.images), palette)
+        future = self._writer.submit(write_frame, self.out, capture.frame, capture.images, palette)
         self._pending.append((future, capture.frame, entry))
         self._collect()
 
@@ -208,16 +207,16 @@ class DatasetWriter:
             write_nerfstudio(self.out)
 
 
-def write_frame(out: Path, frame: str, images: dict[str, np.ndarray], palette: np.ndarray | None) -> None:
-    """One frame's image files (rgb, labels, labels_vis, depth, instances), each atomic."""
-    if "rgb" in images:
-        write_png(layout.image(out, "rgb", frame), images["rgb"])
-    if "labels" in images:
-        write_png(layout.image(out, "labels", frame), images["labels"])
-        if palette is not None:
-            write_png(layout.image(out, "labels_vis", frame), images["labels"], palette=palette)
-    if "depth" in images:
-        write_png(layout.image(out, "depth", frame), depth_to_mm(images["depth"]))
-    if images.get("instances") is not None:
-        write_png(layout.image(out, "instances", frame), images["instances"].astype(np.uint16))
+def write_frame(out: Path, frame: str, images: Frame | None, palette: np.ndarray | None) -> None:
+    """One frame's image files (rgb, labels, labels_vis, depth, instances), each atomic; none
+    when the run has no renderer."""
+    if images is None:
+        return
+    write_png(layout.image(out, "rgb", frame), images.rgb)
+    write_png(layout.image(out, "labels", frame), images.labels)
+    if palette is not None:
+        write_png(layout.image(out, "labels_vis", frame), images.labels, palette=palette)
+    write_png(layout.image(out, "depth", frame), images.depth_mm())
+    if images.instances is not None:
+        write_png(layout.image(out, "instances", frame), images.instances.astype(np.uint16))
 

@@ -10,3 +10,9 @@ def depth_to_mm(depth: np.ndarray) -> np.ndarray:
     saturates. The dataset's depth PNGs and the recording's ``DepthImage`` both use this."""
     mm = np.rint(np.asarray(depth, np.float64) * 1000.0)
     return np.clip(mm, 0, 65535).astype(np.uint16)
+
+
+def mm_to_depth(mm: np.ndarray) -> np.ndarray:
+    """uint16 millimetres back to float32 metres, exactly as Open3D reads a depth PNG with
+    ``depth_scale = 1000``; :func:`depth_to_mm` of the result gives ``mm`` back."""
+    return np.asarray(mm).astype(np.float32) / np.float32(1000.0)

@@ -22,7 +22,7 @@ from typing import Any
 import numpy as np
 
 from agrisim.config import CellConfig, RenderConfig
-from agrisim.interfaces import ALL, JointTrajectory, PlanningFailed, View
+from agrisim.interfaces import ALL, Frame, JointTrajectory, PlanningFailed, View
 from agrisim.kinds import KINDS, BackendSpec
 from agrisim.registry import Registry
 from agrisim.robot.segments import path_is_valid
@@ -203,14 +203,12 @@ def check_reconstructor(registry: Registry, spec: BackendSpec, options: Any) -> 
         world_T_camera = look_at(np.array([x, 0.0, plane_z + 0.5]), np.array([x, 0.0, plane_z]), up=np.array([0.0, 1.0, 0.0]))
         world_x = x + (np.arange(camera.width) - camera.cx) / camera.fx * 0.5
         labels = np.where(world_x < 0.0, 1, 2).astype(np.uint8)[None, :].repeat(camera.height, 0)
-        view = View(
-            frame=f"r1_{k:03d}",
-            camera=camera,
-            world_T_camera=world_T_camera,
+        images = Frame(
             rgb=np.full((camera.height, camera.width, 3), 128, np.uint8),
             labels=labels,
-            depth_mm=np.full((camera.height, camera.width), 500, np.uint16),
+            depth=np.full((camera.height, camera.width), 0.5, np.float32),
         )
+        view = View(frame=f"r1_{k:03d}", camera=camera, world_T_camera=world_T_camera, images=images)
         recon.integrate(view)
     merged = recon.merged()
     result = recon.result()

@@ -40,7 +40,7 @@ class PointCloudReconstructor(Reconstructor):
     def integrate(self, view: View) -> dict[str, Cloud]:
         out = {}
         for label_id, name in self.names.items():
-            mask = view.labels == label_id
+            mask = view.images.labels == label_id
             if not mask.any():
                 continue
             points, colors = backproject(view, mask, self.options.max_depth)

@@ -69,9 +69,10 @@ class TsdfReconstructor(Reconstructor):
         self._trunc = self.options.sdf_trunc / self.options.voxel_size
 
     def _masks(self, view: View) -> dict[str, np.ndarray]:
-        masks = {name: view.labels == i for i, name in self.names.items()}
+        labels = view.images.labels
+        masks = {name: labels == i for i, name in self.names.items()}
         if ALL in self.grids:
-            masks[ALL] = view.labels != 0
+            masks[ALL] = labels != 0
         return masks
 
     def integrate(self, view: View) -> dict[str, Cloud]:
@@ -79,12 +80,13 @@ class TsdfReconstructor(Reconstructor):
         o = self.options
         K = o3d.core.Tensor(view.camera.K)
         extrinsic = o3d.core.Tensor(np.linalg.inv(view.world_T_camera))
-        color = o3d.t.geometry.Image(np.ascontiguousarray(view.rgb))
+        color = o3d.t.geometry.Image(np.ascontiguousarray(view.images.rgb))
+        depth_mm = view.images.depth_mm()
         out = {}
         for name, mask in self._masks(view).items():
             if not mask.any():
                 continue
-            depth = o3d.t.geometry.Image(np.ascontiguousarray(np.where(mask, view.depth_mm, 0).astype(np.uint16)))
+            depth = o3d.t.geometry.Image(np.ascontiguousarray(np.where(mask, depth_mm, 0).astype(np.uint16)))
             grid = self.grids[name]
             blocks = grid.compute_unique_block_coordinates(
                 depth, K, extrinsic, 1000.0, o.max_depth, trunc_voxel_multiplier=self._trunc

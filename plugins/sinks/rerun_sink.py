@@ -43,7 +43,6 @@ import numpy as np
 
 from agrisim.files import layout
 from agrisim import BackendSpec, hookimpl
-from agrisim.files.encoding import depth_to_mm
 from agrisim.robot import meshes as robot_meshes
 
 if TYPE_CHECKING:
@@ -53,7 +52,7 @@ if TYPE_CHECKING:
     from agrisim.scene.cell import Box, Cylinder
     from agrisim.scene.model import Scene
     from agrisim.episode import Run, RunSummary, SetpointResult
-    from agrisim.interfaces import Capture, Trajectory
+    from agrisim.interfaces import Capture, Frame, Trajectory
 
 log = logging.getLogger(__name__)
 
@@ -103,7 +102,7 @@ class paths:  # noqa: N801 - a namespace of path builders, used like a module
     METRICS = "metrics"
     RUN_CONFIG = "run/config"
     RUN_SUMMARY = "run/summary"
-    #: images under each camera: capture.images key -> child entity name
+    #: images under each camera: a Frame field -> child entity name
     IMAGE_KINDS = ("rgb", "labels", "depth", "instances")
 
     @staticmethod
@@ -562,30 +561,24 @@ class RerunSink:
                 image_plane_distance=IMAGE_PLANE_DISTANCE,
             ),
         )
-        self.log_images(capture.robot, capture.images)
+        if capture.images is not None:
+            self.log_images(capture.robot, capture.images)
 
-    def log_images(self, robot: str, images: Mapping[str, np.ndarray]) -> None:
+    def log_images(self, robot: str, images: Frame) -> None:
         """Log a capture's ``rgb``, ``labels``, ``depth`` and leaf ``instances`` at the current time."""
         assert self.rec is not None
-        rgb = images.get("rgb")
-        if rgb is not None:
-            image = rr.Image(np.asarray(rgb))
-            # JPEG keeps a full run's frames in tens of MB instead of GB; Pillow is optional.
-            if np.asarray(rgb).dtype == np.uint8 and importlib.util.find_spec("PIL") is not None:
-                image = image.compress(jpeg_quality=RGB_JPEG_QUALITY)
-            self.rec.log(paths.camera_image(robot, "rgb"), image)
-        labels = images.get("labels")
-        if labels is not None:
-            self.rec.log(paths.camera_image(robot, "labels"), rr.SegmentationImage(np.asarray(labels)))
-        instances = images.get("instances")
-        if instances is not None:
+        image = rr.Image(images.rgb)
+        # JPEG keeps a full run's frames in tens of MB instead of GB; Pillow is optional.
+        if images.rgb.dtype == np.uint8 and importlib.util.find_spec("PIL") is not None:
+            image = image.compress(jpeg_quality=RGB_JPEG_QUALITY)
+        self.rec.log(paths.camera_image(robot, "rgb"), image)
+        self.rec.log(paths.camera_image(robot, "labels"), rr.SegmentationImage(images.labels))
+        if images.instances is not None:
             # leaf instance ids (uint16, 0 = none): no annotation context, Rerun colours each id
-            self.rec.log(paths.camera_image(robot, "instances"), rr.SegmentationImage(np.asarray(instances)))
-        depth = images.get("depth")
-        if depth is not None:
-            # Millimetres in uint16 (as the dataset's depth PNGs): half the size of float32 metres
-            # and far more compressible; 1 mm steps are invisible at the cell's scale.
-            self.rec.log(paths.camera_image(robot, "depth"), rr.DepthImage(depth_to_mm(depth), meter=1000.0))
+            self.rec.log(paths.camera_image(robot, "instances"), rr.SegmentationImage(images.instances))
+        # Millimetres in uint16 (as the dataset's depth PNGs): half the size of float32 metres
+        # and far more compressible; 1 mm steps are invisible at the cell's scale.
+        self.rec.log(paths.camera_image(robot, "depth"), rr.DepthImage(images.depth_mm(), meter=1000.0))
 
     def log_label_table(self, table: Mapping[int, tuple[str, Sequence[int]]]) -> None:
         """The label ids' names and colours (``id -> (name, rgb)``) for every camera's

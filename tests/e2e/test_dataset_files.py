@@ -38,14 +38,14 @@ def test_files_match_the_rendered_frames(tmp_path, frames):
         labels = np.array(Image.open(out / "labels" / f"{name}.png"))
         vis = np.array(Image.open(out / "labels_vis" / f"{name}.png").convert("RGB"))
         depth_mm = np.array(Image.open(out / "depth" / f"{name}.png"))
-        assert np.array_equal(rgb, images["rgb"])
-        assert np.array_equal(labels, images["labels"])
+        assert np.array_equal(rgb, images.rgb)
+        assert np.array_equal(labels, images.labels)
         for label_id in np.unique(labels):
             assert tuple(vis[labels == label_id][0]) == table[int(label_id)]
         assert depth_mm.dtype == np.uint16
-        hit = images["depth"] > 0
+        hit = images.depth > 0
         assert np.array_equal(depth_mm > 0, hit)
-        assert np.max(np.abs(depth_mm[hit] / 1000.0 - images["depth"][hit])) <= 0.0005 + 1e-6
+        assert np.max(np.abs(depth_mm[hit] / 1000.0 - images.depth[hit])) <= 0.0005 + 1e-6
     cams = json.loads((out / "cameras.json").read_text())
     assert sorted(cams["frames"]) == sorted(frames.images)
     # the ground-truth plant in world coordinates reads back as the scene's plant

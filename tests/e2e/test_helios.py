@@ -279,7 +279,7 @@ def test_crop_runs_the_routine_with_organs_and_instances(model, tmp_path, frames
     mesh_ids = set(np.unique(episode.plant.mesh.face_instance).tolist())
     seen: set[int] = set()
     for name, images in frames.images.items():
-        labels, instances = images["labels"], images["instances"]
+        labels, instances = images.labels, images.instances
         seen |= set(np.unique(labels).tolist())
         assert instances.dtype == np.uint16
         leaf = labels == table["leaf"]

@@ -15,7 +15,6 @@ from agrisim.scene.camera import preset
 from agrisim.scene.cell import build_cell
 from agrisim.app.cli import main
 from agrisim.config import CellConfig, RenderConfig, RoutineConfig, build_config
-from agrisim.files.encoding import depth_to_mm
 from agrisim.episode import Episode, resolve_plant
 from agrisim.lab.room import build_scene
 from agrisim.evaluation.metrics import GroundTruth, ViewStats, evaluate
@@ -77,11 +76,11 @@ def test_backprojection_equals_open3ds_on_real_frames(run_dir: Path) -> None:
         cam = view.camera
         intrinsic = o3d.camera.PinholeCameraIntrinsic(cam.width, cam.height, cam.fx, cam.fy, cam.cx, cam.cy)
         for label_id in _labels(run_dir):
-            mask = view.labels == label_id
+            mask = view.images.labels == label_id
             ours, colors = backproject(view, mask, max_depth=1.0)
-            depth = o3d.geometry.Image(np.where(mask, view.depth_mm, 0).astype(np.uint16))
+            depth = o3d.geometry.Image(np.where(mask, view.images.depth_mm(), 0).astype(np.uint16))
             rgbd = o3d.geometry.RGBDImage.create_from_color_and_depth(
-                o3d.geometry.Image(np.ascontiguousarray(view.rgb)),
+                o3d.geometry.Image(np.ascontiguousarray(view.images.rgb)),
                 depth,
                 depth_scale=1000.0,
                 depth_trunc=1.0,
@@ -99,9 +98,9 @@ def test_backprojection_equals_open3ds_on_real_frames(run_dir: Path) -> None:
 
 def test_depth_beyond_the_cutoff_is_dropped(run_dir: Path) -> None:
     view = _views(run_dir)[0]
-    everything = view.depth_mm > 0
+    everything = view.images.depth_mm() > 0
     near, _ = backproject(view, everything, max_depth=0.45)
-    far_pixels = int(np.count_nonzero(view.depth_mm > 450))
+    far_pixels = int(np.count_nonzero(view.images.depth_mm() > 450))
     assert far_pixels > 0 and len(near) == int(np.count_nonzero(everything)) - far_pixels
 
 
@@ -111,7 +110,7 @@ def test_merged_clouds_are_one_downsample_of_every_view(run_dir: Path) -> None:
     views = _views(run_dir)
     everything = []
     for label_id, name in _labels(run_dir).items():
-        points = np.concatenate([backproject(v, v.labels == label_id, 1.0)[0] for v in views])
+        points = np.concatenate([backproject(v, v.images.labels == label_id, 1.0)[0] for v in views])
         everything.append(points)
         pcd = o3d.io.read_point_cloud(str(run_dir / "clouds" / f"{name}.ply"))
         _assert_voxel_means(np.asarray(pcd.points), points, 0.001)
@@ -150,7 +149,7 @@ def test_run_outputs_metrics_and_recording(run_dir: Path) -> None:
     names = set(_labels(run_dir).values())
     assert set(metrics["labels"]) == names | {"all"}
     assert metrics["frames"] == 6 and metrics["recon"] == "pointcloud"
-    labels_png = sum(np.count_nonzero(v.labels) for v in _views(run_dir))
+    labels_png = sum(np.count_nonzero(v.images.labels) for v in _views(run_dir))
     assert metrics["labels"]["all"]["pixels"] == labels_png
     for name in names | {"all"}:
         row = metrics["labels"][name]
@@ -270,7 +269,7 @@ def test_texture_is_more_precise_than_repopa_for_every_species() -> None:
             session = ReconSession(PointCloudReconstructor(scene.labels), scene.labels, truth, [2.0])
             for i, T in enumerate(poses):
                 f = renderer.render(camera, T, {})
-                session.add(View(f"v{i}", camera, T, f.rgb, f.labels, depth_to_mm(f.depth)))
+                session.add(View(f"v{i}", camera, T, f.stored()))
             rows[mode] = session.finish()[1]["labels"]["plant"]
         tex, rep = rows["texture"], rows["repopa"]
         assert tex["precision"]["2"] >= 0.95, species

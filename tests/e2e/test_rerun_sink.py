@@ -24,7 +24,7 @@ from agrisim.scene.camera import preset  # noqa: E402
 from agrisim.scene.cell import build_cell  # noqa: E402
 from agrisim.config import build_config  # noqa: E402
 from agrisim.episode import Episode, Run, RunSummary, SetpointResult  # noqa: E402
-from agrisim.interfaces import Capture, JointTrajectory, Trajectory  # noqa: E402
+from agrisim.interfaces import Capture, Frame, JointTrajectory, Trajectory  # noqa: E402
 from agrisim.robot.kinematics import ArmKinematics  # noqa: E402
 from agrisim.robot import meshes as robot_meshes  # noqa: E402
 from agrisim.plugins.sinks import rerun_sink  # noqa: E402
@@ -216,11 +216,11 @@ def test_hooks_record_motion_images_and_clouds(tmp_path: Path) -> None:
     trajectory = Trajectory("r1", 0, np.stack([home, goal]), JointTrajectory(t, q), JointTrajectory(t, q))
     kin = run.kinematics["r1"]
     cam = run.camera
-    images = {
-        "rgb": np.full((cam.height, cam.width, 3), 120, np.uint8),
-        "labels": np.zeros((cam.height, cam.width), np.uint8),
-        "depth": np.full((cam.height, cam.width), 0.5, np.float32),
-    }
+    images = Frame(
+        rgb=np.full((cam.height, cam.width, 3), 120, np.uint8),
+        labels=np.zeros((cam.height, cam.width), np.uint8),
+        depth=np.full((cam.height, cam.width), 0.5, np.float32),
+    )
     capture = Capture("r1", "r1_000", 0, 2.0, kin.fk(goal), cam, images)
 
     sink.agrisim_run_started(run=run)
