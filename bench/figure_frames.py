@@ -39,7 +39,7 @@ def main(out: Path) -> None:
         T = sps[robot][index].world_T_camera
         counts = {}
         for col, mode in enumerate(("texture", "repopa")):
-            r = spec.factory(scene, cell, RenderConfig(seg_mode=mode, labels=labels, shadow_samples=8), spec.options_model())
+            r = spec.factory(scene, cell, RenderConfig(seg_mode=mode, labels=labels), spec.options_model(shadow_samples=8))
             frame = r.render(camera, T, poses)
             r.close()
             if col == 0:

@@ -50,7 +50,7 @@ def main() -> None:
 
     fig = plt.figure(figsize=(12, 5.6), dpi=110)
     for k, mode in enumerate(("texture", "repopa")):
-        renderer = spec.factory(scene, cell, RenderConfig(hide_robots=True, shadow_samples=0, seg_mode=mode), spec.options_model())
+        renderer = spec.factory(scene, cell, RenderConfig(hide_robots=True, seg_mode=mode), spec.options_model(shadow_samples=0))
         session = ReconSession(PointCloudReconstructor(scene.labels), scene.labels, truth, [2.0])
         for i, T in enumerate(poses):
             f = renderer.render(camera, T, {})

@@ -48,7 +48,7 @@ def main() -> None:
     camera = preset("rpi3-wide-1080p", args.resolution)
     poses = [sp.world_T_camera for sps in hemisphere(cell, RoutineConfig()).values() for sp in sps][: args.views]
     spec = registry.get("renderer", "raycast")
-    renderer = spec.factory(scene, cell, RenderConfig(hide_robots=True, shadow_samples=0), spec.options_model())
+    renderer = spec.factory(scene, cell, RenderConfig(hide_robots=True), spec.options_model(shadow_samples=0))
     t0 = time.perf_counter()
     views = []
     for i, T in enumerate(poses):

@@ -40,13 +40,13 @@ def main() -> None:
     poses = {a.name: kin[a.name].link_poses(np.array(a.home)) for a in cell.arms}
     setpoints = hemisphere(cell, RoutineConfig())["r1"]
     views = [setpoints[i].world_T_camera for i in np.linspace(0, len(setpoints) - 1, args.views).astype(int)]
-    settings = RenderConfig(shadow_samples=args.shadow_samples)
+    settings = RenderConfig()
     print(f"{args.plant}: {len(plant.mesh.faces):,} plant triangles, {sum(len(m.faces) for m in scene.meshes):,} in the scene; "
           f"{camera.width}x{camera.height}, {len(scene.lights)} lights, {args.shadow_samples} shadow sample(s)")
     per_view = {}
     for name in ("raycast", "pybullet"):
         spec = registry.get("renderer", name)
-        renderer = spec.factory(scene, cell, settings, spec.options_model())
+        renderer = spec.factory(scene, cell, settings, spec.options_model(shadow_samples=args.shadow_samples))
         renderer.render(camera, views[0], poses)  # warm-up: scene building, caches
         t0 = time.perf_counter()
         for T in views:

@@ -9,9 +9,10 @@ validated by that backend's options model once the backend is known.
 
 from __future__ import annotations
 
+import copy
 import math
 import sys
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any, Literal
 
@@ -194,12 +195,6 @@ class OutputConfig(_Model):
 
     out: Path | None = None
     """Output directory (default: runs/<timestamp>)."""
-    rrd: Path | None = None
-    """Rerun recording path (default: OUT/recording.rrd)."""
-    no_rrd: bool = False
-    """Write no Rerun recording."""
-    spawn: bool = False
-    """Stream to a Rerun viewer spawned for the run."""
     overwrite: bool = False
     """Replace an existing output directory."""
     resume: bool = False
@@ -209,8 +204,6 @@ class OutputConfig(_Model):
     def _exclusive(self) -> OutputConfig:
         if self.overwrite and self.resume:
             raise ValueError("--overwrite and --resume exclude each other")
-        if self.no_rrd and self.rrd is not None:
-            raise ValueError("--rrd and --no-rrd exclude each other")
         return self
 
 
@@ -240,10 +233,6 @@ class RenderConfig(_Model):
     ignored for the label pass (EasySynth's way), RGB and depth still cut out."""
     labels: Literal["plant", "organs"] = "plant"
     """One label for the whole plant, or one per organ where the species has them."""
-    shadow_samples: int = Field(1, ge=0, le=32)
-    """Shadow rays per pixel shared among the lights (the paper's Raytrace Samples); 0: none."""
-    supersample: int = Field(1, ge=1, le=4)
-    """RGB rays per pixel side (labels and depth stay exact at pixel centres)."""
     hide_robots: bool = False
     """Render without the arms (the paper's NeRF captures)."""
 
@@ -276,9 +265,6 @@ class RunConfig(_Model):
     """Options for a plant read from a file."""
     plants: dict[str, dict[str, Any]] = {}
     """Options per plant species (``[plants.boxwood]``), validated by the species' own model."""
-    plant_age: float | None = Field(None, gt=0.0, le=3650.0, allow_inf_nan=False)
-    """Age of the plant in days (``--plant-age``) for species that grow (``helios:*``); sets
-    the species' ``age`` option. None: the species' default."""
     pcg_seed: int = Field(42, ge=0, le=2**32 - 1)
     """Seed of the lab's clutter randomizer (the paper's PCG Seed, 42)."""
     physics: PhysicsChoice = PhysicsChoice()
@@ -296,6 +282,9 @@ class RunConfig(_Model):
     camera: CameraConfig = CameraConfig()
     motion: MotionConfig = MotionConfig()
     output: OutputConfig = OutputConfig()
+    sink: dict[str, dict[str, Any]] = {}
+    """Options per sink (``[sink.rerun]``), validated by the sink's own model. Every installed
+    sink observes every run."""
 
 
 def parse_grid(text: str) -> tuple[int, int]:
@@ -320,6 +309,23 @@ def merge(base: Mapping[str, Any], override: Mapping[str, Any]) -> dict[str, Any
     return out
 
 
+def first_difference(a: Any, b: Any, prefix: str = "") -> tuple[str, Any, Any] | None:
+    """The first dotted key where two JSON-like trees differ, with both values, or None."""
+    if isinstance(a, Mapping) and isinstance(b, Mapping):
+        for key in sorted(set(a) | set(b)):
+            d = first_difference(a.get(key), b.get(key), f"{prefix}{key}.")
+            if d is not None:
+                return d
+        return None
+    return None if a == b else (prefix.rstrip(".") or "config", a, b)
+
+
+def outcome_settings(config: RunConfig) -> dict[str, Any]:
+    """The settings that decide a run's results (JSON): all but where they go (``output``)
+    and who watches (``sink``). A resumed run must agree with its saved run on these."""
+    return {k: v for k, v in config.model_dump(mode="json").items() if k not in ("output", "sink")}
+
+
 def load_toml(path: Path) -> dict[str, Any]:
     """Read a TOML configuration file; unreadable or malformed files are a ConfigError."""
     try:
@@ -335,18 +341,71 @@ def load_toml(path: Path) -> dict[str, Any]:
 
 def _describe(exc: ValidationError) -> str:
     err = exc.errors()[0]
-    where = ".".join(str(p) for p in err["loc"]) or "config"
+    where = ".".join(str(p) for p in err["loc"])
     msg = err["msg"].removeprefix("Value error, ")
+    if not where:  # a check across settings names them itself
+        return msg
     if err["type"] == "extra_forbidden":
         return f"unknown setting {where!r}"
     return f"invalid setting {where!r}: {msg} (got {err.get('input')!r})"
 
 
+#: Settings that moved into one backend's own options, still accepted where they used to be:
+#: the familiar flags set them there (``--plant-age``, ``--shadow-samples``, ``--supersample``,
+#: ``--rrd``, ``--no-rrd``, ``--spawn``), and so may older TOML files and saved runs.
+#: old dotted key -> (the table it now lives in, its name there, how its value maps). In the
+#: table path, ``{plant}`` and ``{renderer}`` stand for the chosen plant and renderer.
+ALIASES: dict[str, tuple[tuple[str, ...], str, Callable[[Any], Any]]] = {
+    "plant_age": (("plants", "{plant}"), "age", lambda v: v),
+    "render.shadow_samples": (("renderer", "{renderer}"), "shadow_samples", lambda v: v),
+    "render.supersample": (("renderer", "{renderer}"), "supersample", lambda v: v),
+    "output.rrd": (("sink", "rerun"), "path", lambda v: v),
+    "output.no_rrd": (("sink", "rerun"), "save", lambda v: not v if isinstance(v, bool) else v),
+    "output.spawn": (("sink", "rerun"), "spawn", lambda v: v),
+}
+
+
+def resolve_aliases(data: Mapping[str, Any]) -> dict[str, Any]:
+    """``data`` with every :data:`ALIASES` key moved to where it lives now. An alias wins over
+    the table it names (a flag is the most specific layer). With no renderer (``none``) the
+    renderer's aliases have nothing to set and are dropped."""
+    out = copy.deepcopy(dict(data))
+    names = {
+        "plant": out.get("plant", RunConfig.model_fields["plant"].default),
+        "renderer": (out.get("renderer") or {}).get("backend", RendererChoice().backend)
+        if isinstance(out.get("renderer"), Mapping)
+        else RendererChoice().backend,
+    }
+    for old, (path, key, convert) in ALIASES.items():
+        *parents, leaf = old.split(".")
+        node: Any = out
+        for p in parents:
+            node = node.get(p) if isinstance(node, Mapping) else None
+        if not isinstance(node, dict) or leaf not in node:
+            continue
+        value = convert(node.pop(leaf))
+        table = [part.format(**names) for part in path]
+        if table[:2] == ["renderer", "none"]:
+            continue
+        target = out
+        for part in table:
+            nxt = target.get(part)
+            if not isinstance(nxt, dict):
+                nxt = {} if nxt is None else nxt
+                target[part] = nxt
+            if not isinstance(nxt, dict):
+                raise ConfigError(f"{old}: [{'.'.join(table)}] must be a table, got {nxt!r}")
+            target = nxt
+        target[key] = value
+    return out
+
+
 def build_config(*layers: Mapping[str, Any]) -> RunConfig:
-    """Validate the layered dictionaries into a :class:`RunConfig`."""
+    """Validate the layered dictionaries into a :class:`RunConfig` (:data:`ALIASES` resolved)."""
     data: dict[str, Any] = {}
     for layer in layers:
         data = merge(data, layer)
+    data = resolve_aliases(data)
     try:
         return RunConfig.model_validate(data)
     except ValidationError as exc:

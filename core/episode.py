@@ -25,7 +25,7 @@ from agrisim.files.dataset import DatasetWriter
 from agrisim.scene.camera import preset
 from agrisim.scene.cell import build_cell
 from agrisim.config import BackendChoice, RunConfig, backend_options
-from agrisim.errors import BackendFailure, UserError
+from agrisim.errors import BackendFailure, ConfigError, UserError
 from agrisim.scene.transforms import pose_error
 from agrisim.interfaces import (
     Capture,
@@ -47,7 +47,7 @@ from agrisim.scene.model import Plant, Scene
 from agrisim.capabilities import check_renderer
 from agrisim.records import Run, RunSummary, SetpointResult
 from agrisim.kinds import KINDS
-from agrisim.registry import BackendSpec, Registry, make_plugin_manager
+from agrisim.registry import BackendSpec, Registry, loads_everything, make_plugin_manager
 from agrisim.robot.setpoints import Setpoint, routine
 from agrisim.robot.trajectory import Limits, TimedPath, time_parametrize
 from agrisim.evaluation.views import View, load_view, view_from_capture
@@ -79,6 +79,7 @@ class Episode:
         self.physics_spec, self.physics_options = self._backend("physics", config.physics)
         self.planner_spec, self.planner_options = self._backend("planner", config.planner)
         self.out_dir = resolve_out_dir(config)  # before the slow parts: fail fast
+        self.sink_options = self._sink_options()
         # --resume replays the episode deterministically (the robot side is cheap) and renders
         # only the frames that are not complete on disk yet.
         self.done_frames: set[str] = set()
@@ -104,6 +105,9 @@ class Episode:
         self.scene: Scene | None = None
         if config.renderer.backend == "none":
             check_plant_name(self.registry, config)
+            # nothing renders, but a typo or a bad value in an option table is still refused
+            config.renderer.check_tables("renderer", self.registry.specs("renderer"))
+            config.recon.check_tables("recon", self.registry.specs("reconstructor"))
         else:
             self.renderer_spec, self.renderer_options = self._backend("renderer", config.renderer)
             check_renderer(
@@ -118,6 +122,25 @@ class Episode:
             # Reconstruction fuses rendered views; without a renderer there is nothing to fuse.
             if config.recon.backend != "none":
                 self.recon_spec, self.recon_options = self._backend("reconstructor", config.recon)
+            else:
+                config.recon.check_tables("recon", self.registry.specs("reconstructor"))
+
+    def _sink_options(self) -> dict[str, BaseModel]:
+        """Every installed sink's options from ``[sink.NAME]``, validated and pre-flighted: a
+        table for a sink that is not installed is refused, as a typo would otherwise be lost
+        (unless plugins were selected, ``AGRISIM_LOAD_PLUGINS``: a sink left out ignores its
+        settings, ``--no-rrd`` among them)."""
+        specs = self.registry.specs("sink")
+        for name in self.config.sink:
+            if name not in specs and loads_everything(self.pm):
+                raise ConfigError(f"[sink.{name}]: no such sink; installed: {', '.join(specs) or 'none'}")
+        options = {}
+        for name, spec in specs.items():
+            options[name] = backend_options(spec.options_model, self.config.sink.get(name, {}), f"sink {name!r}")
+            if spec.preflight is not None:
+                with blame("sink", spec, " checking its settings"):
+                    spec.preflight(self.config, options[name])
+        return options
 
     def _backend(self, kind: str, choice: BackendChoice) -> tuple[BackendSpec, BaseModel]:
         """The chosen backend of ``kind`` and its options, validated by its own model."""
@@ -247,7 +270,7 @@ class Episode:
         sinks: list[object] = [writer]
         try:
             for spec in self.registry.specs("sink").values():
-                sink = self.registry.build("sink", spec, run)
+                sink = self.registry.build("sink", spec, run, self.sink_options[spec.name])
                 if sink is not None:
                     self.pm.register(sink, name=f"sink:{spec.name}:{run.run_id}")
                     sinks.append(sink)
@@ -495,17 +518,18 @@ def resolve_plant(registry: Registry, config: RunConfig) -> Plant:
     if name in species:
         spec = species[name]
         table = dict(config.plants.get(name, {}))
-        if config.plant_age is not None:  # --plant-age is the species' own age option
-            if "age" not in spec.options_model.model_fields:
-                raise UserError(f"--plant-age: plant {name!r} has no age; it applies to species that grow (helios:*)")
-            table["age"] = config.plant_age
+        if "age" in table and "age" not in spec.options_model.model_fields:  # --plant-age's usual slip
+            raise UserError(f"--plant-age: plant {name!r} has no age; it applies to species that grow (helios:*)")
         options = backend_options(spec.options_model, table, f"plant {name!r}")
         with blame("plant", spec, f" growing {name!r}"):
             plant: Plant = registry.build("plant", spec, options).build(config.seed)
         return plant
-    if config.plant_age is not None and (Path(name).suffix.lower() in FORMATS or Path(name).exists()):
-        raise UserError(f"--plant-age: plant file {name} has no age; it applies to species that grow (helios:*)")
     if Path(name).suffix.lower() in FORMATS or Path(name).exists():
+        table = config.plants.get(name) or {}
+        if "age" in table:
+            raise UserError(f"--plant-age: plant file {name} has no age; it applies to species that grow (helios:*)")
+        if table:
+            raise UserError(f"[plants.{name!r}]: a plant file takes no species options; [plant_file] reads it")
         f = config.plant_file
         return load_plant(
             Path(name),

@@ -47,7 +47,8 @@ KINDS: dict[str, KindInfo] = {
                               "factory(labels: LabelTable, options) -> Reconstructor"),
     "plant": KindInfo("agrisim_plants", None, PlantSpecies,
                       "factory(options) -> PlantSpecies"),
-    "sink": KindInfo("agrisim_sinks", None, None, "factory(run: Run) -> a plugin object with event hooks"),
+    "sink": KindInfo("agrisim_sinks", None, None,
+                     "factory(run: Run, options) -> a plugin object with event hooks, or None"),
 }  # fmt: skip
 
 #: kind -> provider hook name
@@ -78,6 +79,10 @@ class BackendSpec:
     #: what the backend can do (:mod:`agrisim.capabilities`); None: the kind's defaults, which
     #: promise the least
     capabilities: Any = None
+    #: ``preflight(config, options)``: checks that need the whole run configuration (a file the
+    #: backend would overwrite), called while the run is validated, before anything is written;
+    #: raises :class:`agrisim.errors.UserError`
+    preflight: Callable[[Any, Any], None] | None = None
     #: filled in by the registry: the distribution that provided the spec
     distribution: str = field(default="", compare=False)
 

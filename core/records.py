@@ -78,6 +78,8 @@ class Run:
     plant_notes: list[str] = field(default_factory=list)  # how the plant was made (scaled, aged...)
     reconstruction: Reconstruction | None = None  # set when a complete run's views are fused
     metrics: dict[str, Any] | None = None  # metrics.json's content
+    #: files a sink writes, by what they are (``{"recording": Path}``), for the user to be told
+    outputs: dict[str, Path] = field(default_factory=dict)
 
     @property
     def seed(self) -> int:

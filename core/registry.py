@@ -38,8 +38,11 @@ def make_plugin_manager(*, autoload: bool | None = None) -> pluggy.PluginManager
     pm.add_hookspecs(hookspecs)
     if autoload is None:
         autoload = os.environ.get("AGRISIM_DISABLE_PLUGIN_AUTOLOAD", "") in ("", "0")
+    only = {n.strip() for n in os.environ.get("AGRISIM_LOAD_PLUGINS", "").split(",") if n.strip()}
+    #: every installed plugin is loaded: a name that matches none of them is a mistake, not a
+    #: plugin left out on purpose (read by :func:`loads_everything`)
+    pm.agrisim_loads_everything = bool(autoload and not only)  # type: ignore[attr-defined]
     if autoload:
-        only = {n.strip() for n in os.environ.get("AGRISIM_LOAD_PLUGINS", "").split(",") if n.strip()}
         seen: dict[str, str] = {}
         for ep in metadata.entry_points(group=hookspecs.PROJECT):
             dist = f"{ep.dist.name} {ep.dist.version}" if ep.dist else "?"
@@ -68,6 +71,12 @@ def make_plugin_manager(*, autoload: bool | None = None) -> pluggy.PluginManager
         pm.trace.root.setwriter(lambda msg: sys.stderr.write(msg))
         pm.enable_tracing()
     return pm
+
+
+def loads_everything(pm: pluggy.PluginManager) -> bool:
+    """Whether ``pm`` holds every installed plugin (not a selection by
+    ``AGRISIM_LOAD_PLUGINS``, nor a hand-filled manager)."""
+    return bool(getattr(pm, "agrisim_loads_everything", False))
 
 
 def _tracing() -> bool:

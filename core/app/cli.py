@@ -16,7 +16,7 @@ from pathlib import Path
 from typing import Any, NoReturn
 
 from agrisim.files import layout
-from agrisim.config import RunConfig, build_config, load_toml, merge
+from agrisim.config import RunConfig, build_config, first_difference, load_toml, merge, outcome_settings
 from agrisim.errors import BackendFailure, UserError
 
 if sys.version_info >= (3, 11):
@@ -234,9 +234,6 @@ def _cmd_run(args: argparse.Namespace) -> int:
         print(f"plant: {note}")
     with EpisodeProgress() as progress:
         run, summary = episode.run(progress=progress.update)
-    rrd = None
-    if not config.output.no_rrd:
-        rrd = config.output.rrd or run.out_dir / layout.RECORDING
     print(f"reached {summary.reached}/{summary.setpoints} setpoints, {summary.collisions} with collisions")
     worst = max((r.ee_error_mm for r in run.results if r.reached and r.ee_error_mm is not None), default=None)
     if worst is not None:
@@ -246,7 +243,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
             print(f"  {r.frame}: {r.reason}")
     stages = ", ".join(f"{k} {v:.1f} s" for k, v in summary.wall_s.items())
     print(f"simulated {summary.sim_time:.1f} s; wall time: {stages}")
-    print(f"output: {run.out_dir}" + (f"  recording: {rrd}" if rrd else ""))
+    print(f"output: {run.out_dir}" + "".join(f"  {what}: {path}" for what, path in run.outputs.items()))
     return 0
 
 
@@ -285,39 +282,19 @@ def _resume_config(args: argparse.Namespace, overrides: dict[str, Any]) -> RunCo
     if args.out is None:
         raise UserError("--resume needs --out DIR: the run to continue")
     saved_doc = saved_run(args.out)["config"]
-    saved = build_config(saved_doc)
-    asked = {k: v for k, v in overrides.items() if k != "output"}
     base = load_toml(args.config) if args.config else {}
-    if asked or base:
-        wanted = build_config(base, asked).model_dump(mode="json")
-        have = saved.model_dump(mode="json")
-        for key in sorted(_dotted_keys(merge(base, asked))):
-            now, was = _lookup(wanted, key), _lookup(have, key)
-            if now != was:
-                raise UserError(
-                    f"--resume: the run in {args.out} was made with {key} = {was!r}, this command asks for "
-                    f"{now!r}; give the run's own settings (or leave them out) to continue it"
-                )
-    return build_config(saved_doc, {"output": {**overrides["output"], "overwrite": False}})
-
-
-def _dotted_keys(tree: dict[str, Any], prefix: str = "") -> list[str]:
-    """``{"render": {"labels": "organs"}}`` -> ``["render.labels"]``."""
-    keys = []
-    for key, value in tree.items():
-        if isinstance(value, dict) and value:
-            keys += _dotted_keys(value, f"{prefix}{key}.")
-        else:
-            keys.append(f"{prefix}{key}")
-    return keys
-
-
-def _lookup(tree: dict[str, Any], dotted: str) -> Any:
-    for part in dotted.split("."):
-        if not isinstance(tree, dict) or part not in tree:
-            return None
-        tree = tree[part]
-    return tree
+    # This command's settings layered over the saved ones: what it leaves out is the run's own,
+    # what it gives must agree (aliases such as --shadow-samples resolved against the saved
+    # plant and renderer). Where it goes and who watches may change.
+    resumed = build_config(saved_doc, base, overrides, {"output": {"out": str(args.out), "resume": True, "overwrite": False}})
+    diff = first_difference(outcome_settings(build_config(saved_doc)), outcome_settings(resumed))
+    if diff is not None:
+        key, was, now = diff
+        raise UserError(
+            f"--resume: the run in {args.out} was made with {key} = {was!r}, this command asks for "
+            f"{now!r}; give the run's own settings (or leave them out) to continue it"
+        )
+    return resumed
 
 
 def _cmd_plugins(args: argparse.Namespace) -> int:

@@ -41,7 +41,7 @@ from agrisim.files import layout
 from agrisim.capabilities import check_renderer
 from agrisim.kinds import SECTIONS
 from agrisim.files.atomic import write_bytes, write_json
-from agrisim.config import BackendChoice, RunConfig, backend_options, build_config, merge
+from agrisim.config import BackendChoice, RunConfig, backend_options, build_config, first_difference, merge, outcome_settings
 from agrisim.errors import ConfigError, OutputError, UserError
 from agrisim.app.table import (  # noqa: F401 - the table is part of compare's API
     is_file_plant,
@@ -172,22 +172,25 @@ def plan_compare(
     bad = [m for m in seg_modes if m not in SEG_MODES]
     if bad:
         raise UserError(f"--seg-modes: unknown {', '.join(map(repr, bad))}; allowed: {', '.join(SEG_MODES)}")
+    registry = registry if registry is not None else Registry(make_plugin_manager())
     base = dict(base)
+    # The recording's settings, as flags (output.rrd, .spawn, .no_rrd) or as [sink.rerun]
     output = dict(base.get("output") or {})
-    for key in ("rrd", "spawn"):
-        if output.get(key):
+    rerun = dict((base.get("sink") or {}).get("rerun") or {})
+    for flag, old, new in (("--rrd", "rrd", "path"), ("--spawn", "spawn", "spawn")):
+        if output.get(old) or rerun.get(new):
             raise UserError(
-                f"compare runs many episodes: output.{key} cannot be shared by them "
+                f"compare runs many episodes: {flag} ([sink.rerun] {new}) cannot be shared by them "
                 "(with --recordings each run directory gets its own recording.rrd)"
             )
-    base["output"] = {k: v for k, v in output.items() if k not in ("out", "overwrite", "resume")}
+    save = recordings or rerun.get("save") is True or output.get("no_rrd") is False
+    base["output"] = {k: v for k, v in output.items() if k not in ("out", "overwrite", "resume", "no_rrd")}
     base.pop("plant", None)
     if isinstance(base.get("render"), Mapping):
         base["render"] = {k: v for k, v in base["render"].items() if k != "seg_mode"}
-    defaults: dict[str, Any] = {"output": {"no_rrd": not recordings}}
-    shared = merge(defaults, base)
-    if recordings:
-        shared["output"]["no_rrd"] = False
+    shared = dict(base)
+    if "rerun" in registry.specs("sink"):
+        shared = merge(base, {"sink": {"rerun": {"save": save}}})
     try:
         probe = build_config(shared)  # the shared settings alone: one clear error, not twenty
     except ConfigError as exc:
@@ -195,7 +198,6 @@ def plan_compare(
     if probe.renderer.backend == "none":
         raise UserError("compare counts labelled pixels: it needs a renderer (raycast or pybullet), not 'none'")
 
-    registry = registry if registry is not None else Registry(make_plugin_manager())
     species = registry.specs("plant")
     plants = tuple(plants) if plants else PAPER_PLANTS
     for plant in plants:
@@ -301,10 +303,7 @@ def _episode_action(run_dir: Path, config: RunConfig) -> str:
             f"--resume: {run_dir} is a complete run without metrics.json; pass --overwrite to run the compare again"
         )
     saved = json.loads((run_dir / layout.RUN_JSON).read_text()).get("config") or {}
-    diff = first_difference(
-        {k: v for k, v in saved.items() if k != "output"},
-        {k: v for k, v in config.model_dump(mode="json").items() if k != "output"},
-    )
+    diff = first_difference(outcome_settings(build_config(saved)), outcome_settings(config))
     if diff is not None:
         key, was, now = diff
         raise OutputError(
@@ -312,17 +311,6 @@ def _episode_action(run_dir: Path, config: RunConfig) -> str:
             "give the same settings, or --overwrite"
         )
     return "skip" if state == "complete" else "resume"
-
-
-def first_difference(a: Any, b: Any, prefix: str = "") -> tuple[str, Any, Any] | None:
-    """The first dotted key where two JSON-like trees differ, with both values, or None."""
-    if isinstance(a, Mapping) and isinstance(b, Mapping):
-        for key in sorted(set(a) | set(b)):
-            d = first_difference(a.get(key), b.get(key), f"{prefix}{key}.")
-            if d is not None:
-                return d
-        return None
-    return None if a == b else (prefix.rstrip(".") or "config", a, b)
 
 
 # ---------------------------------------------------------------------------------- running

@@ -99,9 +99,6 @@ def resolve_out_dir(config: RunConfig) -> Path:
             raise OutputError(f"--out {out} exists and is not a directory")
         if any(out.iterdir()) and not config.output.overwrite:
             raise OutputError(f"--out {out} already exists; pass --overwrite to replace it")
-    rrd = config.output.rrd
-    if rrd is not None and rrd.exists() and not config.output.overwrite:
-        raise OutputError(f"--rrd {rrd} already exists; pass --overwrite to replace it")
     parent = out
     while not parent.exists():
         parent = parent.parent

@@ -139,7 +139,7 @@ def check_renderer(registry: Registry, spec: BackendSpec, options: Any) -> None:
     mode = "texture" if "texture" in caps.seg_modes else sorted(caps.seg_modes)[0]
     labels = "organs" if caps.organ_labels else "plant"
     scene, plant = _plant_scene(registry, cell, labels)
-    settings = RenderConfig(seg_mode=mode, labels=labels, shadow_samples=0, hide_robots=True)
+    settings = RenderConfig(seg_mode=mode, labels=labels, hide_robots=True)
     renderer = registry.build("renderer", spec, scene, cell, settings, options)
     camera = from_fov(60.0, 160, 120)
     poses: dict[str, dict[str, np.ndarray]] = {}

@@ -115,8 +115,15 @@ CASES = [
     pytest.param(["--plant", "nope"], ["unknown plant 'nope'", "boxwood", ".glb"], id="unknown-species"),
     pytest.param(["--plant", "{tmp}/garbage.glb"], ["garbage.glb"], id="unreadable-asset"),
     pytest.param(["--plant", "{tmp}/missing.obj"], ["missing.obj"], id="missing-asset"),
-    pytest.param(["--shadow-samples", "33"], ["render.shadow_samples", "32"], id="shadow-samples-too-many"),
-    pytest.param(["--shadow-samples", "-1"], ["render.shadow_samples"], id="shadow-samples-negative"),
+    pytest.param(["--shadow-samples", "33"], ["raycast", "shadow_samples", "32"], id="shadow-samples-too-many"),
+    pytest.param(["--shadow-samples", "-1"], ["raycast", "shadow_samples"], id="shadow-samples-negative"),
+    pytest.param(
+        ["--renderer", "pybullet", "--seg-mode", "repopa", "--shadow-samples", "2"],
+        ["renderer backend 'pybullet'", "shadow_samples"],
+        id="shadow-samples-are-raycasts-own",
+    ),
+    pytest.param(["--set", "sink.rerunn.spawn=true"], ["[sink.rerunn]", "rerun"], id="unknown-sink"),
+    pytest.param(["--set", "sink.rerun.nope=1"], ["sink 'rerun'", "nope"], id="unknown-sink-option"),
     pytest.param(["--resolution", "0x0"], ["resolution", "0x0"], id="resolution-zero"),
     pytest.param(["--set", "plant_file.alpha_cutoff=1.5"], ["plant_file.alpha_cutoff", "1"], id="alpha-cutoff-above-1"),
     pytest.param(["--seg-mode", "paint"], ["--seg-mode", "texture", "repopa"], id="unknown-seg-mode"),
@@ -192,6 +199,20 @@ def test_existing_out_needs_overwrite(workdir: Path, cli) -> None:
     assert_one_line_error(code, err, ["--out", "already exists", "--overwrite"])
     assert snapshot(workdir) == before  # contents and mtimes untouched
     assert (existing / "keep.txt").read_text() == "precious results\n"
+
+
+def test_existing_recording_needs_overwrite(workdir: Path, cli) -> None:
+    """A recording outside the run directory is finished work too (the rerun sink's preflight)."""
+    rrd = workdir / "old.rrd"
+    rrd.write_bytes(b"an old recording")
+    before = snapshot(workdir)
+    args = ["run", "--physics", "kinematic", "--renderer", "none", "--setpoints", "1x1", "--rrd", str(rrd)]
+    code, _, err = cli([*args, "--out", str(workdir / "new")])
+    assert_one_line_error(code, err, ["--rrd", "old.rrd", "already exists", "--overwrite"])
+    assert snapshot(workdir) == before
+    code, out, _ = cli([*args, "--out", str(workdir / "new"), "--overwrite"])
+    assert code == 0 and f"recording: {rrd}" in out
+    assert rrd.read_bytes() != b"an old recording"
 
 
 def test_missing_urdf_is_a_user_error(tmp_path: Path) -> None:

@@ -20,6 +20,7 @@ from typing import Any
 import pytest
 
 from agrisim.app import compare as cmp
+from agrisim.config import first_difference
 from agrisim.app.cli import main
 from agrisim.errors import UserError
 
@@ -138,9 +139,9 @@ def test_names_and_differences() -> None:
             cmp.parse_names(bad, "plants")
     with pytest.raises(UserError, match="allowed: texture, repopa"):
         cmp.parse_names("texture,alpha", "seg-modes", cmp.SEG_MODES)
-    assert cmp.first_difference({"a": {"b": 1, "c": 2}}, {"a": {"b": 1, "c": 2}}) is None
-    assert cmp.first_difference({"a": {"b": 1}}, {"a": {"b": 2}}) == ("a.b", 1, 2)
-    assert cmp.first_difference({"a": 1}, {"a": 1, "z": 0}) == ("z", None, 0)
+    assert first_difference({"a": {"b": 1, "c": 2}}, {"a": {"b": 1, "c": 2}}) is None
+    assert first_difference({"a": {"b": 1}}, {"a": {"b": 2}}) == ("a.b", 1, 2)
+    assert first_difference({"a": 1}, {"a": 1, "z": 0}) == ("z", None, 0)
 
 
 def test_run_dir_states(tmp_path: Path) -> None:
@@ -163,7 +164,7 @@ def test_plan_validates_before_anything(tmp_path: Path) -> None:
     assert plan.plants == cmp.PAPER_PLANTS and len(plan.episodes) == 20
     e = plan.episodes[1]
     assert (e.plant, e.seg_mode, e.run_dir) == ("hydrangea", "repopa", (tmp_path / "c" / "hydrangea" / "repopa"))
-    assert e.config["render"]["seg_mode"] == "repopa" and e.config["output"]["no_rrd"] is True
+    assert e.config["render"]["seg_mode"] == "repopa" and e.config["sink"]["rerun"]["save"] is False
     assert e.config["output"]["out"] == str(e.run_dir)
     # flags for the episodes pass through; plant, seg mode and output are compare's own
     plan = cmp.plan_compare({"plant": "boxwood", "seed": 7, "render": {"seg_mode": "repopa"}},
@@ -240,7 +241,7 @@ def no_ray(monkeypatch: pytest.MonkeyPatch) -> None:
         # TinyRenderer ignores opacity: its "texture" column would repeat RepOpa's without a word
         (["--renderer", "pybullet"], "renderer backend 'pybullet' cannot draw segmentation mode 'texture'"),
         (["--renderer", "pybullet", "--seg-modes", "repopa", "--labels", "organs"], "cannot draw organ labels"),
-        (["--set", "output.rrd=x.rrd"], "output.rrd cannot be shared"),
+        (["--set", "output.rrd=x.rrd"], "--rrd ([sink.rerun] path) cannot be shared"),
         (["--overwrite", "--resume"], "exclude each other"),
         (["--ray-address", "127.0.0.1:1"], "--ray-address 127.0.0.1:1: cannot reach"),
     ],

@@ -18,7 +18,8 @@ def test_files_match_the_rendered_frames(tmp_path, frames):
     config = build_config(
         {
             "plant": "hydrangea",
-            "render": {"labels": "organs", "shadow_samples": 0},
+            "render": {"labels": "organs"},
+            "renderer": {"raycast": {"shadow_samples": 0}},
             "physics": {"backend": "kinematic"},
             "routine": {"setpoints": "1x2"},
             "camera": {"resolution": "320x180"},

@@ -31,7 +31,8 @@ def exported(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, np.ndarray
     out = tmp_path_factory.mktemp("export") / "run"
     config = build_config(
         {
-            "render": {"labels": "organs", "shadow_samples": 0, "hide_robots": True},
+            "render": {"labels": "organs", "hide_robots": True},
+            "renderer": {"raycast": {"shadow_samples": 0}},
             "physics": {"backend": "kinematic"},
             # 1x3 reaches every setpoint without an OMPL search for every seed tried (41 of 41);
             # 1x2 needs one that fails for a few seeds, and this module is not about motion.

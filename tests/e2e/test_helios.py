@@ -204,7 +204,7 @@ def test_plants_fit_the_routine_or_are_refused():
 
 def test_plant_age_flag_and_settings(tmp_path, cli):
     args = _parser().parse_args(["run", "--plant", "helios:tomato", "--plant-age", "25"])
-    assert build_config(overrides_from_args(args)).plant_age == 25.0
+    assert build_config(overrides_from_args(args)).plants == {"helios:tomato": {"age": 25.0}}  # the species' option
     for extra in (["--set", "plant_age=25"], ["--set", "plants.helios:tomato.age=25"]):
         config = build_config(overrides_from_args(_parser().parse_args(["run", "--plant", "helios:tomato", *extra])))
         plant = resolve_plant(Registry(make_plugin_manager()), config)
@@ -212,7 +212,7 @@ def test_plant_age_flag_and_settings(tmp_path, cli):
     out = tmp_path / "out"
     for bad in ("0", "-3", "nan", "inf", "1e9"):
         code, _, err = cli(["run", "--plant", "helios:tomato", "--plant-age", bad, "--out", str(out)])
-        assert_one_line_error(code, err, "plant_age")
+        assert_one_line_error(code, err, "helios:tomato", "age")
     code, _, err = cli(["run", "--plant", "indian_cress", "--plant-age", "20", "--out", str(out)])
     assert_one_line_error(code, err, "--plant-age", "indian_cress")
     refuse = ["--set", "plants.helios:tomato.fit=refuse"]
@@ -255,7 +255,8 @@ def test_without_pyhelios_helios_plants_name_the_extra(tmp_path, monkeypatch, cl
 def tiny_run(plant: str, out: Path, frames, **output: object) -> tuple[Episode, object, object]:  # noqa: ANN001
     settings = {
         "plant": plant,
-        "render": {"labels": "organs", "shadow_samples": 0},
+        "render": {"labels": "organs"},
+            "renderer": {"raycast": {"shadow_samples": 0}},
         "physics": {"backend": "kinematic"},
         "routine": {"setpoints": "1x3"},  # no OMPL search for any seed tried: not about motion
         "camera": {"resolution": "320x180"},

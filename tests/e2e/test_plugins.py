@@ -11,9 +11,11 @@ from __future__ import annotations
 import inspect
 import json
 import os
+import pkgutil
 import subprocess
 import sys
 import textwrap
+from typing import Any
 from pathlib import Path
 
 import numpy as np
@@ -511,13 +513,22 @@ def _builtin_implementations() -> set[str]:
     for ep in metadata.distribution("agrisim").entry_points:
         if ep.group != hookspecs.PROJECT:
             continue
-        module = importlib.import_module(ep.module)
-        for obj in vars(module).values():
-            if callable(obj) and hasattr(obj, marker):
-                found.add(obj.__name__)
-            if inspect.isclass(obj) and obj.__module__ == module.__name__:
-                found.update(n for n, m in vars(obj).items() if callable(m) and hasattr(m, marker))
+        root = importlib.import_module(ep.module)
+        modules = [root]
+        if hasattr(root, "__path__"):  # a backend package: its submodules define the classes
+            modules += [importlib.import_module(m.name) for m in pkgutil.walk_packages(root.__path__, f"{root.__name__}.")]
+        for module in modules:
+            _hook_names(module, marker, found)
     return found
+
+
+def _hook_names(module: Any, marker: str, found: set[str]) -> None:
+    """Add the hooks ``module`` implements: its functions and its classes' methods."""
+    for obj in vars(module).values():
+        if callable(obj) and hasattr(obj, marker):
+            found.add(obj.__name__)
+        if inspect.isclass(obj) and obj.__module__ == module.__name__:
+            found.update(n for n, m in vars(obj).items() if callable(m) and hasattr(m, marker))
 
 
 def test_every_hookspec_is_documented() -> None:

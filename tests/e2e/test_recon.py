@@ -41,7 +41,8 @@ def run_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
     config = build_config(
         {
             "plant": "hydrangea",
-            "render": {"labels": "organs", "shadow_samples": 0},
+            "render": {"labels": "organs"},
+            "renderer": {"raycast": {"shadow_samples": 0}},
             "physics": {"backend": "kinematic"},
             # 1x3 reaches every setpoint without an OMPL search for every seed tried (41 of 41);
             # 1x2 needs one that fails for a few seeds, and this module is not about motion.
@@ -264,8 +265,8 @@ def test_texture_is_more_precise_than_repopa_for_every_species() -> None:
         truth = GroundTruth.sample(scene.mesh(scene.plant), 100_000)
         rows = {}
         for mode in ("texture", "repopa"):
-            settings = RenderConfig(hide_robots=True, shadow_samples=0, seg_mode=mode)
-            renderer = spec.factory(scene, cell, settings, spec.options_model())
+            settings = RenderConfig(hide_robots=True, seg_mode=mode)
+            renderer = spec.factory(scene, cell, settings, spec.options_model(shadow_samples=0))
             session = ReconSession(PointCloudReconstructor(scene.labels), scene.labels, truth, [2.0])
             for i, T in enumerate(poses):
                 f = renderer.render(camera, T, {})

@@ -29,7 +29,6 @@ RUN = [
     "--physics", "kinematic",
     "--setpoints", "1x3",
     "--resolution", "320x180",
-    "--shadow-samples", "1",
     "--no-rrd",
     "--set", "metrics.truth_samples=50000",
 ]

@@ -28,7 +28,8 @@ from agrisim.interfaces import Capture, Frame, JointTrajectory, Trajectory  # no
 from agrisim.robot.kinematics import ArmKinematics  # noqa: E402
 from agrisim.robot import meshes as robot_meshes  # noqa: E402
 from agrisim.plugins.sinks import rerun_sink  # noqa: E402
-from agrisim.plugins.sinks.rerun_sink import paths  # noqa: E402
+from agrisim.plugins.sinks.rerun_sink import RerunOptions, entities, recording  # noqa: E402
+from agrisim.plugins.sinks.rerun_sink.entities import paths  # noqa: E402
 from agrisim.registry import make_plugin_manager  # noqa: E402
 from agrisim.robot.setpoints import routine  # noqa: E402
 
@@ -131,7 +132,7 @@ def test_episode_recording_holds_robots_on_both_timelines(tmp_path: Path) -> Non
     rec = Recording(rrd)
 
     assert [r.application_id for r in rec.recordings] == ["agrisim"]
-    assert rec.recordings[0].recording_id == rerun_sink.recording_id(run)
+    assert rec.recordings[0].recording_id == entities.recording_id(run)
     assert rec.blueprints, "the default blueprint is saved with the recording"
     assert rec.static("world", "ViewCoordinates:xyz"), "world/ is z-up"
     for name in ("floor", "table", "pot", "r1_stand", "r2_stand"):
@@ -203,10 +204,16 @@ def _hand_built_run(tmp_path: Path, **output: object) -> Run:
     return Run(**known)
 
 
+def _make(run: Run):  # noqa: ANN202 - the sink or None
+    """The sink as the episode builds it: options from the run's [sink.rerun] (the aliases
+    --rrd, --no-rrd, --spawn resolved there)."""
+    return rerun_sink.make_sink(run, RerunOptions.model_validate(run.config.sink.get("rerun", {})))
+
+
 def test_hooks_record_motion_images_and_clouds(tmp_path: Path) -> None:
     custom = tmp_path / "elsewhere" / "custom.rrd"
     run = _hand_built_run(tmp_path, rrd=str(custom))
-    sink = rerun_sink.make_sink(run)
+    sink = _make(run)
     assert sink is not None
     arm = run.cell.arms[0]
     home = np.array(arm.home)
@@ -242,7 +249,7 @@ def test_hooks_record_motion_images_and_clouds(tmp_path: Path) -> None:
     assert len(rows["sim_time"]) == 1 + 61
     np.testing.assert_allclose(np.diff(rows["sim_time"][1:]), 1 / 30, atol=1 / 240 + 1e-9)
     final = kin.link_poses(goal)["wrist_3_link"]
-    np.testing.assert_allclose(rows["Transform3D:quaternion"][-1][0], rerun_sink.quaternions_xyzw(final[:3, :3])[0], atol=1e-6)
+    np.testing.assert_allclose(rows["Transform3D:quaternion"][-1][0], entities.quaternions_xyzw(final[:3, :3])[0], atol=1e-6)
     for kind, component in (("rgb", "EncodedImage:blob"), ("labels", "SegmentationImage:buffer"), ("depth", "DepthImage:buffer")):
         entity = paths.camera_image("r1", kind)
         got = rec.temporal(entity, component) or rec.temporal(entity, "Image:buffer")
@@ -270,20 +277,20 @@ def test_spawn_tees_to_the_viewer_and_the_file(tmp_path: Path, monkeypatch: pyte
     )
     try:
         deadline = time.monotonic() + 15
-        while not rerun_sink._listening(port):
+        while not recording._listening(port):
             assert time.monotonic() < deadline and server.poll() is None, "the stand-in viewer did not start"
             time.sleep(0.1)
         spawned: list[int] = []
         monkeypatch.setattr(rr.RecordingStream, "spawn", lambda self, port, connect: spawned.append(port))
-        monkeypatch.setattr(rerun_sink, "SPAWN_PORT", port)
+        monkeypatch.setattr(recording, "SPAWN_PORT", port)
         run = _hand_built_run(tmp_path, spawn=True)
-        sink = rerun_sink.make_sink(run)
+        sink = _make(run)
         assert sink is not None
         t0 = time.monotonic()
         sink.agrisim_run_started(run=run)
         assert spawned == [port] and sink.rec is not None
         sink.agrisim_run_finished(run=run, summary=RunSummary("complete", 0, 0, 0, 0, 0.0, {}))
-        assert time.monotonic() - t0 < rerun_sink.FLUSH_TIMEOUT
+        assert time.monotonic() - t0 < recording.FLUSH_TIMEOUT
     finally:
         server.kill()
         server.wait()
@@ -293,9 +300,9 @@ def test_spawn_tees_to_the_viewer_and_the_file(tmp_path: Path, monkeypatch: pyte
 
 def test_spawn_without_a_viewer_records_to_file_only(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setattr(rr.RecordingStream, "spawn", lambda self, port, connect: None)
-    monkeypatch.setattr(rerun_sink, "SPAWN_PORT", _free_port())  # nothing listens there
+    monkeypatch.setattr(recording, "SPAWN_PORT", _free_port())  # nothing listens there
     run = _hand_built_run(tmp_path, spawn=True, no_rrd=True)
-    sink = rerun_sink.make_sink(run)
+    sink = _make(run)
     assert sink is not None  # --spawn asks for a viewer even under --no-rrd
     sink.agrisim_run_started(run=run)
     assert sink.rec is None, "no sink at all: nothing is buffered in memory"
@@ -305,7 +312,7 @@ def test_spawn_without_a_viewer_records_to_file_only(tmp_path: Path, monkeypatch
 
 def test_no_rrd_without_spawn_stays_out(tmp_path: Path) -> None:
     run = _hand_built_run(tmp_path, no_rrd=True)
-    assert rerun_sink.make_sink(run) is None
+    assert _make(run) is None
 
 
 def test_registered_through_the_entry_point() -> None:
@@ -321,7 +328,7 @@ def test_registered_through_the_entry_point() -> None:
 def test_quaternions_match_pinocchio() -> None:
     Rs = [pin.SE3.Random().rotation for _ in range(500)]
     Rs += [np.diag([1.0, -1.0, -1.0]), np.diag([-1.0, 1.0, -1.0]), np.diag([-1.0, -1.0, 1.0]), np.eye(3)]
-    q = rerun_sink.quaternions_xyzw(np.array(Rs))
+    q = entities.quaternions_xyzw(np.array(Rs))
     ref = np.array([pin.Quaternion(R).coeffs() for R in Rs])  # x, y, z, w
     err = np.minimum(np.abs(q - ref).max(axis=1), np.abs(q + ref).max(axis=1))
     assert err.max() < 1e-12
@@ -329,10 +336,10 @@ def test_quaternions_match_pinocchio() -> None:
 
 def test_decimate_keeps_both_ends() -> None:
     t = np.arange(0, 1.0 + 1e-9, 1 / 240)
-    idx = rerun_sink.decimate(t, 30.0)
+    idx = entities.decimate(t, 30.0)
     assert idx[0] == 0 and idx[-1] == len(t) - 1 and len(idx) == 31
-    assert list(rerun_sink.decimate(np.array([3.0]), 30.0)) == [0]
-    assert len(rerun_sink.decimate(np.array([]), 30.0)) == 0
+    assert list(entities.decimate(np.array([3.0]), 30.0)) == [0]
+    assert len(entities.decimate(np.array([]), 30.0)) == 0
 
 
 def test_link_visuals_and_mesh_cache(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:

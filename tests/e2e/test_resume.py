@@ -93,7 +93,7 @@ def test_the_same_command_with_resume_appended_continues(tmp_path, capsys):
     [
         (["--plant", "boxwood"], "plant = 'coltsfoot'"),
         (["--resolution", "320x180"], "camera.resolution = '160x90'"),
-        (["--set", "render.shadow_samples=3"], "render.shadow_samples = 2"),
+        (["--set", "render.shadow_samples=3"], "renderer.raycast.shadow_samples = 2"),
     ],
 )
 def test_resume_refuses_a_setting_that_differs_and_names_it(tmp_path, capsys, change, key):

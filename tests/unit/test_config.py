@@ -40,13 +40,35 @@ def test_toml_then_flags(tmp_path):
         ({"routine": {"setpoints": "five"}}, "LxC"),
         ({"motion": {"reach_tolerance_mm": 0}}, "motion.reach_tolerance_mm"),
         ({"seed": -1}, "seed"),
-        ({"output": {"rrd": "x.rrd", "no_rrd": True}}, "exclude each other"),
         ({"camera": {"resolution": "10x"}}, "WxH"),
     ],
 )
 def test_bad_values_name_the_setting(layer, message):
     with pytest.raises(ConfigError, match=message):
         build_config(layer)
+
+
+def test_settings_that_moved_to_a_backend_land_in_its_table():
+    """The familiar keys (and the flags that set them) are aliases of the backends' own options."""
+    layer = {
+        "plant": "helios:bean",
+        "plant_age": 30,
+        "render": {"shadow_samples": 0, "supersample": 2, "labels": "organs"},
+        "output": {"no_rrd": True, "spawn": True},
+    }
+    cfg = build_config(layer)
+    assert cfg.plants == {"helios:bean": {"age": 30}}
+    assert cfg.renderer.options_for("raycast") == {"shadow_samples": 0, "supersample": 2}
+    assert cfg.sink == {"rerun": {"save": False, "spawn": True}} and cfg.render.labels == "organs"
+    assert layer["render"]["shadow_samples"] == 0, "the caller's layers are not changed"
+    # the renderer chosen in any layer receives them; no renderer drops them
+    assert build_config(layer, {"renderer": {"backend": "pybullet"}}).renderer.options_for("pybullet") == {
+        "shadow_samples": 0,
+        "supersample": 2,
+    }
+    assert build_config(layer, {"renderer": {"backend": "none"}}).renderer.model_extra == {}
+    # the alias is the most specific: it wins over the table it names
+    assert build_config({"output": {"rrd": "a.rrd"}, "sink": {"rerun": {"path": "b.rrd"}}}).sink["rerun"]["path"] == "a.rrd"
 
 
 def test_backend_options_without_naming_the_backend_keep_the_default():

@@ -56,8 +56,12 @@ def sphere(name: str, center, radius: float, material: Material, subdivisions: i
 
 
 def renderer(scene: Scene, cell, options: RaycastOptions | None = None, **settings) -> RaycastRenderer:
+    """A raycast renderer; ``settings`` are RenderConfig's fields or RaycastOptions' (these
+    override ``options``)."""
     settings.setdefault("hide_robots", True)
-    return RaycastRenderer(scene, cell, RenderConfig(**settings), options or RaycastOptions())
+    own = {k: settings.pop(k) for k in list(settings) if k in RaycastOptions.model_fields}
+    options = (options or RaycastOptions()).model_copy(update=own)
+    return RaycastRenderer(scene, cell, RenderConfig(**settings), options)
 
 
 def pixel_rays(camera: CameraModel, world_T_camera: np.ndarray) -> np.ndarray:

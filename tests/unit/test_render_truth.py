@@ -37,9 +37,10 @@ def _views(cell, count: int) -> list[np.ndarray]:
     return [sps[robot][i].world_T_camera for robot, i in picks[:count]]
 
 
-def _renderer(registry, scene, cell, **settings):
+def _renderer(registry, scene, cell, shadow_samples=1, **settings):
     spec = registry.get("renderer", "raycast")
-    return spec.factory(scene, cell, RenderConfig(hide_robots=True, **settings), spec.options_model())
+    options = spec.options_model(shadow_samples=shadow_samples)
+    return spec.factory(scene, cell, RenderConfig(hide_robots=True, **settings), options)
 
 
 def test_the_papers_camera_preset():
@@ -115,7 +116,7 @@ def test_same_seeds_give_byte_identical_images(registry, paper_cell, kin):
     for _ in range(2):
         scene = build_scene(paper_cell, resolve_plant(registry, build_config({"plant": "amaryllis"})), pcg_seed=42)
         spec = registry.get("renderer", "raycast")
-        r = spec.factory(scene, paper_cell, RenderConfig(shadow_samples=4), spec.options_model())
+        r = spec.factory(scene, paper_cell, RenderConfig(), spec.options_model(shadow_samples=4))
         frames.append(r.render(camera, T, poses))
         r.close()
     a, b = frames

@@ -30,6 +30,8 @@ class PybulletRenderOptions(Options):
     """Ambient light coefficient."""
     diffuse: float = Field(0.6, ge=0.0, le=1.0)
     """Diffuse light coefficient."""
+    shadows: bool = True
+    """Shadow-mapped shadows of the first light."""
 
 
 @hookimpl

@@ -141,7 +141,7 @@ class PybulletRenderer(Renderer):
             T = link_poses[robot][link] @ link_T_visual
             c.resetBasePositionAndOrientation(body, T[:3, 3].tolist(), quat_xyzw(T[:3, :3]))
         o = self.options
-        shadow = 1 if self.settings.shadow_samples > 0 else 0
+        shadow = 1 if self.options.shadows else 0
         _, _, rgba, zbuf, seg = c.getCameraImage(
             camera.width,
             camera.height,

@@ -61,6 +61,11 @@ from agrisim.kinds import lazy
 class RaycastOptions(Options):
     """Options of the raycast (Open3D/Embree) renderer."""
 
+    shadow_samples: int = Field(1, ge=0, le=32)
+    """Shadow rays per pixel shared among the lights (the paper's Raytrace Samples;
+    ``--shadow-samples``); 0: none."""
+    supersample: int = Field(1, ge=1, le=4)
+    """RGB rays per pixel side (``--supersample``); labels and depth stay exact at pixel centres."""
     ambient: float = Field(0.15, ge=0.0, le=100.0)
     """Ambient irradiance added everywhere (a white surface lit by ambient 1 alone is white)."""
     exposure: float = Field(1.0, gt=0.0, le=1e6)

@@ -110,8 +110,8 @@ class RaycastRenderer(Renderer):
     def __init__(self, scene: Scene, cell: Cell, settings: RenderConfig, options: RaycastOptions) -> None:
         super().__init__(scene, cell, settings, options)
         self.seg_mode = settings.seg_mode
-        self.shadow_samples = settings.shadow_samples
-        self.supersample = settings.supersample
+        self.shadow_samples = self.options.shadow_samples
+        self.supersample = self.options.supersample
         self.hide_robots = settings.hide_robots
         organs = settings.labels == "organs"
         self.label_map = np.arange(256, dtype=np.uint8) if organs else (np.arange(256) > 0).astype(np.uint8)

@@ -1,32 +1,4 @@
-"""The ``rerun`` sink: the episode as a Rerun recording (``OUT/recording.rrd``).
-
-One :class:`rerun.RecordingStream` per run (never the process-global one), written to
-``--rrd PATH`` or ``OUT/recording.rrd`` and, with ``--spawn``, streamed to a spawned viewer as
-well. Two timelines: ``setpoint`` (sequence, the setpoint index) and ``sim_time`` (duration,
-simulated seconds since the run started). Every temporal row carries both, so scrubbing either
-shows the same state.
-
-Entity layout (``world/`` is z up; every path is built by :class:`paths`, which renderer and
-reconstruction code should reuse)::
-
-    world                               ViewCoordinates RIGHT_HAND_Z_UP (static)
-    world/cell/<obstacle>               Boxes3D / Cylinders3D (static)
-    world/<robot>/<link>                Transform3D world_T_link over time
-    world/<robot>/<link>/visual_<i>     Asset3D (GLB) or Boxes3D, static, link_T_visual
-    world/<robot>/camera                Transform3D world_T_camera + Pinhole (OpenCV RDF)
-    world/<robot>/camera/{rgb,labels,depth}   Image (JPEG), SegmentationImage, DepthImage (uint16 mm)
-    world/<robot>/camera/instances      SegmentationImage of leaf instance ids (when the plant has them)
-    world/<robot>/planned|executed      LineStrips3D of the camera position per move
-    world/setpoints/<robot>             Points3D (colour = pending/reached/failed)
-    world/setpoints/<robot>/view        Arrows3D, the camera's viewing direction
-    world/clouds/view|merged/<label>    Points3D per view and merged, per label
-    metrics/<robot>/ee_error_mm         Scalars
-    log/<robot>                         TextLog per setpoint
-    run/config, run/summary             TextDocument
-
-Arm motion is logged decimated to :data:`TRANSFORM_RATE` Hz of simulated time (every link at
-every physics step would dominate the file), always including each move's last sample.
-"""
+"""The sink object: one Rerun recording stream per run, fed by the episode's event hooks."""
 
 from __future__ import annotations
 
@@ -34,204 +6,55 @@ import importlib.util
 import json
 import logging
 import socket
-import uuid
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from agrisim.files import layout
-from agrisim import BackendSpec, hookimpl
+from agrisim import hookimpl
 from agrisim.robot import meshes as robot_meshes
+
+from .entities import (
+    APPLICATION_ID,
+    IMAGE_PLANE_DISTANCE,
+    MERGED_CLOUD_POINTS,
+    OBSTACLE_COLORS,
+    PATH_RATE,
+    PRIMITIVE_COLOR,
+    RGB_JPEG_QUALITY,
+    SETPOINT_ARROW,
+    STAND_COLOR,
+    STATUS_COLORS,
+    TIMELINE_SETPOINT,
+    TIMELINE_SIM_TIME,
+    TRANSFORM_RATE,
+    VIEW_CLOUD_POINTS,
+    decimate,
+    paths,
+    quaternions_xyzw,
+    recording_id,
+    rgba255,
+    robot_color,
+)
 
 if TYPE_CHECKING:
     import rerun as rr
     import rerun.blueprint as rrb
 
+    from agrisim.interfaces import Capture, Frame, Trajectory
+    from agrisim.records import Run, RunSummary, SetpointResult
     from agrisim.scene.cell import Box, Cylinder
     from agrisim.scene.model import Scene
-    from agrisim.episode import Run, RunSummary, SetpointResult
-    from agrisim.interfaces import Capture, Frame, Trajectory
+
+    from . import RerunOptions
 
 log = logging.getLogger(__name__)
 
-APPLICATION_ID = "agrisim"
-#: arm link transforms are logged at this rate of simulated time, Hz
-TRANSFORM_RATE = 30.0
-#: planned / executed camera paths are drawn with points at this rate, Hz
-PATH_RATE = 60.0
 #: port of the viewer started by ``--spawn`` (Rerun's default)
 SPAWN_PORT = 9876
-#: distance of the image plane drawn for each camera in 3D views, m
-IMAGE_PLANE_DISTANCE = 0.08
-#: length of the viewing-direction arrows drawn at each setpoint, m
-SETPOINT_ARROW = 0.05
-RGB_JPEG_QUALITY = 90
-#: most points a per-view / merged cloud keeps in the recording (the files on disk keep all)
-VIEW_CLOUD_POINTS = 20_000
-MERGED_CLOUD_POINTS = 300_000
 #: seconds to wait for the sinks (file, viewer) to take the last data at the end of the run
 FLUSH_TIMEOUT = 20.0
-
-TIMELINE_SETPOINT = "setpoint"
-TIMELINE_SIM_TIME = "sim_time"
-
-ROBOT_COLORS = [(230, 120, 40), (40, 130, 230), (120, 200, 80), (200, 80, 200)]
-OBSTACLE_COLORS = {
-    "floor": (205, 205, 200, 255),
-    "table": (150, 110, 75, 255),
-    "pot": (170, 85, 50, 255),
-    "plant_keepout": (220, 60, 60, 60),
-}
-STAND_COLOR = (90, 90, 95, 255)
-STATUS_COLORS = {"pending": (160, 160, 160), "reached": (40, 200, 80), "failed": (230, 40, 40)}
-#: URDF primitives (the camera body) without a material colour
-PRIMITIVE_COLOR = (40, 40, 40, 255)
-
-
-class paths:  # noqa: N801 - a namespace of path builders, used like a module
-    """Entity paths of the recording, in one place."""
-
-    WORLD = "world"
-    CELL = "world/cell"
-    SETPOINTS = "world/setpoints"
-    CLOUDS = "world/clouds"
-    PLANT = "world/plant"
-    LIGHTS = "world/lights"
-    METRICS = "metrics"
-    RUN_CONFIG = "run/config"
-    RUN_SUMMARY = "run/summary"
-    #: images under each camera: a Frame field -> child entity name
-    IMAGE_KINDS = ("rgb", "labels", "depth", "instances")
-
-    @staticmethod
-    def obstacle(name: str) -> str:
-        return f"world/cell/{name}"
-
-    @staticmethod
-    def scene_mesh(name: str, material: int) -> str:
-        """A static scene mesh (room, clutter, pot, the plant), one entity per material."""
-        return f"world/scene/{name}/{material}"
-
-    @staticmethod
-    def light(name: str) -> str:
-        return f"world/lights/{name}"
-
-    @staticmethod
-    def robot(robot: str) -> str:
-        return f"world/{robot}"
-
-    @staticmethod
-    def link(robot: str, link: str) -> str:
-        """The entity whose transform is ``world_T_link``."""
-        return f"world/{robot}/{link}"
-
-    @staticmethod
-    def link_visual(robot: str, link: str, index: int) -> str:
-        """A link's visual geometry (with its static ``link_T_visual``)."""
-        return f"world/{robot}/{link}/visual_{index}"
-
-    @staticmethod
-    def camera(robot: str) -> str:
-        """The camera's optical frame (``world_T_camera``, OpenCV axes) and its ``Pinhole``."""
-        return f"world/{robot}/camera"
-
-    @staticmethod
-    def camera_image(robot: str, kind: str) -> str:
-        """``kind`` is ``rgb``, ``labels``, ``depth`` or ``instances``."""
-        return f"world/{robot}/camera/{kind}"
-
-    @staticmethod
-    def planned(robot: str) -> str:
-        return f"world/{robot}/planned"
-
-    @staticmethod
-    def executed(robot: str) -> str:
-        return f"world/{robot}/executed"
-
-    @staticmethod
-    def setpoints(robot: str) -> str:
-        return f"world/setpoints/{robot}"
-
-    @staticmethod
-    def setpoint_views(robot: str) -> str:
-        return f"world/setpoints/{robot}/view"
-
-    @staticmethod
-    def cloud(label: str, merged: bool) -> str:
-        return f"world/clouds/{'merged' if merged else 'view'}/{label}"
-
-    @staticmethod
-    def metric(robot: str, name: str) -> str:
-        return f"metrics/{robot}/{name}"
-
-    @staticmethod
-    def log(robot: str) -> str:
-        return f"log/{robot}"
-
-
-# ---------------------------------------------------------------------- small helpers
-
-
-def quaternions_xyzw(R: np.ndarray) -> np.ndarray:
-    """Unit quaternions (x, y, z, w) of rotation matrices ``R`` (N x 3 x 3), vectorised.
-
-    Each row uses the largest of the four squared components as the pivot (Shepperd's method),
-    which stays accurate for every rotation, 180-degree turns included.
-    """
-    R = np.asarray(R, float).reshape(-1, 3, 3)
-    m00, m11, m22 = R[:, 0, 0], R[:, 1, 1], R[:, 2, 2]
-    four = np.stack([1 + m00 - m11 - m22, 1 - m00 + m11 - m22, 1 - m00 - m11 + m22, 1 + m00 + m11 + m22], axis=1)
-    pivot = np.argmax(four, axis=1)
-    s = 2.0 * np.sqrt(np.maximum(four[np.arange(len(R)), pivot], 1e-300))  # = 4 * pivot component
-    d21, d02, d10 = R[:, 2, 1] - R[:, 1, 2], R[:, 0, 2] - R[:, 2, 0], R[:, 1, 0] - R[:, 0, 1]
-    s01, s02, s12 = R[:, 0, 1] + R[:, 1, 0], R[:, 0, 2] + R[:, 2, 0], R[:, 1, 2] + R[:, 2, 1]
-    q = np.empty((len(R), 4))
-    cases = [
-        np.stack([s / 4, s01 / s, s02 / s, d21 / s], 1),  # x largest
-        np.stack([s01 / s, s / 4, s12 / s, d02 / s], 1),  # y largest
-        np.stack([s02 / s, s12 / s, s / 4, d10 / s], 1),  # z largest
-        np.stack([d21 / s, d02 / s, d10 / s, s / 4], 1),  # w largest
-    ]
-    for k, case in enumerate(cases):
-        q[pivot == k] = case[pivot == k]
-    return q / np.linalg.norm(q, axis=1, keepdims=True)
-
-
-def decimate(t: np.ndarray, rate: float) -> np.ndarray:
-    """Indices of the samples at times ``t`` (sorted) nearest below each tick of ``rate`` Hz,
-    always with the first and last sample."""
-    t = np.asarray(t, float)
-    if len(t) == 0:
-        return np.zeros(0, int)
-    ticks = np.arange(t[0], t[-1], 1.0 / rate)
-    idx = np.searchsorted(t, ticks, side="left")
-    return np.unique(np.concatenate([[0], np.clip(idx, 0, len(t) - 1), [len(t) - 1]]))
-
-
-def recording_id(run: Run) -> str:
-    """A recording id derived from the run (output directory and start time), stable for the
-    run so that other processes logging about it land in the same recording."""
-    ident = f"agrisim:{Path(run.out_dir).resolve()}:{run.started_at}"
-    return str(uuid.uuid5(uuid.NAMESPACE_URL, ident))
-
-
-def rrd_path(run: Run) -> Path:
-    """Where the recording is saved: ``--rrd`` or ``OUT/recording.rrd``."""
-    rrd = run.config.output.rrd
-    return Path(rrd).expanduser() if rrd is not None else Path(run.out_dir) / layout.RECORDING
-
-
-def _robot_color(run: Run, robot: str) -> tuple[int, int, int]:
-    names = list(run.cell.arm_names)
-    return ROBOT_COLORS[names.index(robot) % len(ROBOT_COLORS)] if robot in names else (200, 200, 200)
-
-
-def _rgba255(rgba: Sequence[float] | None, default: tuple[int, int, int, int]) -> tuple[int, int, int, int]:
-    if rgba is None:
-        return default
-    return tuple(int(round(255 * min(max(c, 0.0), 1.0))) for c in rgba)  # type: ignore[return-value]
 
 
 def _time_columns(setpoint: int | np.ndarray, sim_time: np.ndarray) -> list[Any]:
@@ -256,18 +79,16 @@ def _load_rerun() -> None:
     import rerun.blueprint as rrb
 
 
-# ---------------------------------------------------------------------- the sink
-
 
 class RerunSink:
     """Records one run. Built by the ``rerun`` sink factory; the stream opens at run start."""
 
-    def __init__(self, run: Run) -> None:
+    def __init__(self, run: Run, options: RerunOptions) -> None:
         _load_rerun()
         self.run = run
-        self.path = rrd_path(run)
-        self.spawn = bool(run.config.output.spawn)
-        self.save = not run.config.output.no_rrd
+        self.path = options.recording_path(run.out_dir)
+        self.spawn = options.spawn
+        self.save = options.save
         self.rec: rr.RecordingStream | None = None
         self.visuals = {arm.name: robot_meshes.link_visuals(arm.urdf) for arm in run.cell.arms}
         self._status: dict[str, list[str]] = {}
@@ -411,16 +232,16 @@ class RerunSink:
                         log.warning("%s/%s: visual mesh %s not recorded: %s", robot, link, v.filename, exc)
                         continue
                     # A URDF material tints the mesh; its own (glTF) colours stay otherwise.
-                    albedo = None if v.rgba is None else _rgba255(v.rgba, (255, 255, 255, 255))
+                    albedo = None if v.rgba is None else rgba255(v.rgba, (255, 255, 255, 255))
                     self.rec.log(path, rr.Asset3D(contents=contents, media_type=media_type, albedo_factor=albedo), static=True)
                 elif v.kind == "box" and v.size is not None:
-                    color = _rgba255(v.rgba, PRIMITIVE_COLOR)
+                    color = rgba255(v.rgba, PRIMITIVE_COLOR)
                     self.rec.log(path, rr.Boxes3D(half_sizes=[np.asarray(v.size) / 2], colors=[color], fill_mode="solid"), static=True)
                 elif v.kind == "cylinder" and v.radius is not None and v.length is not None:
-                    color = _rgba255(v.rgba, PRIMITIVE_COLOR)
+                    color = rgba255(v.rgba, PRIMITIVE_COLOR)
                     self.rec.log(path, rr.Cylinders3D(lengths=[v.length], radii=[v.radius], colors=[color], fill_mode="solid"), static=True)
                 elif v.kind == "sphere" and v.radius is not None:
-                    color = _rgba255(v.rgba, PRIMITIVE_COLOR)
+                    color = rgba255(v.rgba, PRIMITIVE_COLOR)
                     self.rec.log(path, rr.Ellipsoids3D(half_sizes=[[v.radius] * 3], colors=[color], fill_mode="solid"), static=True)
 
     def _log_setpoints(self) -> None:
@@ -437,12 +258,12 @@ class RerunSink:
             )
             self.rec.log(
                 paths.setpoint_views(robot),
-                rr.Arrows3D(origins=origins, vectors=T[:, :3, 2] * SETPOINT_ARROW, colors=_robot_color(self.run, robot), radii=0.002),
+                rr.Arrows3D(origins=origins, vectors=T[:, :3, 2] * SETPOINT_ARROW, colors=robot_color(self.run, robot), radii=0.002),
                 static=True,
             )
             self._status[robot] = ["pending"] * len(sps)
             self._log_setpoint_status(robot)
-            self.rec.log(paths.metric(robot, "ee_error_mm"), rr.SeriesPoints(colors=[_robot_color(self.run, robot)], names=[robot]), static=True)
+            self.rec.log(paths.metric(robot, "ee_error_mm"), rr.SeriesPoints(colors=[robot_color(self.run, robot)], names=[robot]), static=True)
 
     def _log_setpoint_status(self, robot: str) -> None:
         assert self.rec is not None
@@ -514,7 +335,7 @@ class RerunSink:
             idx = decimate(ex.t, TRANSFORM_RATE)
             self._log_arm(robot, trajectory.setpoint, np.asarray(ex.t)[idx], np.asarray(ex.q)[idx])
         kin = run.kinematics[robot]
-        color = _robot_color(run, robot)
+        color = robot_color(run, robot)
         planned = trajectory.planned
         if len(planned.t):
             pts = np.array([kin.fk(q)[:3, 3] for q in np.asarray(planned.q)[decimate(planned.t, PATH_RATE)]])
@@ -617,6 +438,7 @@ class RerunSink:
             self.close()
 
 
+
 def _cloud_arrays(cloud: Any) -> tuple[np.ndarray | None, np.ndarray | None]:
     """Points (N x 3) and optional colours from an array (N x 3 or N x 6) or an object with
     ``points``/``colors`` (Open3D's ``PointCloud``, trimesh's ``PointCloud``)."""
@@ -649,24 +471,3 @@ def _summary_markdown(summary: RunSummary) -> str:
         text += f"\n## Wall time per stage (s)\n\n| stage | s |\n|---|---|\n{wall}\n"
     return text
 
-
-def make_sink(run: Run) -> RerunSink | None:
-    """The sink for ``run``, or None under ``--no-rrd`` without ``--spawn``."""
-    out = run.config.output
-    if out.no_rrd and not out.spawn:
-        return None
-    return RerunSink(run)
-
-
-@hookimpl
-def agrisim_sinks() -> list[BackendSpec]:
-    return [
-        BackendSpec(
-            name="rerun",
-            factory=make_sink,
-            description="Rerun recording (OUT/recording.rrd or --rrd; --spawn streams to a viewer)",
-        )
-    ]
-
-
-__all__ = ["RerunSink", "make_sink", "paths", "quaternions_xyzw", "decimate", "rrd_path", "recording_id"]

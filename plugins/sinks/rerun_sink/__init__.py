@@ -1,0 +1,112 @@
+"""The ``rerun`` sink: the episode as a Rerun recording (``OUT/recording.rrd``).
+
+One :class:`rerun.RecordingStream` per run (never the process-global one), written to
+``OUT/recording.rrd`` (or ``[sink.rerun] path``, ``--rrd``) and, with ``spawn`` (``--spawn``),
+streamed to a spawned viewer as well; ``save = false`` (``--no-rrd``) writes no file. Two timelines: ``setpoint`` (sequence, the setpoint index) and ``sim_time`` (duration,
+simulated seconds since the run started). Every temporal row carries both, so scrubbing either
+shows the same state.
+
+Entity layout (``world/`` is z up; every path is built by :class:`entities.paths`, which other
+plugins logging into the same recording should reuse)::
+
+    world                               ViewCoordinates RIGHT_HAND_Z_UP (static)
+    world/cell/<obstacle>               Boxes3D / Cylinders3D (static)
+    world/<robot>/<link>                Transform3D world_T_link over time
+    world/<robot>/<link>/visual_<i>     Asset3D (GLB) or Boxes3D, static, link_T_visual
+    world/<robot>/camera                Transform3D world_T_camera + Pinhole (OpenCV RDF)
+    world/<robot>/camera/{rgb,labels,depth}   Image (JPEG), SegmentationImage, DepthImage (uint16 mm)
+    world/<robot>/camera/instances      SegmentationImage of leaf instance ids (when the plant has them)
+    world/<robot>/planned|executed      LineStrips3D of the camera position per move
+    world/setpoints/<robot>             Points3D (colour = pending/reached/failed)
+    world/setpoints/<robot>/view        Arrows3D, the camera's viewing direction
+    world/clouds/view|merged/<label>    Points3D per view and merged, per label
+    metrics/<robot>/ee_error_mm         Scalars
+    log/<robot>                         TextLog per setpoint
+    run/config, run/summary             TextDocument
+
+Arm motion is logged decimated to :data:`TRANSFORM_RATE` Hz of simulated time (every link at
+every physics step would dominate the file), always including each move's last sample.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+from pydantic import model_validator
+
+from agrisim import BackendSpec, Options, hookimpl
+from agrisim.errors import OutputError
+from agrisim.files import layout
+
+if TYPE_CHECKING:
+    from agrisim.config import RunConfig
+    from agrisim.records import Run
+
+    from .recording import RerunSink
+
+
+class RerunOptions(Options):
+    """Options of the ``rerun`` sink (``[sink.rerun]``)."""
+
+    path: Path | None = None
+    """Recording file (``--rrd``); default: OUT/recording.rrd."""
+    save: bool = True
+    """Write the recording to a file (``--no-rrd``: false)."""
+    spawn: bool = False
+    """Also stream to a Rerun viewer spawned for the run (``--spawn``)."""
+
+    @model_validator(mode="after")
+    def _exclusive(self) -> RerunOptions:
+        if not self.save and self.path is not None:
+            raise ValueError("--rrd and --no-rrd exclude each other (path given with save = false)")
+        return self
+
+    def recording_path(self, out_dir: Path) -> Path:
+        """Where the recording is saved: ``path`` or ``OUT/recording.rrd``."""
+        return Path(self.path).expanduser() if self.path is not None else Path(out_dir) / layout.RECORDING
+
+
+def preflight(config: RunConfig, options: RerunOptions) -> None:
+    """A recording file outside the run directory is finished work too: replaced only under
+    ``--overwrite``."""
+    if options.save and options.path is not None and options.path.expanduser().exists() and not config.output.overwrite:
+        raise OutputError(f"--rrd {options.path} already exists; pass --overwrite to replace it")
+
+
+def make_sink(run: Run, options: RerunOptions) -> RerunSink | None:
+    """The sink for ``run``, or None when it neither saves nor spawns (Rerun is then never
+    imported)."""
+    if not options.save and not options.spawn:
+        return None
+    from .recording import RerunSink
+
+    if options.save:
+        run.outputs["recording"] = options.recording_path(run.out_dir)
+    return RerunSink(run, options)
+
+
+@hookimpl
+def agrisim_sinks() -> list[BackendSpec]:
+    return [
+        BackendSpec(
+            name="rerun",
+            factory=make_sink,
+            description="Rerun recording (OUT/recording.rrd or --rrd; --spawn streams to a viewer)",
+            options_model=RerunOptions,
+            preflight=preflight,
+        )
+    ]
+
+
+def __getattr__(name: str) -> Any:
+    # The sink class and its helpers stay importable from here without the provider importing
+    # them (``agrisim plugins`` loads this module).
+    if name == "RerunSink":
+        from .recording import RerunSink
+
+        return RerunSink
+    raise AttributeError(name)
+
+
+__all__ = ["RerunOptions", "RerunSink", "make_sink", "preflight"]
