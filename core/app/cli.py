@@ -16,7 +16,7 @@ from pathlib import Path
 from typing import Any, NoReturn
 
 from agrisim.files import layout
-from agrisim.config import RunConfig, build_config, first_difference, load_toml, merge, outcome_settings
+from agrisim.config import RunConfig, build_config, first_difference, load_toml, outcome_settings
 from agrisim.errors import BackendFailure, UserError
 
 if sys.version_info >= (3, 11):
