@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from agrisim.lab import room as lab
+from agrisim.lab import clutter, room as lab
 from agrisim.scene.cell import Box, Cylinder, build_cell
 from agrisim.config import CellConfig
 from agrisim.scene.model import Label, LabelTable, Material, Mesh, Plant
@@ -169,7 +169,7 @@ def test_everything_but_the_plant_is_background_and_budgets_hold(scene):
 
 
 def test_room_encloses_everything(cell, scene):
-    room = lab.room_for(cell)
+    room = clutter.room_for(cell)
     assert room.size == (10.0, 8.0) and room.height == 3.0
     xmin, xmax, ymin, ymax = room.bounds
     for m in scene.meshes:
@@ -229,7 +229,7 @@ SIZES = {"cabinet": (0.9, 0.5), "pallet": (1.2, 0.8)}
 DRUM_R = 0.29
 RATES = {"cabinet": 0.1, "pallet": 0.5, "drum": 0.75}
 RANK = {"cabinet": 0, "pallet": 1, "drum": 2}
-ROOM = lab.Room()
+ROOM = clutter.Room()
 
 
 def _shape(item):
@@ -289,8 +289,8 @@ def _allowed(item) -> bool:
 def test_clutter_layout_obeys_the_papers_rules():
     seen_cabinet_over_pallet = 0
     for seed in range(25):
-        raw = lab.sample_clutter(ROOM, seed)
-        kept = lab.clutter_layout(ROOM, seed)
+        raw = clutter.sample_clutter(ROOM, seed)
+        kept = clutter.clutter_layout(ROOM, seed)
         candidates = [it for it in raw if _allowed(it)]
         assert set(kept) <= set(candidates)
         polys = {it.index: _shape(it) for it in candidates}
@@ -328,7 +328,7 @@ def test_clutter_densities_follow_the_rates():
     raw = {k: 0 for k in RATES}
     allowed = {k: 0 for k in RATES}
     for seed in seeds:
-        for it in lab.sample_clutter(ROOM, seed):
+        for it in clutter.sample_clutter(ROOM, seed):
             raw[it.kind] += 1
             allowed[it.kind] += _allowed(it)
     yaw = np.linspace(0, np.pi, 2001)[:-1]
@@ -346,22 +346,22 @@ def test_clutter_densities_follow_the_rates():
 
 
 def test_clutter_is_deterministic_in_the_seed(cell, plant):
-    a, b = lab.clutter_layout(ROOM, 42), lab.clutter_layout(ROOM, 42)
+    a, b = clutter.clutter_layout(ROOM, 42), clutter.clutter_layout(ROOM, 42)
     assert a == b and len(a) > 0
-    assert lab.clutter_layout(ROOM, 0) != lab.clutter_layout(ROOM, 1)
+    assert clutter.clutter_layout(ROOM, 0) != clutter.clutter_layout(ROOM, 1)
     s1 = lab.build_scene(cell, plant, pcg_seed=0)
     s2 = lab.build_scene(cell, plant, pcg_seed=0)
     s3 = lab.build_scene(cell, plant, pcg_seed=1)
 
-    def clutter(s):
+    def clutter_meshes(s):
         return [(m.name, m.vertices.tobytes()) for m in s.meshes if m.name.split("_")[0] in RATES]
 
-    assert clutter(s1) == clutter(s2)
-    assert clutter(s1) != clutter(s3)
+    assert clutter_meshes(s1) == clutter_meshes(s2)
+    assert clutter_meshes(s1) != clutter_meshes(s3)
 
 
 def test_clutter_meshes_sit_on_their_footprints(cell, scene):
-    room, items = lab.lab_layout(cell, 42)
+    room, items = clutter.lab_layout(cell, 42)
     meshes = {m.name: m for m in scene.meshes if m.name.split("_")[0] in RATES}
     assert sorted(meshes) == sorted(f"{it.kind}_{it.index:03d}" for it in items)
     assert {it.kind for it in items} == set(RATES)
@@ -379,7 +379,7 @@ def test_clutter_meshes_sit_on_their_footprints(cell, scene):
             np.testing.assert_allclose(local.max(axis=0), (w / 2, d / 2), atol=1e-9)
     # clutter keeps off the cell's furniture even when the cell reaches into the room
     wide = build_cell(CellConfig(arm_distance=3.0, stand_size=1.0))
-    _, items = lab.lab_layout(wide, 3)
+    _, items = clutter.lab_layout(wide, 3)
     stands = [ob for ob in wide.obstacles if ob.name.endswith("_stand")]
     for it in items:
         for st in stands:

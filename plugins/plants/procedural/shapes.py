@@ -7,11 +7,7 @@ across (-1..1) and ``s`` along (0..1, base to tip).
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
-
 import numpy as np
-
-from agrisim.scene.model import Material, Mesh
 
 from .textures import tile_uv
 
@@ -37,71 +33,6 @@ def frame(normal: np.ndarray, spin: np.ndarray) -> tuple[np.ndarray, np.ndarray]
     b = np.cross(n, a)
     c, s = np.cos(spin)[:, None], np.sin(spin)[:, None]
     return c * a + s * b, -s * a + c * b
-
-
-@dataclass
-class MeshBuilder:
-    """Collects parts (vertices, faces, UVs, material index, instance ids) into one :class:`Mesh`."""
-
-    vertices: list[np.ndarray] = field(default_factory=list)
-    faces: list[np.ndarray] = field(default_factory=list)
-    uvs: list[np.ndarray] = field(default_factory=list)
-    face_material: list[np.ndarray] = field(default_factory=list)
-    face_instance: list[np.ndarray] = field(default_factory=list)
-    _n: int = 0
-    next_instance: int = 1
-
-    def add(self, vertices: np.ndarray, faces: np.ndarray, uvs: np.ndarray | None, material: int, instance) -> None:
-        """Add a batch: ``vertices`` (N x V x 3) or (V x 3), ``faces`` (F x 3) indexing one
-        item's V vertices (repeated for every item), ``instance`` an id per item or per face."""
-        v = np.asarray(vertices, float)
-        if v.ndim == 2:
-            v = v[None]
-        n_items, n_v = v.shape[:2]
-        f = np.asarray(faces, np.int64)
-        offs = (np.arange(n_items) * n_v)[:, None, None]
-        ff = (f[None] + offs).reshape(-1, 3) + self._n
-        self.vertices.append(v.reshape(-1, 3))
-        self.faces.append(ff)
-        if uvs is None:
-            uvs = np.zeros((n_items * n_v, 2))
-        self.uvs.append(np.asarray(uvs, float).reshape(-1, 2))
-        self.face_material.append(np.full(len(ff), material, np.int32))
-        inst = np.asarray(instance)
-        if inst.ndim == 0:
-            inst = np.full(n_items, int(inst))
-        if inst.shape == (n_items,):
-            inst = np.repeat(inst, len(f))
-        self.face_instance.append(inst.astype(np.int64).reshape(-1))
-        self._n += n_items * n_v
-
-    def instances(self, n: int) -> np.ndarray:
-        """``n`` fresh leaf-instance ids."""
-        ids = np.arange(self.next_instance, self.next_instance + n)
-        self.next_instance += n
-        return ids
-
-    def build(self, name: str, materials: list[Material]) -> Mesh:
-        inst = np.concatenate(self.face_instance)
-        if inst.max(initial=0) > np.iinfo(np.uint16).max:
-            raise ValueError(f"{name}: more than 65535 leaf instances")
-        return Mesh(
-            name,
-            np.concatenate(self.vertices),
-            np.concatenate(self.faces),
-            materials,
-            np.concatenate(self.face_material),
-            np.concatenate(self.uvs),
-            inst.astype(np.uint16),
-        )
-
-    def transform(self, scale: float) -> None:
-        self.vertices = [v * scale for v in self.vertices]
-
-    def bounds(self) -> tuple[float, float, float]:
-        """(max radial distance from the z axis, min z, max z) of everything so far."""
-        v = np.concatenate(self.vertices)
-        return float(np.hypot(v[:, 0], v[:, 1]).max()), float(v[:, 2].min()), float(v[:, 2].max())
 
 
 # ------------------------------------------------------------------------------- cards

@@ -1,0 +1,112 @@
+"""What every procedural species grows with: organ ids and material slots, the
+:class:`Grown` result, and small helpers for counts, texture tiles, orientations, tubes and
+cards."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from agrisim.scene.mesh_builder import MeshBuilder
+from agrisim.scene.model import Label, LabelTable
+from agrisim.scene.palette import BACKGROUND, PALETTE
+
+from .shapes import direction, tubes, unit
+from .textures import Atlas, Tile
+
+LEAF, STEM, FLOWER = 1, 2, 3
+FLOWER_WHITE, FLOWER_PURPLE = 3, 4
+
+CARDS, STEMS, WOOD = 0, 1, 2  # material slots
+
+
+def labels_for(*organs: str) -> LabelTable:
+    """The label table of a species with these organs (ids in this order from 1)."""
+    return LabelTable([Label(0, "background", BACKGROUND)] + [Label(i + 1, n, PALETTE[n]) for i, n in enumerate(organs)])
+
+
+@dataclass
+class Grown:
+    """What a species' grower returns."""
+
+    builder: MeshBuilder
+    atlas: Atlas
+    labels: LabelTable
+    stem_colour: tuple[float, float, float]
+    wood_colour: tuple[float, float, float] | None = None
+
+
+def count(n: float, density: float) -> int:
+    return max(1, round(n * density))
+
+
+def tiles(atlas: Atlas, tex: np.random.Generator, k: int, height: float, aspect: float, make: Callable) -> list[Tile]:
+    """``k`` variants of a card texture, each ``height`` (fraction of the atlas) tall with
+    width/length ``aspect``; ``make(i)`` returns the painter of variant ``i``."""
+    out = []
+    for i in range(k):
+        t = atlas.tile(height, height * aspect)
+        out.append(atlas.paint(t, make(i), tex))
+    return out
+
+
+def pick(geo: np.random.Generator, choices: list[Tile], n: int) -> np.ndarray:
+    """Atlas rectangles (n x 4) of ``n`` cards, each a random variant."""
+    rects = np.array([c.rect() for c in choices])
+    return rects[geo.integers(0, len(choices), n)]
+
+
+def azel(d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(azimuth, elevation) of direction vectors (N x 3)."""
+    d = unit(d)
+    return np.arctan2(d[:, 1], d[:, 0]), np.arcsin(np.clip(d[:, 2], -1, 1))
+
+
+def roll_towards(az: np.ndarray, elev: np.ndarray, lateral: np.ndarray) -> np.ndarray:
+    """The card roll that turns a card heading (az, elev) so that its across-axis follows
+    ``lateral`` (projected)."""
+    d = direction(az, elev)
+    lat0 = np.stack([-np.sin(az), np.cos(az), np.zeros_like(az)], axis=-1)
+    dxl = np.cross(d, lat0)
+    return np.arctan2(np.sum(lateral * dxl, axis=1), np.sum(lateral * lat0, axis=1))
+
+
+def golden_azimuths(geo: np.random.Generator, n: int, jitter: float = 0.35) -> np.ndarray:
+    """Phyllotaxis: successive organs 137.5 degrees apart, jittered."""
+    return geo.uniform(0, 2 * np.pi) + np.arange(n) * 2.39996 + geo.normal(0, jitter, n)
+
+
+def add_tubes(b: MeshBuilder, path: np.ndarray, radius, sides: int = 6, material: int = STEMS) -> None:
+    v, f = tubes(path, radius, sides)
+    b.add(v, f, None, material, 0)
+
+
+def add_cards(b: MeshBuilder, parts: tuple, material: int = CARDS, instance: bool = True) -> None:
+    v, f, uv = parts[:3]
+    b.add(v, f, uv, material, b.instances(len(v)) if instance else 0)
+
+
+# ============================================================================ species
+
+
+def plate_e2(normal: np.ndarray) -> np.ndarray:
+    from .shapes import frame
+
+    return frame(normal, np.zeros(len(normal)))[1]
+
+
+def spin_towards(
+    V: np.ndarray, pivot: np.ndarray, normal: np.ndarray, target: np.ndarray, anchor_dir: np.ndarray
+) -> np.ndarray:
+    """Rotate each item's vertices about ``normal`` through ``pivot`` so that ``anchor_dir``
+    turns toward ``target`` (projected into the plane)."""
+    nrm = unit(normal)
+    tp = unit(target - np.sum(target * nrm, 1, keepdims=True) * nrm)
+    ang = np.arctan2(np.sum(np.cross(anchor_dir, tp) * nrm, 1), np.sum(anchor_dir * tp, 1))
+    c, s = np.cos(ang)[:, None, None], np.sin(ang)[:, None, None]
+    r = V - pivot[:, None]
+    k = nrm[:, None]
+    rot = r * c + np.cross(np.broadcast_to(k, r.shape), r) * s + k * np.sum(k * r, -1, keepdims=True) * (1 - c)
+    return pivot[:, None] + rot
