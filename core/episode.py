@@ -12,20 +12,18 @@ import datetime as _dt
 import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
-from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pluggy
 from pydantic import BaseModel
 
-from agrisim.files.plant_asset import FORMATS, load_plant
 from agrisim.files.atomic import remove_partial
 from agrisim.files.dataset import DatasetWriter
 from agrisim.scene.camera import preset
 from agrisim.scene.cell import build_cell
 from agrisim.config import BackendChoice, RunConfig, backend_options
-from agrisim.errors import BackendFailure, ConfigError, UserError
+from agrisim.errors import BackendFailure, ConfigError
 from agrisim.scene.transforms import pose_error
 from agrisim.interfaces import (
     Capture,
@@ -43,29 +41,18 @@ from agrisim.evaluation.metrics import GroundTruth
 from agrisim.robot.segments import segment_is_valid
 from agrisim.evaluation.session import ReconSession, summary_metrics
 from agrisim.files.rundir import prepare_out_dir, resolve_out_dir, saved_run
-from agrisim.scene.model import Plant, Scene
+from agrisim.scene.model import Scene
 from agrisim.capabilities import check_renderer
 from agrisim.records import Run, RunSummary, SetpointResult
 from agrisim.kinds import KINDS
-from agrisim.registry import BackendSpec, Registry, loads_everything, make_plugin_manager
+from agrisim.registry import BackendSpec, Registry, blame, loads_everything, make_plugin_manager
+from agrisim.scene.plant_choice import check_plant_name, resolve_plant
 from agrisim.robot.setpoints import Setpoint, routine
 from agrisim.robot.trajectory import Limits, TimedPath, time_parametrize
 from agrisim.evaluation.views import View, load_view, view_from_capture
 
 #: rate at which planned trajectories are sampled for physics and sinks, Hz
 TRAJECTORY_RATE = 240.0
-
-
-@contextmanager
-def blame(kind: str, spec: BackendSpec, doing: str = "") -> Iterator[None]:
-    """Re-raise an unexpected exception of a backend as :class:`BackendFailure` naming it."""
-    try:
-        yield
-    except (UserError, PlanningFailed, BackendFailure):
-        raise
-    except Exception as exc:
-        origin = f" (from {spec.distribution})" if spec.distribution else ""
-        raise BackendFailure(f"{kind} backend {spec.name!r}{origin} failed{doing}: {type(exc).__name__}: {exc}") from exc
 
 
 class Episode:
@@ -495,64 +482,19 @@ def _timed(store: dict[str, float], name: str) -> Iterator[None]:
         store[name] = store.get(name, 0.0) + time.perf_counter() - t0
 
 
-def check_plant_name(registry: Registry, config: RunConfig) -> None:
-    """Is ``config.plant`` a registered species or an asset file that exists? (Without
-    growing or reading it.)"""
-    name = config.plant
-    if name in registry.specs("plant"):
-        return
-    path = Path(name)
-    if path.suffix.lower() in FORMATS:
-        root = config.plant_file.root
-        if (root / path if root is not None and not path.is_absolute() else path).is_file():
-            return
-        raise UserError(f"plant file {name} does not exist")
-    resolve_plant(registry, config)  # raises the unknown-plant error with the species list
-
-
-def resolve_plant(registry: Registry, config: RunConfig) -> Plant:
-    """The plant ``config.plant`` names: a registered species grown from ``config.seed``, or a
-    glTF/GLB/OBJ file."""
-    name = config.plant
-    species = registry.specs("plant")
-    if name in species:
-        spec = species[name]
-        table = dict(config.plants.get(name, {}))
-        if "age" in table and "age" not in spec.options_model.model_fields:  # --plant-age's usual slip
-            raise UserError(f"--plant-age: plant {name!r} has no age; it applies to species that grow (helios:*)")
-        options = backend_options(spec.options_model, table, f"plant {name!r}")
-        with blame("plant", spec, f" growing {name!r}"):
-            plant: Plant = registry.build("plant", spec, options).build(config.seed)
-        return plant
-    if Path(name).suffix.lower() in FORMATS or Path(name).exists():
-        table = config.plants.get(name) or {}
-        if "age" in table:
-            raise UserError(f"--plant-age: plant file {name} has no age; it applies to species that grow (helios:*)")
-        if table:
-            raise UserError(f"[plants.{name!r}]: a plant file takes no species options; [plant_file] reads it")
-        f = config.plant_file
-        return load_plant(
-            Path(name),
-            label_texture=f.label_texture,
-            material_labels=f.material_labels,
-            alpha_cutoff=f.alpha_cutoff,
-            up=f.up,
-            scale=f.scale,
-            root=f.root,
-        )
-    hint = registry.pm.hook.agrisim_plant_unavailable(name=name)  # e.g. a missing optional extra
-    if hint:
-        raise UserError(hint)
-    available = ", ".join(species) or "none installed"
-    raise UserError(f"unknown plant {name!r}; species: {available}; or a .glb/.gltf/.obj file")
-
-
-# ---------------------------------------------------------------------- output directory
-
-
 def run_episode(config: RunConfig, *, pm: pluggy.PluginManager | None = None) -> tuple[Run, RunSummary]:
     """Validate ``config``, run one episode, and return the run and its summary."""
     return Episode(config, pm).run()
 
 
-__all__ = ["BackendFailure", "blame", "Episode", "Run", "RunSummary", "SetpointResult", "run_episode", "JointTrajectory"]
+__all__ = [
+    "BackendFailure",
+    "blame",
+    "Episode",
+    "Run",
+    "RunSummary",
+    "SetpointResult",
+    "run_episode",
+    "resolve_plant",
+    "JointTrajectory",
+]

@@ -75,10 +75,13 @@ def agrisim_plant_unavailable(name: str) -> str | None:
 
 @hookspec
 def agrisim_sinks() -> list[BackendSpec]:
-    """Sinks. The core calls ``factory(run: Run)`` with the :class:`agrisim.records.Run`; it returns an object whose
-    event hook implementations are registered for that run only (or ``None`` to stay out of
-    it, e.g. the Rerun sink under ``--no-rrd``). Per-run objects keep sinks' state out of
-    module globals."""
+    """Sinks: observers of every run. The core calls ``factory(run: Run, options)`` with the
+    :class:`agrisim.records.Run` and the sink's options from ``[sink.NAME]`` (validated by its
+    ``options_model``); it returns an object whose event hook implementations are registered
+    for that run only (or ``None`` to stay out of it, e.g. the Rerun sink under ``--no-rrd``).
+    Per-run objects keep sinks' state out of module globals. A spec's ``preflight(config,
+    options)`` runs while the run is validated, before anything is written (the Rerun sink
+    refuses to replace a recording without ``--overwrite`` there)."""
 
 
 # ---------------------------------------------------------------- episode events

@@ -14,6 +14,8 @@ import importlib
 import os
 import sys
 from importlib import metadata
+from collections.abc import Iterator
+from contextlib import contextmanager
 from typing import Any
 
 import pluggy
@@ -21,10 +23,11 @@ from pydantic import BaseModel
 
 from agrisim import hookspecs
 from agrisim.capabilities import CAPABILITIES
-from agrisim.errors import BackendFailure, PluginError
+from agrisim.errors import BackendFailure, PluginError, UserError
+from agrisim.interfaces import PlanningFailed
 from agrisim.kinds import KINDS, PROVIDER_HOOKS, BackendSpec, Kind, NoOptions
 
-__all__ = ["KINDS", "PROVIDER_HOOKS", "BackendSpec", "Kind", "NoOptions", "Registry", "hookimpl", "make_plugin_manager"]
+__all__ = ["KINDS", "PROVIDER_HOOKS", "BackendSpec", "Kind", "NoOptions", "Registry", "blame", "hookimpl", "make_plugin_manager"]
 
 hookimpl = pluggy.HookimplMarker(hookspecs.PROJECT)
 
@@ -161,3 +164,15 @@ class Registry:
             available = ", ".join(specs) or "none installed"
             raise PluginError(f"unknown {kind} backend {name!r}; available: {available}")
         return specs[name]
+
+
+@contextmanager
+def blame(kind: str, spec: BackendSpec, doing: str = "") -> Iterator[None]:
+    """Re-raise an unexpected exception of a backend as :class:`BackendFailure` naming it."""
+    try:
+        yield
+    except (UserError, PlanningFailed, BackendFailure):
+        raise
+    except Exception as exc:
+        origin = f" (from {spec.distribution})" if spec.distribution else ""
+        raise BackendFailure(f"{kind} backend {spec.name!r}{origin} failed{doing}: {type(exc).__name__}: {exc}") from exc

@@ -33,11 +33,19 @@ def import_graph() -> dict[str, set[str]]:
     graph: dict[str, set[str]] = {}
     for name, path in mods.items():
         deps: set[str] = set()
+        package = name if path.name == "__init__.py" else name.rpartition(".")[0]
         for node in ast.walk(ast.parse(path.read_text())):
-            if isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
+            if isinstance(node, ast.ImportFrom):
+                # relative imports (``from .recording import X``, ``from . import x``) resolved
+                base = node.module or ""
+                if node.level:
+                    anchor = package.split(".")[: len(package.split(".")) - (node.level - 1)]
+                    base = ".".join(anchor + ([node.module] if node.module else []))
+                if not base:
+                    continue
                 for alias in node.names:
-                    full = f"{node.module}.{alias.name}"
-                    deps.add(full if full in mods else node.module)
+                    full = f"{base}.{alias.name}"
+                    deps.add(full if full in mods else base)
             elif isinstance(node, ast.Import):
                 deps |= {alias.name for alias in node.names}
         graph[name] = {d for d in deps if d in mods and d != name}
@@ -113,3 +121,34 @@ def test_contracts_and_discovery_import_no_heavy_library(code: str) -> None:
     assert not {m for m in loaded if m.split(".")[0] in HEAVY}
     if "plugins" not in code:  # the contracts do not load the configuration or the robot either
         assert not {"agrisim.config", "agrisim.robot.urdf", "agrisim.scene.cell", "agrisim.episode"} & loaded
+
+
+def _architecture_block() -> str:
+    readme = (REPO / "README.md").read_text()
+    section = readme[readme.index("## Architecture") :]
+    start = section.index("```\n") + 4
+    return section[start : section.index("```", start)]
+
+
+def test_the_readme_architecture_matches_the_tree() -> None:
+    """Every folder and top-level module the README's map names exists, and every one that
+    exists is in the map: core's modules and subpackages, each plugin kind and backend package."""
+    block = _architecture_block()
+    listed: dict[str, set[str]] = {"core": set(), "plugins": set(), "tests": set()}
+    top = None
+    for line in block.splitlines():
+        if line and not line.startswith(" "):
+            top = line.split()[0].rstrip("/")
+        elif top in listed and line.startswith("  ") and not line.startswith("   "):
+            listed[top].add(line.split()[0])
+    core = {p.name for p in (REPO / "core").glob("*.py") if p.name != "__init__.py" and p.name != "__main__.py"}
+    core |= {f"{p.name}/" for p in (REPO / "core").iterdir() if (p / "__init__.py").exists()}
+    assert listed["core"] == core, f"README lists {sorted(listed['core'] - core)}, misses {sorted(core - listed['core'])}"
+    kinds = {f"{p.name}/" for p in (REPO / "plugins").iterdir() if (p / "__init__.py").exists()}
+    assert listed["plugins"] == kinds
+    assert listed["tests"] == {f"{p.name}/" for p in (REPO / "tests").iterdir() if p.is_dir() and any(p.glob("test_*.py"))}
+    # every backend package (a folder of several files) is named in the map
+    for kind in (REPO / "plugins").iterdir():
+        for pkg in kind.iterdir() if kind.is_dir() else ():
+            if (pkg / "__init__.py").exists():
+                assert f"{pkg.name}/" in block, f"plugins/{kind.name}/{pkg.name}/ is missing from the README's map"

@@ -47,7 +47,7 @@ if TYPE_CHECKING:
     from agrisim.scene.cell import Box, Cylinder
     from agrisim.scene.model import Scene
 
-    from . import RerunOptions
+    from .options import RerunOptions
 
 log = logging.getLogger(__name__)
 
