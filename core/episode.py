@@ -137,6 +137,8 @@ class Episode:
         return spec, options
 
     # ------------------------------------------------------------------ running
+    # Long on purpose: set-up, the step loop and the finally that always reports and closes
+    # read in order; one step is _step.
     def run(self, progress: Callable[[int, int], None] | None = None) -> tuple[Run, RunSummary]:
         """Run the episode; returns the run (with per-setpoint results) and its summary."""
         # Backends first: if one cannot be built, nothing has been written yet.

@@ -39,6 +39,7 @@ def _fail(message: str, status: int = 2) -> NoReturn:
     raise SystemExit(status)
 
 
+# Long but flat: one declaration per flag, the CLI's reference in one place.
 def _parser() -> argparse.ArgumentParser:
     p = _Parser(prog=PROG, description="Robot arms photographing plants: simulate, annotate, reconstruct.")
     sub = p.add_subparsers(dest="command", metavar="COMMAND")

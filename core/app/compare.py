@@ -203,6 +203,8 @@ def _probe(address: str, timeout: float = 5.0) -> None:
         raise UserError(f"--ray-address {address}: cannot reach a Ray cluster there ({exc.strerror or exc})") from None
 
 
+# Long because Ray's submit/wait/interrupt loop shares its state (pending tasks, records,
+# progress); split, that state would travel between functions.
 def execute(
     plan: ComparePlan,
     *,

@@ -110,6 +110,7 @@ def default_out() -> Path:
     return Path("runs") / _dt.datetime.now().strftime("compare-%Y%m%d-%H%M%S")
 
 
+# A checklist in order, a few lines per check, so that the first bad input is the one reported.
 def plan_compare(
     base: Mapping[str, Any],
     *,

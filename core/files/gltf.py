@@ -308,6 +308,7 @@ class _Gltf:
         children = {c for n in nodes for c in n.get("children", [])}
         return [i for i in range(len(nodes)) if i not in children]
 
+    # One pass over the document's nodes and primitives; accessors and images are helpers.
     def _read(self) -> RawMesh:
         n_materials = len(self._list("materials"))
         positions: list[np.ndarray] = []

@@ -33,6 +33,7 @@ class _MtlMaterial:
     folder: Path = Path(".")
 
 
+# One line-by-line loop over OBJ statements; split, its running state (vertices, groups, material) would be scattered.
 def read_obj(path: Path, shown: str, root: Path | None) -> RawMesh:
     data = read_bytes_of(path, shown)
     if b"\x00" in data[:4096]:

@@ -96,6 +96,7 @@ _MAX_LABEL_COLOURS = 64
 
 
 
+# The steps of reading an asset in order (read, orient, scale, labels, place, check), each a call or two.
 def load_plant(
     path: str | os.PathLike[str],
     *,

@@ -258,6 +258,7 @@ class KinematicPhysics(PhysicsBackend):
         }
 
     # ------------------------------------------------------------------ motion
+    # The fixed-step loop of all arms moving together, with settling and contacts; one loop, one state.
     def execute(
         self,
         plans: Mapping[str, JointTrajectory],

@@ -22,6 +22,8 @@ with native_output_silenced():  # pybullet prints its build time on import
 class _World:
     """One pybullet world holding the cell: arms, obstacles, collision filters."""
 
+    # Builds the simulated world in order (arms, stands, table, pot, collision filters); each
+    # step depends on the previous ones.
     def __init__(
         self,
         cell: Cell,

@@ -29,6 +29,7 @@ from .shapes import bezier, direction, plate_cards, strip_cards, unit
 from .textures import Atlas
 
 
+# A species' recipe, organ by organ, reads top to bottom as the plant is built.
 def grow_indian_cress(geo, tex, size, density) -> Grown:
     """Nasturtium (Tropaeolum majus): ~0.2 m, round peltate leaves on long petioles from a few
     sprawling stems, orange five-petalled flowers."""
@@ -121,6 +122,7 @@ def grow_indian_cress(geo, tex, size, density) -> Grown:
     )
     return Grown(b, atlas, labels_for("leaf", "stem", "flower"), (0.42, 0.58, 0.24))
 
+# A species' recipe, organ by organ, reads top to bottom as the plant is built.
 def grow_amaryllis(geo, tex, size, density) -> Grown:
     """Amaryllis (Hippeastrum): a bulb with long arching strap leaves and a tall hollow scape
     carrying big red trumpet flowers."""

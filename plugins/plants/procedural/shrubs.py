@@ -27,6 +27,7 @@ from .shapes import bezier, direction, solid_leaves, strip_cards, unit
 from .textures import Atlas
 
 
+# A species' recipe, organ by organ, reads top to bottom as the plant is built.
 def grow_hydrangea(geo, tex, size, density) -> Grown:
     """Hydrangea (bigleaf, mophead): a shrub of woody canes with opposite serrated leaves and big
     round flower heads of four-petalled florets, some white, some purple (organ labels

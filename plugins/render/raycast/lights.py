@@ -113,6 +113,7 @@ class LightTable:
             w[i] *= self.power[i]
         return w
 
+    # The shadow-sampling kernel: chunked, vectorised and adaptive in one loop so that its scratch arrays stay in cache.
     def irradiance(
         self,
         w: np.ndarray,
