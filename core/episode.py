@@ -134,6 +134,9 @@ class Episode:
         spec = self.registry.get(kind, choice.backend)
         choice.check_tables(KINDS[kind].section, self.registry.specs(kind))
         options = backend_options(spec.options_model, choice.options_for(spec.name), f"{kind} backend {spec.name!r}")
+        if spec.preflight is not None:  # e.g. a GPU it needs, a file it reads
+            with blame(kind, spec, " checking its settings"):
+                spec.preflight(self.config, options)
         return spec, options
 
     # ------------------------------------------------------------------ running

@@ -71,10 +71,12 @@ def glb_bytes(mesh: Mesh, labels: LabelTable) -> bytes:
     for mat in mesh.materials:
         pbr: dict[str, Any] = {
             "baseColorFactor": [float(c) for c in mat.color],
-            "metallicFactor": 0.0,
-            "roughnessFactor": 0.9,
+            "metallicFactor": float(mat.metallic),
+            "roughnessFactor": float(mat.roughness),
         }
         extras: dict[str, Any] = {"label": int(mat.label), "alpha_cutoff": float(mat.alpha_cutoff)}
+        if mat.transmittance is not None:
+            extras["transmittance"] = [float(t) for t in mat.transmittance]
         if mat.albedo is not None:
             pbr["baseColorTexture"] = {"index": w.texture(mat.albedo, "RGBA", nearest=False)}
         if mat.labels is not None:

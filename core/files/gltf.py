@@ -276,18 +276,45 @@ class _Gltf:
                     )
                 if tex_name is None:
                     tex_name = lname
+        color, roughness, metallic, transmittance = self._look(m, pbr, factor, extras)
         mat = Material(
             mname,
-            color=tuple(float(c) for c in factor),  # type: ignore[arg-type]
+            color=color,
             albedo=albedo,
             labels=labels,
             label=label,
             alpha_mode=mode,
             alpha_cutoff=float(cutoff),
             double_sided=bool(m.get("doubleSided", False)),
+            roughness=roughness,
+            metallic=metallic,
+            transmittance=transmittance,
         )
         self._materials[index] = (mat, texcoord, transform, tex_name)
         return self._materials[index]
+
+    @staticmethod
+    def _look(m: dict, pbr: dict, factor: list, extras: Any) -> tuple[tuple, float, float, tuple | None]:
+        """(colour factor, roughness, metallic, transmittance) of a material: glTF's defaults
+        (metallic and rough) where the file is silent. Diffuse transmission
+        (KHR_materials_diffuse_transmission: a fraction f of the diffuse light goes through,
+        tinted) becomes agrisim's transmittance per unit of albedo, the reflected part keeping
+        the spec's 1 - f; agrisim's own files carry theirs in extras."""
+        clamp = lambda x: min(max(float(x), 0.0), 1.0)  # noqa: E731
+        color = tuple(float(c) for c in factor)
+        roughness, metallic = clamp(pbr.get("roughnessFactor", 1.0)), clamp(pbr.get("metallicFactor", 1.0))
+        transmittance = None
+        if isinstance(extras, dict) and isinstance(extras.get("transmittance"), list):
+            transmittance = tuple(max(float(t), 0.0) for t in extras["transmittance"][:3])
+        else:
+            diffuse = _get(m, "extensions", "KHR_materials_diffuse_transmission")
+            if isinstance(diffuse, dict):
+                f = min(clamp(diffuse.get("diffuseTransmissionFactor", 0.0)), 0.99)
+                tint = diffuse.get("diffuseTransmissionColorFactor", [1.0, 1.0, 1.0])
+                if f > 0.0:
+                    transmittance = tuple(f / (1.0 - f) * max(float(t), 0.0) for t in tint[:3])
+                    color = (*(c * (1.0 - f) for c in color[:3]), color[3])
+        return color, roughness, metallic, transmittance  # type: ignore[return-value]
 
     # -- scene graph -------------------------------------------------------------------------
 

@@ -70,8 +70,8 @@ class _Materials:
             self._cache[key] = make()
         return self._cache[key]
 
-    def textured(self, name: str, albedo: np.ndarray, color=(1.0, 1.0, 1.0, 1.0)) -> Material:
-        return self.get((name, color), lambda: Material(name, color=color, albedo=albedo))
+    def textured(self, name: str, albedo: np.ndarray, color=(1.0, 1.0, 1.0, 1.0), roughness: float = 0.8) -> Material:
+        return self.get((name, color), lambda: Material(name, color=color, albedo=albedo, roughness=roughness))
 
 
 # --------------------------------------------------------------------------------------------
@@ -83,15 +83,15 @@ def _room_meshes(room: Room, mats: _Materials) -> list[Mesh]:
     cx, cy = room.center
     hx, hy, H = room.size[0] / 2, room.size[1] / 2, room.height
     floor = MeshBuilder()
-    tiles = mats.textured("floor_tiles", tex.floor_tiles())
+    tiles = mats.textured("floor_tiles", tex.floor_tiles(), roughness=0.35)
     floor.add_part(quad((cx, cy, 0.0), (hx, 0, 0), (0, hy, 0), (2 * hx / 2.4, 2 * hy / 2.4)), tiles)
     ceiling = MeshBuilder()
     ceiling.add_part(
         quad((cx, cy, H), (hx, 0, 0), (0, -hy, 0), (2 * hx / 1.2, 2 * hy / 1.2)),
-        mats.textured("ceiling_tiles", tex.ceiling_tiles()),
+        mats.textured("ceiling_tiles", tex.ceiling_tiles(), roughness=0.95),
     )
     walls = MeshBuilder()
-    paint = mats.textured("wall_paint", tex.wall_paint())
+    paint = mats.textured("wall_paint", tex.wall_paint(), roughness=0.85)
     for nx, ny, half in ((0, 1, hx), (0, -1, hx), (1, 0, hy), (-1, 0, hy)):
         inward = np.array([nx, ny, 0.0])
         centre = np.array([cx, cy, H / 2]) - inward * np.array([hx, hy, 0.0])
@@ -105,16 +105,16 @@ def _obstacle_mesh(ob: Box | Cylinder, mats: _Materials) -> list[Mesh]:
     if isinstance(ob, Cylinder) and ob.name == "pot":
         r, h = ob.radius, ob.height
         wall, inset = min(POT_WALL, r / 3), min(SOIL_INSET, h / 3)
-        clay = mats.textured("terracotta", tex.terracotta())
-        inner = mats.textured("terracotta_inner", tex.terracotta(), (0.62, 0.62, 0.62, 1.0))
+        clay = mats.textured("terracotta", tex.terracotta(), roughness=0.9)
+        inner = mats.textured("terracotta_inner", tex.terracotta(), (0.62, 0.62, 0.62, 1.0), 0.9)
         b.add_part(cylinder_side(r, -h / 2, h / 2, POT_SEGMENTS, u_repeats=2.0), clay)
         b.add_part(annulus(r - wall, r, h / 2, POT_SEGMENTS), clay)
         b.add_part(cylinder_side(r - wall, h / 2 - inset, h / 2, POT_SEGMENTS, inward=True, u_repeats=2.0), inner)
         soil = MeshBuilder()
-        soil.add_part(disc(r - wall, h / 2 - inset, POT_SEGMENTS), mats.textured("soil", tex.soil()))
+        soil.add_part(disc(r - wall, h / 2 - inset, POT_SEGMENTS), mats.textured("soil", tex.soil(), roughness=1.0))
         return [b.build(ob.name, T=ob.world_T), soil.build("soil", T=ob.world_T)]
     if isinstance(ob, Cylinder):
-        metal = mats.textured("metal_light", tex.painted_metal((0.7, 0.7, 0.72), 1))
+        metal = mats.textured("metal_light", tex.painted_metal((0.7, 0.7, 0.72), 1), roughness=0.4)
         b.add_part(cylinder_side(ob.radius, -ob.height / 2, ob.height / 2, POT_SEGMENTS), metal)
         b.add_part(disc(ob.radius, ob.height / 2, POT_SEGMENTS), metal)
         b.add_part(disc(ob.radius, -ob.height / 2, POT_SEGMENTS, up=False), metal)
@@ -122,12 +122,12 @@ def _obstacle_mesh(ob: Box | Cylinder, mats: _Materials) -> list[Mesh]:
     on_floor = abs(ob.world_T[2, 3] - ob.size[2] / 2) < 1e-9
     faces = box(ob.size, skip=("-z",) if on_floor else ())
     if ob.name == "table":
-        top = mats.textured("laminate", tex.laminate())
-        side = mats.textured("table_side", tex.painted_metal((0.84, 0.85, 0.87), 2))
+        top = mats.textured("laminate", tex.laminate(), roughness=0.45)
+        side = mats.textured("table_side", tex.painted_metal((0.84, 0.85, 0.87), 2), roughness=0.4)
         for name, part in faces.items():
             b.add_part(part, top if name == "+z" else side)
     else:  # stands and anything else: dark powder-coated steel
-        b.add_parts(faces.values(), mats.textured("stand_metal", tex.painted_metal((0.27, 0.28, 0.30), 3)))
+        b.add_parts(faces.values(), mats.textured("stand_metal", tex.painted_metal((0.27, 0.28, 0.30), 3), roughness=0.5))
     return [b.build(ob.name, T=ob.world_T)]
 
 
@@ -138,10 +138,10 @@ def _cabinet(item: Item, mats: _Materials) -> Mesh:
     faces = box(size, (0, 0, k.height / 2), skip=("-z",))
     front = box(size, (0, 0, k.height / 2), repeat=None)["-y"]
     b = MeshBuilder()
-    body = mats.textured(f"cabinet_body_{item.variant}", tex.painted_metal(color, 10 + item.variant))
+    body = mats.textured(f"cabinet_body_{item.variant}", tex.painted_metal(color, 10 + item.variant), roughness=0.45)
     for name, part in faces.items():
         if name == "-y":
-            b.add_part(front, mats.textured(f"cabinet_front_{item.variant}", tex.cabinet_front(color)))
+            b.add_part(front, mats.textured(f"cabinet_front_{item.variant}", tex.cabinet_front(color), roughness=0.45))
         else:
             b.add_part(part, body)
     return b.build(f"cabinet_{item.index:03d}", T=item.world_T)
@@ -150,7 +150,7 @@ def _cabinet(item: Item, mats: _Materials) -> Mesh:
 def _pallet(item: Item, mats: _Materials) -> Mesh:
     """An EUR pallet (1.2 x 0.8 x 0.144 m) of real slats: 3 bottom boards, 9 blocks, 3 cross
     boards, 5 top deck boards."""
-    wood = mats.textured(f"pallet_wood_{item.variant}", tex.wood(item.variant))
+    wood = mats.textured(f"pallet_wood_{item.variant}", tex.wood(item.variant), roughness=0.85)
     rng = np.random.default_rng([item.variant, 77])  # boards differ, pallets of a variant agree
     b = MeshBuilder()
     t = 0.022
@@ -181,9 +181,9 @@ def _drum(item: Item, mats: _Materials) -> Mesh:
     color = DRUM_COLORS[item.variant % len(DRUM_COLORS)]
     r = k.size[0] / 2
     b = MeshBuilder()
-    side = mats.textured(f"drum_side_{item.variant}", tex.drum_side(color))
+    side = mats.textured(f"drum_side_{item.variant}", tex.drum_side(color), roughness=0.4)
     b.add_part(cylinder_side(r, 0.0, k.height, DRUM_SEGMENTS), side)
-    b.add_part(disc(r, k.height, DRUM_SEGMENTS), mats.textured(f"drum_lid_{item.variant}", tex.drum_lid(color)))
+    b.add_part(disc(r, k.height, DRUM_SEGMENTS), mats.textured(f"drum_lid_{item.variant}", tex.drum_lid(color), roughness=0.4))
     return b.build(f"drum_{item.index:03d}", T=item.world_T)
 
 
@@ -230,7 +230,7 @@ def _lights(cell: Cell, room: Room, target: np.ndarray, mats: _Materials) -> tup
     lamp on each robot stand's inner edge facing the plant."""
     lights: list[Light] = []
     meshes: list[Mesh] = []
-    panel = mats.get(("lamp_panel",), lambda: Material("lamp_panel", color=(1.0, 1.0, 1.0, 1.0)))
+    panel = mats.get(("lamp_panel",), lambda: Material("lamp_panel", color=(1.0, 1.0, 1.0, 1.0), roughness=0.9))
     radius = 0.3
     for i, side in enumerate((1.0, -1.0), start=1):
         pos = np.array([target[0], target[1] + 0.9 * side, room.height - 0.02])

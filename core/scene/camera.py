@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import hashlib
 import math
 from dataclasses import dataclass
 
@@ -74,3 +75,14 @@ def preset(name: str, resolution: str | None = None) -> CameraModel:
         raise UserError(f"unknown camera preset {name!r}; available: {', '.join(PRESETS)}")
     w, h = parse_resolution(resolution) if resolution else (1920, 1080)
     return from_sensor(*PRESETS[name], w, h)
+
+
+def view_seed(camera: CameraModel, world_T_camera: np.ndarray, seed: int) -> int:
+    """A 64-bit seed of one view: the run's ``seed`` mixed with the camera and its pose, so every
+    view samples its own noise and the same view always the same."""
+    h = hashlib.blake2b(digest_size=8)
+    h.update(np.asarray(world_T_camera, np.float64).tobytes())
+    intrinsics = [camera.width, camera.height, camera.fx, camera.fy, camera.cx, camera.cy]
+    h.update(np.array(intrinsics, np.float64).tobytes())
+    h.update(int(seed).to_bytes(8, "little"))
+    return int.from_bytes(h.digest(), "little")

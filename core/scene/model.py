@@ -26,6 +26,14 @@ import numpy as np
 AlphaMode = Literal["OPAQUE", "MASK", "BLEND"]
 
 
+#: Diffuse transmittance of a typical green leaf per unit of its reflectance, linear (R, G, B):
+#: PROSPECT-D gives reflectance about (0.05, 0.14, 0.04) and transmittance about (0.03, 0.14,
+#: 0.005) in the red, green and blue bands, so light through a leaf is greener than off it.
+LEAF_TRANSMITTANCE = (0.6, 1.0, 0.125)
+#: Roughness of a leaf's faint specular sheen (waxy cuticle)
+LEAF_ROUGHNESS = 0.4
+
+
 @dataclass
 class Material:
     """How a set of triangles looks and is labelled."""
@@ -46,6 +54,15 @@ class Material:
     """Texels with alpha below this are holes (MASK/BLEND)."""
     double_sided: bool = True
     """Seen from both sides (leaf cards are)."""
+    roughness: float = 0.8
+    """Microfacet roughness of the surface's specular lobe, 0 (mirror) to 1 (matte) (glTF's
+    ``roughnessFactor``). Path tracers use it; the raycast renderer shades Lambert only."""
+    metallic: float = 0.0
+    """0 for dielectrics (paint, clay, leaves), 1 for bare metal (glTF's ``metallicFactor``)."""
+    transmittance: tuple[float, float, float] | None = None
+    """Thin translucent surfaces (leaf cards): diffuse transmittance per unit of albedo, per
+    linear R, G, B channel; the back-lit side then glows with ``albedo * transmittance``
+    (capped so that reflected plus transmitted light never exceeds 1). None: opaque."""
 
     def __post_init__(self) -> None:
         if self.albedo is not None:
@@ -58,6 +75,10 @@ class Material:
                 raise ValueError(f"material {self.name!r}: labels must be H x W uint8, got {lab.dtype} {lab.shape}")
         if not 0.0 <= self.alpha_cutoff <= 1.0:
             raise ValueError(f"material {self.name!r}: alpha cutoff must be in [0, 1], got {self.alpha_cutoff}")
+        if not (0.0 <= self.roughness <= 1.0 and 0.0 <= self.metallic <= 1.0):
+            raise ValueError(f"material {self.name!r}: roughness and metallic must be in [0, 1]")
+        if self.transmittance is not None and (len(self.transmittance) != 3 or min(self.transmittance) < 0.0):
+            raise ValueError(f"material {self.name!r}: transmittance must be three non-negative numbers")
 
     @property
     def cuts(self) -> bool:

@@ -47,6 +47,17 @@ def opaque(material: Material, uv: np.ndarray) -> np.ndarray:
     return alpha * factor >= material.alpha_cutoff
 
 
+def alpha_threshold(material: Material) -> int:
+    """Smallest 8-bit texture alpha that ``material`` keeps (0 when opacity cuts nothing; 256
+    when it keeps nothing). glTF: alpha is the texel's times the colour factor's, compared with
+    the same float operations as :func:`agrisim.scene.texturing.opaque`; an untextured material reads
+    a white texel (alpha 255)."""
+    if not material.cuts:
+        return 0
+    ok = np.arange(256, dtype=np.float64) / 255.0 * float(material.color[3]) >= material.alpha_cutoff
+    return int(np.argmax(ok)) if ok.any() else 256
+
+
 def label_at(material: Material, uv: np.ndarray) -> np.ndarray:
     """Label id of each UV's texel (uint8, K)."""
     if material.labels is None:

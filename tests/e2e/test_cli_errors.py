@@ -17,6 +17,14 @@ import pytest
 from agrisim.errors import UserError
 from agrisim.robot.urdf import ur10_with_camera
 
+
+def cuda_usable() -> bool:
+    try:
+        import drjit as dr
+    except ImportError:
+        return False
+    return bool(dr.has_backend(dr.JitBackend.CUDA))
+
 @pytest.fixture
 def workdir(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
     """tmp_path with the input files the cases refer to; the CLI runs from ``tmp_path/cwd`` so
@@ -127,15 +135,37 @@ CASES = [
     pytest.param(["--resolution", "0x0"], ["resolution", "0x0"], id="resolution-zero"),
     pytest.param(["--set", "plant_file.alpha_cutoff=1.5"], ["plant_file.alpha_cutoff", "1"], id="alpha-cutoff-above-1"),
     pytest.param(["--seg-mode", "paint"], ["--seg-mode", "texture", "repopa"], id="unknown-seg-mode"),
+    pytest.param(
+        ["--renderer", "mitsuba", "--set", "renderer.mitsuba.variant=optix"],
+        ["renderer backend 'mitsuba'", "variant", "'auto', 'cuda' or 'llvm'"],
+        id="mitsuba-unknown-variant",
+    ),
+    pytest.param(
+        ["--renderer", "mitsuba", "--set", "renderer.mitsuba.variant=cuda"],
+        ["variant 'cuda'", "NVIDIA GPU"],
+        id="mitsuba-cuda-without-gpu",
+        marks=pytest.mark.skipif(cuda_usable(), reason="a usable GPU is here"),
+    ),
+    pytest.param(["--renderer", "mitsuba", "--set", "renderer.mitsuba.spp=0"], ["mitsuba", "spp", "1"], id="mitsuba-spp-0"),
+    pytest.param(
+        ["--renderer", "mitsuba", "--set", "renderer.mitsuba.envmap={tmp}/missing.exr"],
+        ["envmap", "missing.exr", "no such file"],
+        id="mitsuba-envmap-missing",
+    ),
+    pytest.param(
+        ["--renderer", "mitsuba", "--set", "renderer.mitsuba.envmap={tmp}/afile"],
+        ["envmap", "afile", "not an image"],
+        id="mitsuba-envmap-not-an-image",
+    ),
     pytest.param(["--renderer", "nope"], ["renderer", "'nope'", "raycast"], id="unknown-renderer"),
     pytest.param(
         ["--renderer", "pybullet", "--seg-mode", "repopa", "--labels", "organs", "--plant", "hydrangea"],
-        ["renderer backend 'pybullet'", "organ labels", "renderers that can: raycast"],
+        ["renderer backend 'pybullet'", "organ labels", "renderers that can: mitsuba, raycast"],
         id="pybullet-renderer-has-no-organs",
     ),
     pytest.param(
         ["--renderer", "pybullet"],
-        ["renderer backend 'pybullet'", "segmentation mode 'texture'", "renderers that can: raycast"],
+        ["renderer backend 'pybullet'", "segmentation mode 'texture'", "renderers that can: mitsuba, raycast"],
         id="pybullet-renderer-ignores-opacity",
     ),
 ]

@@ -615,7 +615,7 @@ def test_a_renderer_that_declares_nothing_gets_the_least(site: Path) -> None:
     spec = registry.get("renderer", "plain")
     assert spec.capabilities == RendererCapabilities()
     check_renderer(spec, registry.specs("renderer"), ["texture"], "plant")  # within what it declares
-    with pytest.raises(UserError, match="'plain' cannot draw organ labels.*renderers that can: raycast"):
+    with pytest.raises(UserError, match="'plain' cannot draw organ labels.*renderers that can: mitsuba, raycast"):
         check_renderer(spec, registry.specs("renderer"), ["texture"], "organs")
 
 

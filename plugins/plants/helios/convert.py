@@ -31,7 +31,7 @@ from typing import Any
 
 import numpy as np
 
-from agrisim.scene.model import Label, LabelTable, Material, Mesh
+from agrisim.scene.model import LEAF_ROUGHNESS, LEAF_TRANSMITTANCE, Label, LabelTable, Material, Mesh
 
 from agrisim.scene.colour import srgb_to_linear
 from agrisim.scene.palette import PALETTE
@@ -44,6 +44,17 @@ ORGANS: tuple[Label, ...] = tuple(
     Label(i, name, PALETTE[name]) for i, name in enumerate(("leaf", "stem", "petiole", "peduncle", "flower", "fruit"), 1)
 )
 ORGAN_IDS: dict[str, int] = {lab.name: lab.id for lab in ORGANS}
+
+#: Thin organs that let light through like leaves (petals too, a little less green, but close)
+TRANSLUCENT_ORGANS = ("leaf", "flower")
+
+
+def _look(organ: str) -> dict:
+    """Path-tracing looks of an organ's material: translucent leaves and petals, rougher stems."""
+    if organ in TRANSLUCENT_ORGANS:
+        return {"roughness": LEAF_ROUGHNESS, "transmittance": LEAF_TRANSMITTANCE}
+    return {"roughness": 0.7}
+
 
 HELIOS_ALPHA_CUTOFF = 249.5 / 255.0
 """Alpha cutoff of Helios's leaf textures: Helios counts a texel as solid when its 8-bit alpha is
@@ -257,6 +268,7 @@ def to_mesh(
                     alpha_mode="MASK" if has_alpha else "OPAQUE",
                     alpha_cutoff=HELIOS_ALPHA_CUTOFF,
                     double_sided=double_sided,
+                    **_look(organ),
                 )
             )
         else:
@@ -267,6 +279,7 @@ def to_mesh(
                     label=int(label),
                     alpha_mode="OPAQUE",
                     double_sided=double_sided,
+                    **_look(organ),
                 )
             )
     return Mesh(

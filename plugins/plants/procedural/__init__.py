@@ -15,7 +15,15 @@ from pydantic import Field
 
 from agrisim import BackendSpec, Options, hookimpl
 from agrisim.interfaces import PlantSpecies
-from agrisim.scene.model import PLANT_FIT_HEIGHT, PLANT_FIT_RADIUS, Material, Mesh, Plant
+from agrisim.scene.model import (
+    LEAF_ROUGHNESS,
+    LEAF_TRANSMITTANCE,
+    PLANT_FIT_HEIGHT,
+    PLANT_FIT_RADIUS,
+    Material,
+    Mesh,
+    Plant,
+)
 
 from .species import SPECIES, Grown
 from .textures import srgb_to_linear
@@ -76,6 +84,8 @@ def grow(species: str, seed: int, options: ProceduralPlantOptions | None = None)
         alpha_mode="MASK",
         alpha_cutoff=0.5,
         double_sided=True,
+        roughness=LEAF_ROUGHNESS,
+        transmittance=LEAF_TRANSMITTANCE,
     )
     stem_label = grown.labels.by_name("stem").id
     stems = Material(
@@ -84,6 +94,7 @@ def grow(species: str, seed: int, options: ProceduralPlantOptions | None = None)
         label=stem_label,
         alpha_mode="OPAQUE",
         double_sided=True,
+        roughness=0.6,
     )
     wood = Material(
         f"{species}_wood",
@@ -91,6 +102,7 @@ def grow(species: str, seed: int, options: ProceduralPlantOptions | None = None)
         label=stem_label,
         alpha_mode="OPAQUE",
         double_sided=True,
+        roughness=0.85,
     )
     mesh = b.build(species, [cards, stems, wood])
     used = np.unique(mesh.face_material)  # drop materials no face uses (e.g. no wood)

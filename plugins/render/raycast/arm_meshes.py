@@ -115,7 +115,7 @@ def arm_link_meshes(urdf: str, max_triangles: int = 0) -> tuple[LinkMesh, ...]:
                 v = v @ visual.link_T_visual[:3, :3].T + visual.link_T_visual[:3, 3]
                 if color not in colors:
                     colors[color] = len(materials)
-                    materials.append(Material(f"{link}/{len(materials)}", color=color, double_sided=True))
+                    materials.append(Material(f"{link}/{len(materials)}", color=color, double_sided=True, roughness=0.45))
                 verts.append(v)
                 faces.append(f + n)
                 fmat.append(np.full(len(f), colors[color], np.int32))

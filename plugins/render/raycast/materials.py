@@ -20,22 +20,13 @@ import numpy as np
 
 from agrisim.scene.colour import srgb_to_linear
 from agrisim.scene.model import Material
+from agrisim.scene.texturing import alpha_threshold
 
 F32 = np.float32
 
 #: uint8 sRGB -> linear float32
 SRGB_TO_LINEAR = srgb_to_linear(np.arange(256) / 255.0).astype(F32)
 
-
-def alpha_threshold(material: Material) -> int:
-    """Smallest 8-bit texture alpha that ``material`` keeps (0 when opacity cuts nothing; 256
-    when it keeps nothing). glTF: alpha is the texel's times the colour factor's, compared with
-    the same float operations as :func:`agrisim.scene.texturing.opaque`; an untextured material reads
-    a white texel (alpha 255)."""
-    if not material.cuts:
-        return 0
-    ok = np.arange(256, dtype=np.float64) / 255.0 * float(material.color[3]) >= material.alpha_cutoff
-    return int(np.argmax(ok)) if ok.any() else 256
 
 
 def _corner(u: np.ndarray, size: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -3,7 +3,6 @@ mapping, tiles on threads (tracing is :mod:`.tracing`; see the package)."""
 
 from __future__ import annotations
 
-import hashlib
 import math
 import os
 from collections.abc import Mapping
@@ -15,18 +14,14 @@ from agrisim.config import RenderConfig
 from agrisim.interfaces import CameraModel, Frame, Renderer
 from agrisim.plugins.render.raycast import RaycastOptions
 from agrisim.plugins.render.raycast.lights import LightTable, chunks
-from agrisim.plugins.render.raycast.tracing import Hits, SceneTracer
+from agrisim.plugins.render.raycast.tracing import Hits, SceneTracer, camera_rays, pixel_slopes
 from agrisim.scene.cell import Cell
-from agrisim.scene.colour import linear_to_srgb
+from agrisim.scene.camera import view_seed
+from agrisim.scene.colour import encode_srgb8
 from agrisim.scene.model import Scene
 
 F32 = np.float32
 
-#: linear in [0, 1] quantised to ENCODE_STEPS + 1 levels -> uint8 sRGB (finer than 8-bit sRGB steps)
-ENCODE_STEPS = 16383
-
-
-LINEAR_TO_SRGB8 = np.round(linear_to_srgb(np.arange(ENCODE_STEPS + 1) / ENCODE_STEPS) * 255.0).astype(np.uint8)
 
 
 class RaycastRenderer(Renderer):
@@ -42,7 +37,6 @@ class RaycastRenderer(Renderer):
         self.label_map = np.arange(256, dtype=np.uint8) if organs else (np.arange(256) > 0).astype(np.uint8)
         self.tracer = SceneTracer(scene, None if self.hide_robots else cell, options)
         self.lights = LightTable(scene.lights)
-        self._grid_cache: tuple[tuple, tuple[np.ndarray, np.ndarray]] | None = None
 
     # -------------------------------------------------------------------------- shading
     def _shade(self, rays: np.ndarray, hits: Hits, rng: np.random.Generator, samples: int) -> np.ndarray:
@@ -92,58 +86,12 @@ class RaycastRenderer(Renderer):
         out[sel] = albedo
         return out
 
-    def _encode(self, linear: np.ndarray, out: np.ndarray) -> None:
-        """Linear RGB -> sRGB uint8 into ``out`` (exposure, tone map, a fine lookup table);
-        ``linear`` is overwritten."""
-        for c in chunks(len(linear)):  # small temporaries
-            x = linear[c]
-            if self.options.exposure != 1.0:
-                x *= F32(self.options.exposure)
-            if self.options.tonemap == "reinhard":
-                x /= 1.0 + x
-            x *= F32(ENCODE_STEPS)
-            np.clip(x, 0.0, F32(ENCODE_STEPS), out=x)
-            x += F32(0.5)
-            np.take(LINEAR_TO_SRGB8, x.astype(np.intp), out=out[c], mode="clip")  # (clip: not buffered)
-
     # --------------------------------------------------------------------------- render
-    def _pixel_grid(self, camera: CameraModel) -> tuple[np.ndarray, np.ndarray]:
-        """Camera-frame ray slopes of the pixel centres: x of each column, y of each row
-        (``K^-1 [u, v, 1] = (x[u], y[v], 1)``)."""
-        key = (camera.width, camera.height, camera.fx, camera.fy, camera.cx, camera.cy)
-        if self._grid_cache is None or self._grid_cache[0] != key:
-            x = (np.arange(camera.width, dtype=np.float64) - camera.cx) / camera.fx
-            y = (np.arange(camera.height, dtype=np.float64) - camera.cy) / camera.fy
-            self._grid_cache = (key, (x, y))
-        return self._grid_cache[1]
-
-    def _seed(self, camera: CameraModel, world_T_camera: np.ndarray) -> int:
-        h = hashlib.blake2b(digest_size=8)
-        h.update(np.asarray(world_T_camera, np.float64).tobytes())
-        intrinsics = [camera.width, camera.height, camera.fx, camera.fy, camera.cx, camera.cy]
-        h.update(np.array(intrinsics, np.float64).tobytes())
-        h.update(int(self.options.seed).to_bytes(8, "little"))
-        return int.from_bytes(h.digest(), "little")
-
-    def _rays(self, x: np.ndarray, y: np.ndarray, T: np.ndarray) -> np.ndarray:
-        """Rays (len(y) * len(x) x 6 float32, row-major) through camera-frame points (x, y, 1),
-        from the near plane, with directions of unit camera z (so t is planar depth)."""
-        R, c, near = T[:3, :3], T[:3, 3], self.options.near
-        rays = np.empty((len(y), len(x), 6), F32)
-        d = np.empty((len(y), len(x)), F32)
-        for j in range(3):  # component by component: long inner loops, one strided write each
-            np.add((x * R[j, 0]).astype(F32)[None, :], (y * R[j, 1] + R[j, 2]).astype(F32)[:, None], out=d)
-            rays[..., 3 + j] = d
-            d *= F32(near)
-            d += F32(c[j])
-            rays[..., j] = d
-        return rays.reshape(-1, 6)
-
     def _tile(
         self, T: np.ndarray, x: np.ndarray, y: np.ndarray, camera: CameraModel, rng: np.random.Generator, out: dict
     ) -> None:
         """Render the pixels of columns ``x`` and rows ``y`` (camera-frame slopes) into ``out``."""
-        rays = self._rays(x, y, T)
+        rays = camera_rays(x, y, T, self.options.near)
         hits = self.tracer.trace(rays, raw=self.seg_mode == "repopa")
         hit = hits.face >= 0
         np.add(hits.t, F32(self.options.near), out=out["depth"])
@@ -160,13 +108,13 @@ class RaycastRenderer(Renderer):
             for i in range(s):
                 for j in range(s):
                     du, dv = ((j + 0.5) / s - 0.5) / camera.fx, ((i + 0.5) / s - 0.5) / camera.fy
-                    sub = self._rays(x + du, y + dv, T)
+                    sub = camera_rays(x + du, y + dv, T, self.options.near)
                     sub_hits = self.tracer.trace(sub, raw=False)
                     linear += self._shade(sub, sub_hits, rng, n_sub)
                     count += sub_hits.face >= 0
             hit = count > 0
             linear *= F32(1.0 / (s * s))
-        self._encode(linear, out["rgb"])
+        encode_srgb8(linear, out["rgb"], self.options.exposure, self.options.tonemap)
         if not hit.all():
             out["rgb"][~hit] = np.asarray(self.options.background, np.uint8)
 
@@ -180,7 +128,7 @@ class RaycastRenderer(Renderer):
         if self.tracer.arms:
             self.tracer.place_arms(link_poses)
         T = np.asarray(world_T_camera, np.float64)
-        x, y = self._pixel_grid(camera)
+        x, y = pixel_slopes(camera)
         n_pix = H * W
         images = {
             "rgb": np.empty((n_pix, 3), np.uint8),
@@ -193,7 +141,7 @@ class RaycastRenderer(Renderer):
         # results do not depend on the order (or thread) tiles run in.
         rows = max(1, self.options.tile_pixels // W)
         starts = list(range(0, H, rows))
-        streams = np.random.SeedSequence(self._seed(camera, T)).spawn(len(starts))
+        streams = np.random.SeedSequence(view_seed(camera, T, self.options.seed)).spawn(len(starts))
 
         def run(i: int) -> None:
             r0, r1 = starts[i], min(starts[i] + rows, H)

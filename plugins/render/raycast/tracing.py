@@ -6,6 +6,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 
@@ -13,6 +14,7 @@ from agrisim.plugins.render.raycast import RaycastOptions
 from agrisim.plugins.render.raycast.arm_meshes import arm_link_meshes
 from agrisim.plugins.render.raycast.lights import SHADOW_TFAR, chunks
 from agrisim.plugins.render.raycast.materials import MaterialTable
+from agrisim.scene.camera import CameraModel
 from agrisim.scene.cell import Cell
 from agrisim.scene.model import Material, Scene
 from agrisim.util.native_output import native_output_silenced
@@ -44,6 +46,36 @@ def _offsets(by_id: dict[int, int]) -> np.ndarray:
     for gid, off in by_id.items():
         out[gid] = off
     return out
+
+
+@lru_cache(maxsize=8)
+def _slopes(width: int, height: int, fx: float, fy: float, cx: float, cy: float) -> tuple[np.ndarray, np.ndarray]:
+    x = (np.arange(width, dtype=np.float64) - cx) / fx
+    y = (np.arange(height, dtype=np.float64) - cy) / fy
+    x.flags.writeable = y.flags.writeable = False  # shared by every caller of the cache
+    return x, y
+
+
+def pixel_slopes(camera: CameraModel) -> tuple[np.ndarray, np.ndarray]:
+    """Camera-frame ray slopes of the pixel centres: x of each column, y of each row
+    (``K^-1 [u, v, 1] = (x[u], y[v], 1)``)."""
+    return _slopes(camera.width, camera.height, camera.fx, camera.fy, camera.cx, camera.cy)
+
+
+def camera_rays(x: np.ndarray, y: np.ndarray, T: np.ndarray, near: float) -> np.ndarray:
+    """Rays (len(y) * len(x) x 6 float32, row-major) through camera-frame points (x, y, 1) of the
+    camera at ``T`` (world_T_camera, OpenCV), from the near plane, with directions of unit camera
+    z (so a hit's t is its planar depth less ``near``)."""
+    R, c = T[:3, :3], T[:3, 3]
+    rays = np.empty((len(y), len(x), 6), F32)
+    d = np.empty((len(y), len(x)), F32)
+    for j in range(3):  # component by component: long inner loops, one strided write each
+        np.add((x * R[j, 0]).astype(F32)[None, :], (y * R[j, 1] + R[j, 2]).astype(F32)[:, None], out=d)
+        rays[..., 3 + j] = d
+        d *= F32(near)
+        d += F32(c[j])
+        rays[..., j] = d
+    return rays.reshape(-1, 6)
 
 
 @dataclass
@@ -399,6 +431,36 @@ class SceneTracer:
         out["labels"][on_plant] = np.take(label_map, lab)
         if "instances" in out:
             out["instances"][on_plant] = np.where(lab > 0, np.take(self.face_inst, face), 0)
+
+    def exact(
+        self,
+        camera: CameraModel,
+        world_T_camera: np.ndarray,
+        *,
+        seg_mode: str,
+        label_map: np.ndarray,
+        rows_per_batch: int = 256,
+    ) -> dict[str, np.ndarray]:
+        """The exact images of one view, for renderers that shade by other means: ``labels``,
+        ``depth`` (planar, m; 0 where nothing is hit) and ``instances`` (when the plant numbers
+        its leaves) from rays through the pixel centres, byte for byte what the raycast renderer
+        gives (the same rays, traced by the same code). Place the arms first."""
+        H, W = camera.height, camera.width
+        x, y = pixel_slopes(camera)
+        T = np.asarray(world_T_camera, np.float64)
+        near = F32(self.options.near)
+        out = {"labels": np.zeros(H * W, np.uint8), "depth": np.empty(H * W, F32)}
+        if self.has_instances:
+            out["instances"] = np.zeros(H * W, np.uint16)
+        for r0 in range(0, H, rows_per_batch):  # bounded memory at any resolution
+            r1 = min(r0 + rows_per_batch, H)
+            part = {k: v[r0 * W : r1 * W] for k, v in out.items()}
+            hits = self.trace(camera_rays(x, y[r0:r1], T, self.options.near), raw=seg_mode == "repopa")
+            np.add(hits.t, near, out=part["depth"])
+            part["depth"][hits.face < 0] = 0.0
+            self.labels(hits, seg_mode == "repopa", label_map, part)
+        shape = {"labels": (H, W), "depth": (H, W), "instances": (H, W)}
+        return {k: v.reshape(shape[k]) for k, v in out.items()}
 
     def close(self) -> None:
         """Drop the Embree scenes."""

@@ -1,0 +1,57 @@
+"""OpenCV's pinhole (K, world_T_camera) as Mitsuba's ``perspective`` sensor, exactly.
+
+Mitsuba's camera looks along +z with +x to the left and +y up; OpenCV's along +z with +x right
+and +y down: the same optical axis with x and y flipped, so ``to_world = world_T_camera @
+diag(-1, -1, 1, 1)``. Mitsuba's film puts pixel i over [i, i + 1), its centre at i + 0.5, where
+OpenCV's pixel centres are the integers: the principal point (cx, cy) is film point (cx + 0.5,
+cy + 0.5), and ``principal_point_offset_x/y`` are the offsets of the film centre from it as
+fractions of the film's width and height (signs as Mitsuba's flipped x and y make them). The
+field of view is along x (``fov_axis = "x"``: ``tan(fov / 2) = (W / 2) / fx``); Mitsuba's pixels
+are square, so fx must equal fy.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from agrisim.errors import ConfigError
+from agrisim.scene.camera import CameraModel
+
+#: OpenCV camera frame -> Mitsuba camera frame (x and y flipped)
+CV_TO_MITSUBA = np.diag([-1.0, -1.0, 1.0, 1.0])
+
+
+def check_square_pixels(camera: CameraModel) -> None:
+    """Mitsuba's perspective camera has square pixels: refuse fx != fy."""
+    if not math.isclose(camera.fx, camera.fy, rel_tol=1e-9):
+        raise ConfigError(f"renderer 'mitsuba' needs square pixels (fx == fy); this camera has fx {camera.fx}, fy {camera.fy}")
+
+
+def sensor_dict(camera: CameraModel, world_T_camera: np.ndarray, spp: int, channels: str = "rgb") -> dict:
+    """The ``perspective`` sensor of ``camera`` at ``world_T_camera`` (OpenCV optical frame),
+    with an ``hdrfilm`` of the camera's size and a box filter (each pixel averages its own
+    area, nothing of its neighbours')."""
+    check_square_pixels(camera)
+    W, H = camera.width, camera.height
+    to_world = np.asarray(world_T_camera, np.float64) @ CV_TO_MITSUBA
+    return {
+        "type": "perspective",
+        "fov_axis": "x",
+        "fov": math.degrees(2.0 * math.atan(W / (2.0 * camera.fx))),
+        "principal_point_offset_x": (W / 2.0 - (camera.cx + 0.5)) / W,
+        "principal_point_offset_y": (H / 2.0 - (camera.cy + 0.5)) / H,
+        "near_clip": 1e-3,
+        "far_clip": 1e4,
+        "to_world": to_world,  # (a 4 x 4 array: the renderer makes it a Mitsuba transform)
+        "film": {
+            "type": "hdrfilm",
+            "width": W,
+            "height": H,
+            "pixel_format": channels,
+            "rfilter": {"type": "box"},
+            "sample_border": False,
+        },
+        "sampler": {"type": "independent", "sample_count": int(spp)},
+    }

@@ -1,0 +1,43 @@
+"""Options of the mitsuba renderer (``[renderer.mitsuba]``)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Literal
+
+from pydantic import Field
+
+from agrisim import Options
+
+
+class MitsubaOptions(Options):
+    """Options of the mitsuba (path tracing) renderer."""
+
+    variant: Literal["auto", "cuda", "llvm"] = "auto"
+    """Mitsuba's variant: ``cuda`` (NVIDIA GPU, OptiX), ``llvm`` (CPU, needs a shared libLLVM 15
+    or newer) or ``auto`` (CUDA when a GPU is usable, else LLVM). RGB either way."""
+    spp: int = Field(64, ge=1, le=1 << 16)
+    """Samples per pixel (spread over the pixel's area: the box filter)."""
+    max_depth: int = Field(8, ge=1, le=1024)
+    """Longest path, in vertices (1: only emitters seen directly; 2: direct light only)."""
+    integrator: Literal["path", "volpath"] = "path"
+    """Mitsuba's integrator: ``path``, or ``volpath``, which passes cut-out texels (null
+    interactions) without spending path depth on them."""
+    exposure: float = Field(1.0, gt=0.0, le=1e6)
+    """Scale of the linear radiance before tone mapping, one for the whole run (NeRF and
+    photogrammetry want constant exposure). 1: a white surface lit with irradiance 1 in the
+    raycast renderer's units is white."""
+    tonemap: Literal["clip", "reinhard"] = "clip"
+    """Linear to display, as in raycast."""
+    seed: int = Field(0, ge=0, le=2**32 - 1)
+    """Seed of the path sampling (mixed with the view: every view has its own noise, the same
+    view always the same)."""
+    envmap: Path | None = None
+    """An environment map (HDR/EXR/PNG image, latitude-longitude, z up) lighting the scene from
+    afar, e.g. daylight through the lab's openings; None: none."""
+    envmap_scale: float = Field(1.0, gt=0.0, le=1e6)
+    """Multiplies the environment map's radiance."""
+    near: float = Field(1e-3, ge=0.0, le=1.0)
+    """Near clipping plane (planar z), m, of the exact pass (labels and depth), as in raycast."""
+    arm_triangles: int = Field(30000, ge=0, le=10_000_000)
+    """Triangles per arm after decimation, as in raycast (0: as loaded)."""
