@@ -49,6 +49,10 @@ def preflight(config: RunConfig, options: MitsubaOptions) -> None:
     from .variant import resolve_variant
 
     resolve_variant(options.variant)
+    if options.denoise == "on":
+        from .denoise import check_denoiser
+
+        check_denoiser()
     if options.envmap is not None:
         from .scene import check_envmap
 

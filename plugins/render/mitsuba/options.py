@@ -16,11 +16,15 @@ class MitsubaOptions(Options):
     variant: Literal["auto", "cuda", "llvm"] = "auto"
     """Mitsuba's variant: ``cuda`` (NVIDIA GPU, OptiX), ``llvm`` (CPU, needs a shared libLLVM 15
     or newer) or ``auto`` (CUDA when a GPU is usable, else LLVM). RGB either way."""
-    spp: int = Field(64, ge=1, le=1 << 16)
+    spp: int = Field(16, ge=1, le=1 << 16)
     """Samples per pixel (spread over the pixel's area: the box filter)."""
+    denoise: Literal["auto", "on", "off"] = "auto"
+    """Open Image Denoise (``pyoidn``) on the radiance, guided by the first hit's albedo and
+    normal: ``auto`` denoises below 256 samples per pixel (where the noise shows) when pyoidn
+    is installed."""
     max_depth: int = Field(8, ge=1, le=1024)
     """Longest path, in vertices (1: only emitters seen directly; 2: direct light only)."""
-    integrator: Literal["path", "volpath"] = "path"
+    integrator: Literal["path", "volpath"] = "volpath"
     """Mitsuba's integrator: ``path``, or ``volpath``, which passes cut-out texels (null
     interactions) without spending path depth on them."""
     exposure: float = Field(1.0, gt=0.0, le=1e6)

@@ -17,6 +17,7 @@ from agrisim.scene.colour import encode_srgb8
 from agrisim.scene.model import Scene
 
 from .options import MitsubaOptions
+from . import denoise
 from .camera import sensor_dict
 from .scene import build
 from .variant import use_variant
@@ -42,6 +43,9 @@ class MitsubaRenderer(Renderer):
             for arm in arms_cell.arms:
                 arms[arm.name] = [(lm.link, lm.mesh) for lm in arm_link_meshes(arm.urdf, options.arm_triangles)]
         integrator = {"type": options.integrator, "max_depth": int(options.max_depth)}
+        self.denoise = denoise.wanted(options)
+        if self.denoise:
+            integrator = {"type": "aov", "aovs": denoise.AOVS, "integrator": integrator}
         parts = build(mi, scene.meshes, scene.lights, arms, options, integrator)
         self.arm_parts = parts.arms
         self.mi_scene = mi.load_dict(parts.scene)
@@ -74,8 +78,8 @@ class MitsubaRenderer(Renderer):
         sensor = sensor_dict(camera, world_T_camera, o.spp)
         sensor["to_world"] = mi.ScalarTransform4f(sensor["to_world"])
         seed = view_seed(camera, world_T_camera, o.seed) & 0xFFFFFFFF
-        image = mi.render(self.mi_scene, sensor=mi.load_dict(sensor), spp=o.spp, seed=seed)
-        return np.asarray(image, F32)[..., :3]
+        image = np.asarray(mi.render(self.mi_scene, sensor=mi.load_dict(sensor), spp=o.spp, seed=seed), F32)
+        return denoise.denoise(image) if self.denoise else image[..., :3]
 
     def render(
         self,
