@@ -36,6 +36,8 @@ class RendererCapabilities:
     """Area lights sampled for soft shadows."""
     supersampling: bool = False
     """More than one RGB ray per pixel."""
+    rerender: bool = False
+    """Draws RGB alone from a saved scene (:meth:`Renderer.render_rgb`, ``agrisim render``)."""
 
 
 @dataclass(frozen=True)

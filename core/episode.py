@@ -8,6 +8,8 @@ reason and the run goes on.
 
 from __future__ import annotations
 
+import dataclasses
+
 import datetime as _dt
 import time
 from collections.abc import Callable, Iterator
@@ -182,7 +184,8 @@ class Episode:
                 "planner": self.planner_options.model_dump(mode="json"),
             },
             started_at=_dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
-            scene=self.scene,
+            # the scene as drawn, arms included: saved with the run for agrisim render
+            scene=dataclasses.replace(self.scene, arms=renderer.arm_meshes()) if renderer is not None else self.scene,
             labels=self.scene.labels if self.scene is not None else None,
             wall_s=dict(self._prep_wall),
             plant_notes=list(self.plant.notes) if self.scene is not None else [],
@@ -447,6 +450,7 @@ class Episode:
                     sim_time=self._physics.sim_time,
                     world_T_camera=world_T_camera,
                     camera=self.camera,
+                    link_poses=self._link_poses() if self._renderer is not None else None,
                 )
                 view: View | None = None
                 if capture.frame in self.done_frames:
@@ -458,7 +462,7 @@ class Episode:
                         capture.images = view.images
                 elif self._renderer is not None and self.renderer_spec is not None:
                     with self._stage("render"), blame("renderer", self.renderer_spec, f" rendering {capture.frame}"):
-                        capture.images = self._renderer.render(self.camera, world_T_camera, self._link_poses())
+                        capture.images = self._renderer.render(self.camera, world_T_camera, capture.link_poses or {})
                     view = view_from_capture(capture)
                 with self._stage("capture"):
                     self.pm.hook.agrisim_capture(run=self._run, capture=capture)

@@ -15,7 +15,7 @@ import numpy as np
 
 from agrisim.files.encoding import depth_to_mm, mm_to_depth
 from agrisim.scene.camera import CameraModel
-from agrisim.scene.model import LabelTable, Plant, Scene
+from agrisim.scene.model import LabelTable, Mesh, Plant, Scene
 
 if TYPE_CHECKING:
     from agrisim.config import RenderConfig
@@ -109,6 +109,8 @@ class Capture:
     images: Frame | None = None
     #: a frame already complete on disk from before ``--resume``: replayed, not rendered
     replayed: bool = False
+    #: ``world_T_link`` of every arm link (robot -> link -> 4x4) the frame was rendered with
+    link_poses: dict[str, dict[str, np.ndarray]] | None = None
 
 
 # ---------------------------------------------------------------------------- backends
@@ -219,6 +221,24 @@ class Renderer(ABC):
     ) -> Frame:
         """RGB, labels and depth for ``camera`` at ``world_T_camera`` (OpenCV optical frame);
         ``link_poses[robot][link]`` is ``world_T_link`` of every arm link right now."""
+
+    def render_rgb(
+        self,
+        camera: CameraModel,
+        world_T_camera: np.ndarray,
+        link_poses: Mapping[str, Mapping[str, np.ndarray]],
+    ) -> np.ndarray:
+        """RGB alone (H x W x 3 uint8), byte for byte :meth:`render`'s, for re-rendering a saved
+        run (``agrisim render``: its labels and depth are kept). Renderers that declare the
+        ``rerender`` capability implement it; ``cell`` may then be None, the arms coming with
+        the scene (:attr:`Scene.arms`)."""
+        raise NotImplementedError(f"{type(self).__name__} does not render RGB alone")
+
+    def arm_meshes(self) -> dict[str, list[tuple[str, Mesh]]]:
+        """The arms' visual meshes as this renderer draws them (robot -> (link, mesh in the
+        link's frame)), saved with the run's scene so that ``agrisim render`` draws the same
+        arms; empty when it draws none or cannot say."""
+        return {}
 
     def close(self) -> None:  # noqa: B027 - optional hook for backends holding resources
         """Release resources."""

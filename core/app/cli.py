@@ -105,6 +105,19 @@ def _parser() -> argparse.ArgumentParser:
         metavar="KEY=VALUE",
         help="recon.* or metrics.* settings, e.g. recon.tsdf.voxel_size=0.003",
     )
+    render = sub.add_parser(
+        "render",
+        help="re-render a finished run's RGB with another renderer (e.g. path-traced), keeping its labels and depth",
+        description="Draw the RGB of a complete run again from its saved scene, camera and arm poses, into a complete "
+        "dataset (default: RUN_DIR-<renderer>); labels, depth, instances, clouds and metrics are carried over.",
+    )
+    render.add_argument("run_dir", type=Path, metavar="RUN_DIR", help="a complete run's output directory")
+    render.add_argument("--renderer", default="mitsuba", metavar="NAME", help="a renderer that can re-render (mitsuba)")
+    render.add_argument("--out", type=Path, metavar="DIR", help="output directory (default: RUN_DIR-<renderer>)")
+    render.add_argument("--overwrite", action="store_true", help="replace an existing --out (or RUN_DIR's own RGB)")
+    render.add_argument(
+        "--set", action="append", default=[], metavar="KEY=VALUE", help="renderer.* settings, e.g. renderer.mitsuba.spp=64"
+    )
     export = sub.add_parser(
         "export",
         help="export a run directory to another tool's format",
@@ -269,6 +282,22 @@ def _cmd_recon(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_render(args: argparse.Namespace) -> int:
+    from agrisim.app.progress import EpisodeProgress
+    from agrisim.app.render import RenderPlan
+
+    overrides: dict[str, Any] = {}
+    _apply_sets(overrides, args.set)
+    plan = RenderPlan(args.run_dir, args.renderer, overrides, args.out, args.overwrite)
+    if plan.done:
+        print(f"resuming: {len(plan.done)} of {len(plan.frames)} frames already re-rendered")
+    with EpisodeProgress("views") as progress:
+        out = plan.run(progress.update)
+    print(f"re-rendered {len(plan.frames)} frames of {plan.run_dir} with {plan.spec.name}")
+    print(f"output: {out}")
+    return 0
+
+
 def _resume_config(args: argparse.Namespace, overrides: dict[str, Any]) -> RunConfig:
     """The saved configuration of the run in --out, with the output flags of this command.
 
@@ -415,6 +444,8 @@ def main(argv: Sequence[str] | None = None) -> int:
             return _cmd_recon(args)
         if args.command == "export":
             return _cmd_export(args)
+        if args.command == "render":
+            return _cmd_render(args)
         if args.command == "compare":
             return _cmd_compare(args)
         return _cmd_plugins(args)

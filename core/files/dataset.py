@@ -32,6 +32,7 @@ from agrisim.files import layout
 from agrisim.evaluation.session import write_reconstruction
 from agrisim.files.atomic import write_bytes, write_json
 from agrisim.files.glb import export_glb
+from agrisim.files.scene_glb import write_scene
 from agrisim.files.nerfstudio import write_nerfstudio
 from agrisim.interfaces import CameraModel, Capture, Frame
 from agrisim.records import Run, RunSummary, SetpointResult
@@ -167,6 +168,9 @@ class DatasetWriter:
         if run.scene is not None and run.labels is not None:
             # the ground truth: the plant as placed in the world, with albedo and labels
             export_glb(run.scene.mesh(run.scene.plant), self.out / layout.PLANT_GLB, run.labels)
+            # the whole scene as drawn, for agrisim render (arms shown at home in viewers)
+            home = {a.name: run.kinematics[a.name].link_poses(np.asarray(a.home)) for a in run.cell.arms if a.name in run.kinematics}
+            write_scene(self.out / layout.SCENE_GLB, run.scene, home)
         self._write(run)
 
     @hookimpl
@@ -181,13 +185,14 @@ class DatasetWriter:
             "robot": capture.robot,
             "setpoint": capture.setpoint,
             "sim_time": round(capture.sim_time, 6),
-            "world_T_camera": np.round(capture.world_T_camera, 12).tolist(),
+            # full precision: a re-render (agrisim render) must see the very pose rendered
+            "world_T_camera": np.asarray(capture.world_T_camera, np.float64).tolist(),
         }
         if capture.replayed:  # complete on disk from before --resume: nothing to write again
             self.frames[capture.frame] = entry
             self._write_cameras()
             return
-        future = self._writer.submit(write_frame, self.out, capture.frame, capture.images, palette)
+        future = self._writer.submit(write_frame, self.out, capture.frame, capture.images, palette, capture.link_poses)
         self._pending.append((future, capture.frame, entry))
         self._collect()
 
@@ -207,11 +212,20 @@ class DatasetWriter:
             write_nerfstudio(self.out)
 
 
-def write_frame(out: Path, frame: str, images: Frame | None, palette: np.ndarray | None) -> None:
-    """One frame's image files (rgb, labels, labels_vis, depth, instances), each atomic; none
-    when the run has no renderer."""
+def write_frame(
+    out: Path,
+    frame: str,
+    images: Frame | None,
+    palette: np.ndarray | None,
+    link_poses: dict[str, dict[str, np.ndarray]] | None = None,
+) -> None:
+    """One frame's files (rgb, labels, labels_vis, depth, instances, and the arms' link poses it
+    was rendered with), each atomic; none when the run has no renderer. The link poses come
+    first: a frame whose images exist has them."""
     if images is None:
         return
+    if link_poses is not None:
+        write_json(layout.link_poses(out, frame), {r: {k: np.asarray(T).tolist() for k, T in links.items()} for r, links in link_poses.items()})
     write_png(layout.image(out, "rgb", frame), images.rgb)
     write_png(layout.image(out, "labels", frame), images.labels)
     if palette is not None:

@@ -18,7 +18,7 @@ from PIL import Image
 
 from agrisim.files.atomic import write_bytes
 from agrisim.files.gltf import CHUNK_BIN, CHUNK_JSON, GLB_MAGIC
-from agrisim.scene.model import LabelTable, Mesh
+from agrisim.scene.model import LabelTable, Material, Mesh
 
 
 def export_glb(mesh: Mesh, path: str | os.PathLike[str], labels: LabelTable) -> None:
@@ -42,56 +42,7 @@ def glb_bytes(mesh: Mesh, labels: LabelTable) -> bytes:
             raise ValueError(f"material {mat.name!r} uses label ids {sorted(used - known)} missing from the label table")
 
     w = _GlbWriter()
-    vy = np.column_stack([mesh.vertices[:, 0], mesh.vertices[:, 2], -mesh.vertices[:, 1]]).astype("<f4")
-    attributes = {"POSITION": w.accessor(vy, 34962, minmax=True)}
-    if mesh.uvs is not None:
-        attributes["TEXCOORD_0"] = w.accessor(mesh.uvs.astype("<f4"), 34962)
-
-    faces, face_material, face_instance = mesh.faces, mesh.face_material, mesh.face_instance
-    starts = np.flatnonzero(np.diff(face_material)) + 1
-    if len(starts) + 1 > 4 * len(mesh.materials) + 16:  # interleaved: group by material instead
-        order = np.argsort(face_material, kind="stable")
-        faces, face_material = faces[order], face_material[order]
-        face_instance = None if face_instance is None else face_instance[order]
-        starts = np.flatnonzero(np.diff(face_material)) + 1
-    bounds = [0, *starts.tolist(), len(faces)]
-    primitives = []
-    for a, b in zip(bounds[:-1], bounds[1:]):
-        prim: dict[str, Any] = {
-            "attributes": dict(attributes),
-            "indices": w.accessor(faces[a:b].astype("<u4").reshape(-1, 1), 34963),
-            "material": int(face_material[a]),
-            "mode": 4,
-        }
-        if face_instance is not None:
-            prim["extras"] = {"agrisim": {"face_instance": w.accessor(face_instance[a:b].astype("<u2").reshape(-1, 1))}}
-        primitives.append(prim)
-
-    materials = []
-    for mat in mesh.materials:
-        pbr: dict[str, Any] = {
-            "baseColorFactor": [float(c) for c in mat.color],
-            "metallicFactor": float(mat.metallic),
-            "roughnessFactor": float(mat.roughness),
-        }
-        extras: dict[str, Any] = {"label": int(mat.label), "alpha_cutoff": float(mat.alpha_cutoff)}
-        if mat.transmittance is not None:
-            extras["transmittance"] = [float(t) for t in mat.transmittance]
-        if mat.albedo is not None:
-            pbr["baseColorTexture"] = {"index": w.texture(mat.albedo, "RGBA", nearest=False)}
-        if mat.labels is not None:
-            extras["label_texture"] = w.texture(mat.labels, "L", nearest=True)
-        m: dict[str, Any] = {
-            "name": mat.name,
-            "pbrMetallicRoughness": pbr,
-            "alphaMode": mat.alpha_mode,
-            "doubleSided": bool(mat.double_sided),
-            "extras": {"agrisim": extras},
-        }
-        if mat.alpha_mode == "MASK":
-            m["alphaCutoff"] = float(mat.alpha_cutoff)
-        materials.append(m)
-
+    gltf_mesh = w.mesh(mesh)
     gltf: dict[str, Any] = {
         "asset": {
             "version": "2.0",
@@ -106,8 +57,7 @@ def glb_bytes(mesh: Mesh, labels: LabelTable) -> bytes:
         "scene": 0,
         "scenes": [{"nodes": [0]}],
         "nodes": [{"name": mesh.name, "mesh": 0}],
-        "meshes": [{"name": mesh.name, "primitives": primitives}],
-        "materials": materials,
+        "meshes": [gltf_mesh],
     }
     return w.finish(gltf)
 
@@ -126,6 +76,8 @@ class _GlbWriter:
         self.textures: list[dict[str, Any]] = []
         self._image_keys: dict[tuple[Any, ...], int] = {}
         self._texture_keys: dict[tuple[int, bool], int] = {}
+        self.materials: list[dict[str, Any]] = []
+        self._material_index: dict[int, int] = {}
 
     def view(self, data: bytes, target: int | None = None) -> int:
         self.blob += b"\0" * (-len(self.blob) % 4)
@@ -163,7 +115,74 @@ class _GlbWriter:
             self._texture_keys[tkey] = len(self.textures) - 1
         return self._texture_keys[tkey]
 
+    def material(self, mat: Material) -> int:
+        """Index of ``mat`` among the file's materials (each Material object written once):
+        albedo as ``baseColorTexture``, roughness and metallic, alpha settings, and agrisim's
+        label, label texture, cutoff and transmittance in ``extras``."""
+        if id(mat) in self._material_index:
+            return self._material_index[id(mat)]
+        pbr: dict[str, Any] = {
+            "baseColorFactor": [float(c) for c in mat.color],
+            "metallicFactor": float(mat.metallic),
+            "roughnessFactor": float(mat.roughness),
+        }
+        extras: dict[str, Any] = {"label": int(mat.label), "alpha_cutoff": float(mat.alpha_cutoff)}
+        if mat.transmittance is not None:
+            extras["transmittance"] = [float(t) for t in mat.transmittance]
+        if mat.albedo is not None:
+            pbr["baseColorTexture"] = {"index": self.texture(mat.albedo, "RGBA", nearest=False)}
+        if mat.labels is not None:
+            extras["label_texture"] = self.texture(mat.labels, "L", nearest=True)
+        m: dict[str, Any] = {
+            "name": mat.name,
+            "pbrMetallicRoughness": pbr,
+            "alphaMode": mat.alpha_mode,
+            "doubleSided": bool(mat.double_sided),
+            "extras": {"agrisim": extras},
+        }
+        if mat.alpha_mode == "MASK":
+            m["alphaCutoff"] = float(mat.alpha_cutoff)
+        self.materials.append(m)
+        self._material_index[id(mat)] = len(self.materials) - 1
+        return len(self.materials) - 1
+
+    def mesh(self, mesh: Mesh, *, z_up_to_y_up: bool = True) -> dict[str, Any]:
+        """The glTF mesh of ``mesh`` (its materials added to the file): positions converted to
+        glTF's y up ((x, y, z) -> (x, z, -y), exact in float32) unless they are in a frame of
+        their own (an arm link's), one primitive per run of faces of one material, leaf
+        instances in the primitives' ``extras``."""
+        if z_up_to_y_up:
+            v = np.column_stack([mesh.vertices[:, 0], mesh.vertices[:, 2], -mesh.vertices[:, 1]]).astype("<f4")
+        else:
+            v = mesh.vertices.astype("<f4")
+        attributes = {"POSITION": self.accessor(v, 34962, minmax=True)}
+        if mesh.uvs is not None:
+            attributes["TEXCOORD_0"] = self.accessor(mesh.uvs.astype("<f4"), 34962)
+        material_index = [self.material(m) for m in mesh.materials]
+        faces, face_material, face_instance = mesh.faces, mesh.face_material, mesh.face_instance
+        starts = np.flatnonzero(np.diff(face_material)) + 1
+        if len(starts) + 1 > 4 * len(mesh.materials) + 16:  # interleaved: group by material instead
+            order = np.argsort(face_material, kind="stable")
+            faces, face_material = faces[order], face_material[order]
+            face_instance = None if face_instance is None else face_instance[order]
+            starts = np.flatnonzero(np.diff(face_material)) + 1
+        bounds = [0, *starts.tolist(), len(faces)]
+        primitives = []
+        for a, b in zip(bounds[:-1], bounds[1:]):
+            prim: dict[str, Any] = {
+                "attributes": dict(attributes),
+                "indices": self.accessor(faces[a:b].astype("<u4").reshape(-1, 1), 34963),
+                "material": material_index[int(face_material[a])],
+                "mode": 4,
+            }
+            if face_instance is not None:
+                prim["extras"] = {"agrisim": {"face_instance": self.accessor(face_instance[a:b].astype("<u2").reshape(-1, 1))}}
+            primitives.append(prim)
+        return {"name": mesh.name, "primitives": primitives}
+
     def finish(self, gltf: dict[str, Any]) -> bytes:
+        if self.materials:
+            gltf["materials"] = self.materials
         self.blob += b"\0" * (-len(self.blob) % 4)
         gltf["buffers"] = [{"byteLength": len(self.blob)}]
         gltf["bufferViews"] = self.views

@@ -10,6 +10,9 @@
     OUT/metrics.json           accuracy against the true plant
     OUT/transforms.json        the nerfstudio export
     OUT/scene/plant.glb        the plant as rendered, with its label textures
+    OUT/scene/lab.glb          the whole scene as rendered: room, clutter, table, pot, plant,
+                               lights and the arms' link meshes (``agrisim render`` reads it)
+    OUT/link_poses/<frame>.json  world_T_link of every arm link when the frame was rendered
     OUT/recording.rrd          the Rerun recording (unless --rrd puts it elsewhere)
 
 The dataset writer writes it; ``--resume``, ``agrisim recon``, the exports and ``agrisim compare``
@@ -26,6 +29,8 @@ METRICS_JSON = "metrics.json"
 TRANSFORMS_JSON = "transforms.json"
 RECORDING = "recording.rrd"
 PLANT_GLB = Path("scene") / "plant.glb"
+SCENE_GLB = Path("scene") / "lab.glb"
+LINK_POSES = "link_poses"
 CLOUDS = "clouds"
 MASKS = "masks"
 #: the image folders of a frame, each holding ``<frame>.png``
@@ -47,3 +52,8 @@ def cloud(root: Path, label: str) -> Path:
 def surface(root: Path, label: str) -> Path:
     """The reconstructed surface of ``label``: ``root/clouds/<label>_mesh.ply``."""
     return Path(root) / CLOUDS / f"{label}_mesh.ply"
+
+
+def link_poses(root: Path, frame: str) -> Path:
+    """The arms' link poses of ``frame``: ``root/link_poses/<frame>.json``."""
+    return Path(root) / LINK_POSES / f"{frame}.json"

@@ -221,6 +221,10 @@ class Scene:
     lights: list[Light]
     labels: LabelTable
     plant: str = "plant"  # name of the plant's mesh in ``meshes``
+    arms: dict[str, list[tuple[str, Mesh]]] = field(default_factory=dict)
+    """The arms' visual meshes as a renderer drew them: robot -> (link, mesh in the link's
+    frame). A run fills it from its renderer and saves it with the scene; a renderer given a
+    scene with arms draws these instead of loading the cell's URDFs (``agrisim render``)."""
 
     def mesh(self, name: str) -> Mesh:
         for m in self.meshes:

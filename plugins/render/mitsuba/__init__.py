@@ -76,6 +76,7 @@ def agrisim_renderers() -> list[BackendSpec]:
                 leaf_instances=True,
                 soft_shadows=True,
                 supersampling=True,
+                rerender=True,
             ),
             preflight=preflight,
         )

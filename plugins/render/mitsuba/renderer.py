@@ -1,56 +1,94 @@
-"""The mitsuba renderer: path-traced RGB, exact labels and depth (see the package)."""
+"""The mitsuba renderer: path-traced RGB, exact labels and depth (see the package).
+
+Re-rendering a saved run (``agrisim render``) needs only :meth:`MitsubaRenderer.render_rgb`,
+which touches Mitsuba alone: the exact pass (Open3D's Embree, through the raycast renderer's
+:class:`SceneTracer`) is built on the first full :meth:`render`, so a machine with a minimal
+install (no Open3D) can re-render.
+"""
 
 from __future__ import annotations
 
 from collections.abc import Mapping
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from agrisim.config import RenderConfig
 from agrisim.interfaces import CameraModel, Frame, Renderer
-from agrisim.plugins.render.raycast import RaycastOptions
-from agrisim.plugins.render.raycast.arm_meshes import arm_link_meshes
-from agrisim.plugins.render.raycast.tracing import SceneTracer
 from agrisim.scene.camera import view_seed
 from agrisim.scene.cell import Cell
 from agrisim.scene.colour import encode_srgb8
-from agrisim.scene.model import Scene
+from agrisim.scene.model import Mesh, Scene
 
-from .options import MitsubaOptions
 from . import denoise
 from .camera import sensor_dict
+from .options import MitsubaOptions
 from .scene import build
 from .variant import use_variant
+
+if TYPE_CHECKING:
+    from agrisim.plugins.render.raycast.tracing import SceneTracer
 
 F32 = np.float32
 
 
 class MitsubaRenderer(Renderer):
     """Mitsuba 3 path tracing for RGB; labels, depth and leaf instances from the raycast
-    renderer's exact pass (:class:`SceneTracer`), so they are byte for byte raycast's."""
+    renderer's exact pass (:class:`SceneTracer`), so they are byte for byte raycast's.
 
-    def __init__(self, scene: Scene, cell: Cell, settings: RenderConfig, options: MitsubaOptions) -> None:
+    The arms are ``scene.arms`` when the scene brings them (a saved run), else the cell's URDF
+    visuals decimated to ``arm_triangles`` as raycast does; none with ``--hide-robots``."""
+
+    def __init__(self, scene: Scene, cell: Cell | None, settings: RenderConfig, options: MitsubaOptions) -> None:
         super().__init__(scene, cell, settings, options)
         self.mi = mi = use_variant(options.variant)
         organs = settings.labels == "organs"
         self.label_map = np.arange(256, dtype=np.uint8) if organs else (np.arange(256) > 0).astype(np.uint8)
-        arms_cell = None if settings.hide_robots else cell
-        self.tracer = SceneTracer(
-            scene, arms_cell, RaycastOptions(near=options.near, arm_triangles=options.arm_triangles)
-        )
-        arms = {}
-        if arms_cell is not None:
-            for arm in arms_cell.arms:
-                arms[arm.name] = [(lm.link, lm.mesh) for lm in arm_link_meshes(arm.urdf, options.arm_triangles)]
+        # The exact pass poses the arms as raycast does; the path tracer poses them rounded to
+        # float32 in the link frame, as a saved scene stores them, so that a run and a
+        # re-render of it (agrisim render) trace exactly the same triangles.
+        self._unrounded_arms = {} if settings.hide_robots else self._load_arms(scene, cell, options)
+        self._arms = {
+            arm: [(link, Mesh(m.name, m.vertices.astype(F32), m.faces, m.materials, m.face_material, m.uvs)) for link, m in links]
+            for arm, links in self._unrounded_arms.items()
+        }
+        self._tracer: SceneTracer | None = None
         integrator = {"type": options.integrator, "max_depth": int(options.max_depth)}
         self.denoise = denoise.wanted(options)
         if self.denoise:
             integrator = {"type": "aov", "aovs": denoise.AOVS, "integrator": integrator}
-        parts = build(mi, scene.meshes, scene.lights, arms, options, integrator)
+        parts = build(mi, scene.meshes, scene.lights, self._arms, options, integrator)
         self.arm_parts = parts.arms
         self.mi_scene = mi.load_dict(parts.scene)
         self.params = mi.traverse(self.mi_scene)
         self._arm_key: bytes | None = None
+
+    @staticmethod
+    def _load_arms(scene: Scene, cell: Cell | None, options: MitsubaOptions) -> dict[str, list[tuple[str, Mesh]]]:
+        """The arms' link meshes: the scene's own (a saved run), else the cell's URDF visuals
+        decimated as raycast decimates them."""
+        if scene.arms:
+            return scene.arms
+        if cell is None:
+            return {}
+        from agrisim.plugins.render.raycast.arm_meshes import arm_link_meshes
+
+        return {a.name: [(lm.link, lm.mesh) for lm in arm_link_meshes(a.urdf, options.arm_triangles)] for a in cell.arms}
+
+    @property
+    def tracer(self) -> SceneTracer:
+        """The exact pass (Open3D's Embree), built when first needed."""
+        if self._tracer is None:
+            from agrisim.plugins.render.raycast import RaycastOptions
+            from agrisim.plugins.render.raycast.tracing import SceneTracer
+
+            o = self.options
+            options = RaycastOptions(near=o.near, arm_triangles=o.arm_triangles)
+            self._tracer = SceneTracer(self.scene, None, options, arms=self._unrounded_arms)
+        return self._tracer
+
+    def arm_meshes(self) -> dict[str, list[tuple[str, Mesh]]]:
+        return self._arms
 
     def _place_arms(self, link_poses: Mapping[str, Mapping[str, np.ndarray]]) -> None:
         """Move the arms' vertices to ``link_poses`` (arms not named there vanish: their
@@ -81,28 +119,38 @@ class MitsubaRenderer(Renderer):
         image = np.asarray(mi.render(self.mi_scene, sensor=mi.load_dict(sensor), spp=o.spp, seed=seed), F32)
         return denoise.denoise(image) if self.denoise else image[..., :3]
 
+    def render_rgb(
+        self,
+        camera: CameraModel,
+        world_T_camera: np.ndarray,
+        link_poses: Mapping[str, Mapping[str, np.ndarray]],
+    ) -> np.ndarray:
+        H, W = camera.height, camera.width
+        self._place_arms(link_poses)
+        linear = np.ascontiguousarray(self.radiance(camera, world_T_camera)).reshape(-1, 3)
+        rgb = np.empty((H * W, 3), np.uint8)
+        encode_srgb8(linear, rgb, self.options.exposure, self.options.tonemap)
+        return rgb.reshape(H, W, 3)
+
     def render(
         self,
         camera: CameraModel,
         world_T_camera: np.ndarray,
         link_poses: Mapping[str, Mapping[str, np.ndarray]],
     ) -> Frame:
-        H, W = camera.height, camera.width
-        if self.tracer.arms:
-            self.tracer.place_arms(link_poses)
-        self._place_arms(link_poses)
-        exact = self.tracer.exact(camera, world_T_camera, seg_mode=self.settings.seg_mode, label_map=self.label_map)
-        linear = np.ascontiguousarray(self.radiance(camera, world_T_camera)).reshape(-1, 3)
-        rgb = np.empty((H * W, 3), np.uint8)
-        encode_srgb8(linear, rgb, self.options.exposure, self.options.tonemap)
+        tracer = self.tracer
+        if tracer.arms:
+            tracer.place_arms(link_poses)
+        exact = tracer.exact(camera, world_T_camera, seg_mode=self.settings.seg_mode, label_map=self.label_map)
         return Frame(
-            rgb=rgb.reshape(H, W, 3),
+            rgb=self.render_rgb(camera, world_T_camera, link_poses),
             labels=exact["labels"],
             depth=exact["depth"],
             instances=exact.get("instances"),
         )
 
     def close(self) -> None:
-        self.tracer.close()
+        if self._tracer is not None:
+            self._tracer.close()
         self.params = None
         self.mi_scene = None

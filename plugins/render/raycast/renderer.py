@@ -13,12 +13,13 @@ import numpy as np
 from agrisim.config import RenderConfig
 from agrisim.interfaces import CameraModel, Frame, Renderer
 from agrisim.plugins.render.raycast import RaycastOptions
+from agrisim.plugins.render.raycast.arm_meshes import arm_link_meshes
 from agrisim.plugins.render.raycast.lights import LightTable, chunks
 from agrisim.plugins.render.raycast.tracing import Hits, SceneTracer, camera_rays, pixel_slopes
 from agrisim.scene.cell import Cell
 from agrisim.scene.camera import view_seed
 from agrisim.scene.colour import encode_srgb8
-from agrisim.scene.model import Scene
+from agrisim.scene.model import Mesh, Scene
 
 F32 = np.float32
 
@@ -161,6 +162,11 @@ class RaycastRenderer(Renderer):
             depth=images["depth"].reshape(H, W),
             instances=images["instances"].reshape(H, W) if "instances" in images else None,
         )
+
+    def arm_meshes(self) -> dict[str, list[tuple[str, Mesh]]]:
+        if self.hide_robots:
+            return {}
+        return {arm.name: [(lm.link, lm.mesh) for lm in arm_link_meshes(arm.urdf, self.options.arm_triangles)] for arm in self.cell.arms}
 
     def close(self) -> None:
         self.tracer.close()

@@ -16,7 +16,7 @@ from agrisim.plugins.render.raycast.lights import SHADOW_TFAR, chunks
 from agrisim.plugins.render.raycast.materials import MaterialTable
 from agrisim.scene.camera import CameraModel
 from agrisim.scene.cell import Cell
-from agrisim.scene.model import Material, Scene
+from agrisim.scene.model import Material, Mesh, Scene
 from agrisim.util.native_output import native_output_silenced
 
 with native_output_silenced():
@@ -127,10 +127,17 @@ class SceneTracer:
     shadow rays through cut-out texels. Renderers share it for labels and depth (one exact
     pass); shading is theirs.
 
-    ``cell`` gives the arms' visual meshes (None: no arms, ``--hide-robots``).
+    The arms are ``arms`` (robot -> (link, mesh in the link frame)) when given, else the visual
+    meshes of ``cell``'s URDFs; neither: no arms (``--hide-robots``).
     """
 
-    def __init__(self, scene: Scene, cell: Cell | None, options: RaycastOptions) -> None:
+    def __init__(
+        self,
+        scene: Scene,
+        cell: Cell | None,
+        options: RaycastOptions,
+        arms: Mapping[str, list[tuple[str, Mesh]]] | None = None,
+    ) -> None:
         self.options = options
         self.threads = options.threads
         mats = MaterialTable()
@@ -164,14 +171,15 @@ class SceneTracer:
         self.n_static = n_faces
 
         self.arms: list[_Arm] = []
-        if cell is not None:
-            for arm in cell.arms:
+        if arms is None and cell is not None:
+            arms = {a.name: [(lm.link, lm.mesh) for lm in arm_link_meshes(a.urdf, options.arm_triangles)] for a in cell.arms}
+        if arms:
+            for arm_name, link_meshes in arms.items():
                 links, faces, nv, f0 = [], [], 0, n_faces
-                for lm in arm_link_meshes(arm.urdf, options.arm_triangles):
-                    mesh = lm.mesh
+                for link_name, mesh in link_meshes:
                     index = np.array([mats.add(m) for m in mesh.materials], np.int32)
                     links.append(
-                        _ArmLink(lm.link, mesh.vertices, _face_normals(mesh.vertices, mesh.faces), nv, n_faces - f0)
+                        _ArmLink(link_name, mesh.vertices, _face_normals(mesh.vertices, mesh.faces), nv, n_faces - f0)
                     )
                     faces.append(mesh.faces + nv)
                     face_mat.append(index[mesh.face_material])
@@ -181,7 +189,7 @@ class SceneTracer:
                     nv += len(mesh.vertices)
                     n_faces += len(mesh.faces)
                 if links:
-                    self.arms.append(_Arm(arm.name, links, _tensor(np.concatenate(faces).astype(np.uint32)), nv, f0))
+                    self.arms.append(_Arm(arm_name, links, _tensor(np.concatenate(faces).astype(np.uint32)), nv, f0))
         mats.finish()
         self.mats = mats
         cat = np.concatenate

@@ -1,0 +1,150 @@
+"""``agrisim render``: a finished run's RGB drawn again from what the run saved.
+
+Truth: ``agrisim run --renderer mitsuba`` itself (a re-render with the same settings must give
+its bytes), the source run's files (carried over unchanged), and an interpreter in which Open3D,
+pybullet, Pinocchio, OMPL and Rerun cannot be imported.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from agrisim.config import build_config
+from agrisim.episode import Episode
+from agrisim.errors import ConfigError
+from agrisim.files import layout
+from agrisim.plugins.render.mitsuba.variant import resolve_variant
+
+try:
+    resolve_variant("llvm")
+except ConfigError:  # pragma: no cover - setup.sh installs libLLVM
+    pytest.skip("Mitsuba's LLVM variant is not usable here", allow_module_level=True)
+
+MITSUBA = {"variant": "llvm", "spp": 4}
+#: what the re-render must do without (agrisim render's promise of a minimal install)
+HEAVY = ("open3d", "pybullet", "pybullet_data", "pinocchio", "ompl", "rerun", "coal", "ray", "trimesh")
+
+
+def small_run(out: Path, renderer: str) -> Path:
+    config = build_config(
+        {
+            "plant": "indian_cress",
+            "renderer": {"backend": renderer, "mitsuba": MITSUBA},
+            "physics": {"backend": "kinematic"},
+            "routine": {"setpoints": "1x3"},
+            "camera": {"resolution": "96x54"},
+            "recon": {"backend": "none"},
+            "output": {"out": str(out), "no_rrd": True},
+        }
+    )
+    _, summary = Episode(config).run()
+    assert summary.status == "complete" and summary.reached >= 4
+    return out
+
+
+@pytest.fixture(scope="module")
+def runs(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
+    """The same small run rendered by raycast and by mitsuba."""
+    root = tmp_path_factory.mktemp("render")
+    return {name: small_run(root / name, name) for name in ("raycast", "mitsuba")}
+
+
+def files(root: Path, folder: str) -> dict[str, bytes]:
+    return {p.name: p.read_bytes() for p in sorted((root / folder).glob("*.png"))}
+
+
+def rerender(run_dir: Path, *args: str, blocked: tuple[str, ...] = HEAVY) -> subprocess.CompletedProcess[str]:
+    """``agrisim render`` in a fresh interpreter where ``blocked`` modules cannot be imported."""
+    code = (
+        "import sys\n"
+        f"for m in {blocked!r}: sys.modules[m] = None\n"
+        "from agrisim.app.cli import main\n"
+        f"sys.exit(main({['render', str(run_dir), *args]!r}))\n"
+    )
+    env = {k: v for k, v in os.environ.items() if not k.startswith("AGRISIM_")}
+    return subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=600)
+
+
+def sets() -> list[str]:
+    return [arg for k, v in MITSUBA.items() for arg in ("--set", f"renderer.mitsuba.{k}={v}")]
+
+
+def test_rerender_equals_a_mitsuba_run_without_the_heavy_stack(runs: dict[str, Path], tmp_path: Path) -> None:
+    """The raycast run re-rendered by mitsuba, in an interpreter without Open3D, pybullet,
+    Pinocchio, OMPL or Rerun: its RGB is byte for byte the mitsuba run's, its labels and depth
+    the source's (which are mitsuba's too), and every other file is carried over."""
+    out = tmp_path / "re"
+    done = rerender(runs["raycast"], "--out", str(out), *sets())
+    assert done.returncode == 0, done.stderr
+    assert "re-rendered" in done.stdout
+    assert files(out, "rgb") == files(runs["mitsuba"], "rgb")
+    assert files(out, "rgb") != files(runs["raycast"], "rgb")
+    for folder in ("labels", "depth", "instances", "labels_vis"):
+        assert files(out, folder) == files(runs["raycast"], folder) == files(runs["mitsuba"], folder)
+    for name in (layout.RUN_JSON, layout.CAMERAS_JSON, str(layout.SCENE_GLB)):
+        assert (out / name).read_bytes() == (runs["raycast"] / name).read_bytes()
+    record = json.loads((out / "render.json").read_text())
+    assert record["status"] == "complete" and record["renderer"] == "mitsuba"
+    assert sorted(record["frames_done"]) == sorted(p.stem for p in (out / "rgb").glob("*.png"))
+
+
+def test_rerender_resumes_frame_by_frame(runs: dict[str, Path], tmp_path: Path) -> None:
+    """An interrupted re-render (render.json lists one frame done) goes on with the others and
+    leaves the done one as it is."""
+    out = tmp_path / "re"
+    assert rerender(runs["raycast"], "--out", str(out), *sets(), blocked=()).returncode == 0
+    record = json.loads((out / "render.json").read_text())
+    first, *rest = record["frames_done"]
+    marker = layout.image(runs["raycast"], "rgb", first).read_bytes()  # stands for "kept"
+    layout.image(out, "rgb", first).write_bytes(marker)
+    for frame in rest:
+        layout.image(out, "rgb", frame).unlink()
+    (out / "render.json").write_text(json.dumps(dict(record, status="running", frames_done=[first])))
+    again = rerender(runs["raycast"], "--out", str(out), *sets(), blocked=())
+    assert again.returncode == 0, again.stderr
+    assert f"resuming: 1 of {len(record['frames_done'])}" in again.stdout
+    assert layout.image(out, "rgb", first).read_bytes() == marker
+    assert {f: files(out, "rgb")[f"{f}.png"] for f in rest} == {f: files(runs["mitsuba"], "rgb")[f"{f}.png"] for f in rest}
+
+
+@pytest.mark.parametrize(
+    ("make", "args", "expected"),
+    [
+        (lambda d: None, ["--renderer", "raycast"], ["renderer 'raycast' cannot re-render", "renderers that can: mitsuba"]),
+        (lambda d: (d / str(layout.SCENE_GLB)).unlink(), [], ["no saved scene", "scene/lab.glb"]),
+        (lambda d: (d / "run.json").write_text(json.dumps(dict(json.loads((d / "run.json").read_text()), status="interrupted"))),
+         [], ["interrupted, not complete"]),
+        (lambda d: next((d / layout.LINK_POSES).glob("*.json")).unlink(), [], ["saved no arm link poses"]),
+        (lambda d: None, ["--set", "renderer.mitsuba.spp=0"], ["renderer backend 'mitsuba'", "spp"]),
+        (lambda d: None, ["--set", "plant=boxwood"], ["only renderer.* settings"]),
+        (lambda d: None, ["--out", "{run}"], ["replaces its RGB", "--overwrite"]),
+        (lambda d: (d.parent / "taken").mkdir(), ["--out", "{parent}/taken"], []),
+    ],
+    ids=["raycast-cannot", "no-scene", "incomplete", "no-link-poses", "bad-option", "not-a-renderer-setting",
+         "in-place-needs-overwrite", "existing-out-empty-is-fine"],
+)
+def test_bad_input_writes_nothing(runs: dict[str, Path], tmp_path: Path, make, args, expected) -> None:  # noqa: ANN001
+    import shutil
+
+    src = tmp_path / "run"
+    shutil.copytree(runs["raycast"], src)
+    make(src)
+    before = {p: p.read_bytes() for p in sorted(tmp_path.rglob("*")) if p.is_file()}
+    argv = [a.format(run=src, parent=tmp_path) for a in args]
+    done = rerender(src, *argv, *(sets() if "--set" not in args else []), blocked=())
+    if not expected:  # an empty --out is not "existing work": the re-render goes ahead
+        assert done.returncode == 0, done.stderr
+        return
+    assert done.returncode == 2, done.stderr
+    assert done.stderr.count("\n") == 1 and "Traceback" not in done.stderr, done.stderr
+    for fragment in expected:
+        assert fragment in done.stderr, done.stderr
+    after = {p: p.read_bytes() for p in sorted(tmp_path.rglob("*")) if p.is_file()}
+    assert after == before
+    assert not (tmp_path / "run-mitsuba").exists()
