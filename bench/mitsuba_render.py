@@ -44,6 +44,7 @@ def main() -> None:
     parser.add_argument("--views", type=int, default=2)
     parser.add_argument("--reference-spp", type=int, default=1024)
     parser.add_argument("--skip-speed", action="store_true")
+    parser.add_argument("--skip-quality", action="store_true")
     args = parser.parse_args()
 
     registry = Registry(make_plugin_manager())
@@ -59,36 +60,11 @@ def main() -> None:
     print(f"CPU: {cpu_model()}; plant {args.plant} ({len(plant.mesh.faces):,} triangles); mitsuba defaults: "
           f"{defaults.spp} spp, {defaults.integrator}, max depth {defaults.max_depth}, denoise {defaults.denoise}")
 
-    camera = preset("rpi3-wide-1080p", "480x270")
-    reference = MitsubaRenderer(
-        scene, cell, settings, MitsubaOptions(spp=args.reference_spp, denoise="off", max_depth=24, seed=99)
-    )
-    candidates = {
-        "mitsuba defaults": MitsubaRenderer(scene, cell, settings, defaults),
-        "mitsuba 64 spp": MitsubaRenderer(scene, cell, settings, MitsubaOptions(spp=64)),
-        "raycast": RaycastRenderer(scene, cell, settings, RaycastOptions()),
-    }
-    scores: dict[str, list[tuple[float, float, float]]] = {name: [] for name in candidates}
-    for i, T in enumerate(views):
-        t0 = time.perf_counter()
-        ref = reference.render(camera, T, poses).rgb
-        print(f"  view {i}: reference {args.reference_spp} spp in {time.perf_counter() - t0:.1f} s")
-        for name, r in candidates.items():
-            r.render(camera, T, poses)  # warm-up (kernels compile on the first view)
-            t0 = time.perf_counter()
-            img = r.render(camera, T, poses).rgb
-            dt = time.perf_counter() - t0
-            psnr = peak_signal_noise_ratio(ref, img, data_range=255)
-            ssim = structural_similarity(ref, img, channel_axis=2, data_range=255)
-            scores[name].append((psnr, ssim, dt))
-    print(f"quality at 480x270 against {args.reference_spp} spp (mean over {len(views)} views):")
-    for name, rows in scores.items():
-        a = np.array(rows)
-        print(f"  {name:18s} PSNR {a[:, 0].mean():5.1f} dB  SSIM {a[:, 1].mean():.3f}  {a[:, 2].mean():6.2f} s/view")
-
+    if not args.skip_quality:
+        quality(scene, cell, settings, views, poses, args.reference_spp)
     if args.skip_speed:
         return
-    mitsuba = candidates["mitsuba defaults"]
+    mitsuba = MitsubaRenderer(scene, cell, settings, defaults)
     for resolution in ("960x540", "1920x1080"):
         cam = preset("rpi3-wide-1080p", resolution)
         mitsuba.render(cam, views[0], poses)  # warm-up at this size
@@ -97,6 +73,41 @@ def main() -> None:
             mitsuba.render(cam, T, poses)
         print(f"mitsuba defaults at {resolution}: {(time.perf_counter() - t0) / len(views):.1f} s/view")
     print(f"peak resident memory: {resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024:.0f} MB")
+
+
+def quality(scene, cell, settings, views, poses, reference_spp: int) -> None:  # noqa: ANN001
+    """PSNR and SSIM of the 8-bit images against a converged render of the same views."""
+    camera = preset("rpi3-wide-1080p", "480x270")
+    defaults = MitsubaOptions()
+    reference = MitsubaRenderer(
+        scene, cell, settings, MitsubaOptions(spp=reference_spp, denoise="off", max_depth=24, seed=99)
+    )
+    candidates = {
+        "mitsuba defaults": MitsubaRenderer(scene, cell, settings, defaults),
+        "mitsuba path": MitsubaRenderer(scene, cell, settings, MitsubaOptions(integrator="path")),
+        "mitsuba volpath": MitsubaRenderer(scene, cell, settings, MitsubaOptions(integrator="volpath")),
+        "mitsuba 64 spp": MitsubaRenderer(scene, cell, settings, MitsubaOptions(spp=64)),
+        "mitsuba 64, raw": MitsubaRenderer(scene, cell, settings, MitsubaOptions(spp=64, denoise="off")),
+        "mitsuba 256, raw": MitsubaRenderer(scene, cell, settings, MitsubaOptions(spp=256, denoise="off")),
+        "raycast": RaycastRenderer(scene, cell, settings, RaycastOptions()),
+    }
+    scores: dict[str, list[tuple[float, float, float]]] = {name: [] for name in candidates}
+    for i, T in enumerate(views):
+        t0 = time.perf_counter()
+        ref = reference.render(camera, T, poses).rgb
+        print(f"  view {i}: reference {reference_spp} spp in {time.perf_counter() - t0:.1f} s")
+        for name, r in candidates.items():
+            r.render(camera, T, poses)  # warm-up (kernels compile on the first view)
+            t0 = time.perf_counter()
+            img = r.render(camera, T, poses).rgb
+            dt = time.perf_counter() - t0
+            psnr = peak_signal_noise_ratio(ref, img, data_range=255)
+            ssim = structural_similarity(ref, img, channel_axis=2, data_range=255)
+            scores[name].append((psnr, ssim, dt))
+    print(f"quality at 480x270 against {reference_spp} spp (mean over {len(views)} views):")
+    for name, rows in scores.items():
+        a = np.array(rows)
+        print(f"  {name:18s} PSNR {a[:, 0].mean():5.1f} dB  SSIM {a[:, 1].mean():.3f}  {a[:, 2].mean():6.2f} s/view")
 
 
 if __name__ == "__main__":

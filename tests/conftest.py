@@ -1,5 +1,6 @@
 """Shared fixtures: the paper's cell and its arms' kinematics (built once per session), the CLI run
-in-process (``cli``), and a plugin that keeps every rendered frame (``frames``)."""
+in-process (``cli``), and a plugin that keeps every rendered frame (``frames``). Tests marked
+``gpu`` are skipped where Mitsuba finds no usable NVIDIA GPU (CI)."""
 
 from __future__ import annotations
 
@@ -10,6 +11,25 @@ from agrisim.config import CellConfig
 from agrisim.robot.kinematics import ArmKinematics
 from agrisim.registry import hookimpl
 from agrisim.interfaces import Frame
+
+
+def _cuda_usable() -> bool:
+    from agrisim.errors import ConfigError
+    from agrisim.plugins.render.mitsuba.variant import resolve_variant
+
+    try:  # (through agrisim, which points Dr.Jit at the right libLLVM before importing it)
+        resolve_variant("cuda")
+    except ConfigError:
+        return False
+    return True
+
+
+def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    gpu = [item for item in items if "gpu" in item.keywords]
+    if gpu and not _cuda_usable():
+        skip = pytest.mark.skip(reason="needs an NVIDIA GPU usable by Mitsuba (run on the GPU machine)")
+        for item in gpu:
+            item.add_marker(skip)
 
 
 @pytest.fixture(scope="session")

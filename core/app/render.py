@@ -134,7 +134,7 @@ class RenderPlan:
                 return [f for f in doc.get("frames_done") or [] if f in self.frames]
         if self.in_place:
             if not overwrite:
-                raise OutputError(f"re-rendering into the run itself replaces its RGB; pass --overwrite to do so, or --out DIR")
+                raise OutputError("re-rendering into the run itself replaces its RGB; pass --overwrite to do so, or --out DIR")
             return []
         if out.exists() and any(out.iterdir()) and not overwrite:
             raise OutputError(f"--out {out} already exists; pass --overwrite to replace it")

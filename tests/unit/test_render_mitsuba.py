@@ -21,7 +21,7 @@ from agrisim.plugins.render.mitsuba.variant import newest_libllvm, resolve_varia
 from agrisim.plugins.render.raycast import RaycastOptions
 from agrisim.plugins.render.raycast.renderer import RaycastRenderer
 from agrisim.scene.camera import CameraModel
-from agrisim.scene.colour import linear_to_srgb
+from agrisim.scene.colour import linear_to_srgb, srgb_to_linear
 from agrisim.scene.model import LEAF_TRANSMITTANCE, LabelTable, Light, Material, Mesh, Scene
 from agrisim.scene.transforms import look_at
 
@@ -259,3 +259,20 @@ def test_area_light_radiance_keeps_raycast_units():
     M = np.array(d["to_world"].matrix)
     assert np.allclose(M[:3, 2] / np.linalg.norm(M[:3, 2]), [0.0, 0.0, -1.0])  # faces its direction
     assert np.allclose(np.linalg.norm(M[:3, :3], axis=0), 0.2)
+
+
+def test_environment_map_lights_what_the_camera_sees_of_the_sky(tmp_path):
+    """A uniform environment map (an sRGB PNG of one colour) seen where nothing else is: the
+    pixels are its linear radiance times ``envmap_scale``; scaled twice, twice as bright."""
+    from PIL import Image
+
+    path = tmp_path / "sky.png"
+    Image.fromarray(np.full((16, 32, 3), (128, 160, 200), np.uint8)).save(path)
+    expected = srgb_to_linear(np.array([128, 160, 200]) / 255.0)
+    camera = CameraModel(16, 12, 14.0, 14.0, 7.5, 5.5)
+    T = look_at(np.zeros(3), np.array([1.0, 0.0, 0.2]))
+    empty = Scene([], [], LabelTable())
+    sky = renderer(empty, spp=4, envmap=path, denoise="off").radiance(camera, T)
+    np.testing.assert_allclose(sky.reshape(-1, 3).mean(axis=0), expected, rtol=0.02)
+    brighter = renderer(empty, spp=4, envmap=path, envmap_scale=2.0, denoise="off").radiance(camera, T)
+    np.testing.assert_allclose(brighter.mean(), 2.0 * sky.mean(), rtol=1e-4)
