@@ -5,7 +5,7 @@ The first frame of each pass compiles Mitsuba's kernels and is reported apart; t
 the frames after it. Works from a minimal install (agrisim's core, numpy, Pillow, pydantic,
 pluggy, Mitsuba): this is how it is measured on the GPU machine.
 
-    python bench/rerender_speed.py RUN_DIR [--spp 16 64 256] [--variant auto] [--denoise auto]
+    python bench/rerender_speed.py RUN_DIR [--spp 16 64 256] [--integrator path volpath] [--variant auto]
 """
 
 from __future__ import annotations
@@ -37,11 +37,13 @@ def main() -> None:
     parser.add_argument("--spp", type=int, nargs="+", default=[16, 64, 256])
     parser.add_argument("--variant", default="auto")
     parser.add_argument("--denoise", default="auto")
+    parser.add_argument("--integrator", nargs="+", default=["volpath"], choices=["path", "volpath"])
     args = parser.parse_args()
     print(f"CPU: {cpu_model()}; GPU: {gpu_name()}")
-    for spp in args.spp:
+    for integrator, spp in ((i, s) for i in args.integrator for s in args.spp):
         stamps: list[float] = []
-        options = {"renderer": {"mitsuba": {"spp": spp, "variant": args.variant, "denoise": args.denoise}}}
+        mitsuba = {"spp": spp, "variant": args.variant, "denoise": args.denoise, "integrator": integrator}
+        options = {"renderer": {"mitsuba": mitsuba}}
         with tempfile.TemporaryDirectory() as tmp:
             plan = RenderPlan(args.run_dir, "mitsuba", options, Path(tmp) / "out", overwrite=False)
             t0 = time.perf_counter()
@@ -54,7 +56,7 @@ def main() -> None:
         rate = rest / (stamps[-1] - stamps[0]) if rest else float("nan")
         camera = plan.cameras["intrinsics"]
         print(
-            f"{camera['width']}x{camera['height']}, {spp} spp, variant {variant}, denoise {args.denoise}: "
+            f"{camera['width']}x{camera['height']}, {integrator}, {spp} spp, variant {variant}, denoise {args.denoise}: "
             f"first frame (scene load + kernel compile) {first:.1f} s, then {rate:.2f} views/s over {rest} frames"
         )
 

@@ -111,9 +111,12 @@ def _parser() -> argparse.ArgumentParser:
         description="Draw the RGB of a complete run again from its saved scene, camera and arm poses, into a complete "
         "dataset (default: RUN_DIR-<renderer>); labels, depth, instances, clouds and metrics are carried over.",
     )
-    render.add_argument("run_dir", type=Path, metavar="RUN_DIR", help="a complete run's output directory")
+    render.add_argument("run_dirs", type=Path, nargs="+", metavar="RUN_DIR", help="complete runs' output directories")
     render.add_argument("--renderer", default="mitsuba", metavar="NAME", help="a renderer that can re-render (mitsuba)")
-    render.add_argument("--out", type=Path, metavar="DIR", help="output directory (default: RUN_DIR-<renderer>)")
+    render.add_argument("--out", type=Path, metavar="DIR", help="output directory of one run (default: RUN_DIR-<renderer>)")
+    render.add_argument(
+        "--ray-address", metavar="ADDR", help="several runs: join this Ray cluster (default: a local one), one GPU a run"
+    )
     render.add_argument("--overwrite", action="store_true", help="replace an existing --out (or RUN_DIR's own RGB)")
     render.add_argument(
         "--set", action="append", default=[], metavar="KEY=VALUE", help="renderer.* settings, e.g. renderer.mitsuba.spp=64"
@@ -288,13 +291,35 @@ def _cmd_render(args: argparse.Namespace) -> int:
 
     overrides: dict[str, Any] = {}
     _apply_sets(overrides, args.set)
-    plan = RenderPlan(args.run_dir, args.renderer, overrides, args.out, args.overwrite)
+    if len(args.run_dirs) > 1:
+        return _render_several(args, overrides)
+    plan = RenderPlan(args.run_dirs[0], args.renderer, overrides, args.out, args.overwrite)
     if plan.done:
         print(f"resuming: {len(plan.done)} of {len(plan.frames)} frames already re-rendered")
     with EpisodeProgress("views") as progress:
         out = plan.run(progress.update)
     print(f"re-rendered {len(plan.frames)} frames of {plan.run_dir} with {plan.spec.name}")
     print(f"output: {out}")
+    return 0
+
+
+def _render_several(args: argparse.Namespace, overrides: dict[str, Any]) -> int:
+    """``agrisim render RUN1 RUN2 ...``: every run checked first, then re-rendered as Ray tasks."""
+    from agrisim.app.progress import EpisodeProgress
+    from agrisim.app.render import RenderPlan, render_runs
+
+    if args.out is not None:
+        raise UserError("--out names the output of one run; with several, each goes to RUN_DIR-<renderer>")
+    if len(set(p.resolve() for p in args.run_dirs)) < len(args.run_dirs):
+        raise UserError("a run is named twice")
+    plans = [RenderPlan(d, args.renderer, overrides, None, args.overwrite) for d in args.run_dirs]
+    with EpisodeProgress("runs") as progress:
+        records = render_runs(plans, overrides, args.overwrite, args.ray_address, progress.update)
+    failed = [r for r in records if "error" in r]
+    for r in records:
+        print(f"  {r['run']}: " + (f"failed: {r['error']}" if "error" in r else f"{r['frames']} frames -> {r['out']}"))
+    if failed:
+        _fail(f"{len(failed)} of {len(records)} re-renders failed; run the command again to resume them", status=1)
     return 0
 
 

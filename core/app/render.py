@@ -20,6 +20,7 @@ from __future__ import annotations
 import os
 import shutil
 from collections.abc import Callable
+from concurrent.futures import Future, ThreadPoolExecutor
 from pathlib import Path
 from typing import Any
 
@@ -155,17 +156,76 @@ class RenderPlan:
         renderer = self.spec.factory(scene, None, settings, self.options)
         camera = camera_from_json(self.cameras["intrinsics"])
         todo = [f for f in self.frames if f not in set(self.done)]
-        try:
-            for i, frame in enumerate(todo):
-                T = np.asarray(self.cameras["frames"][frame]["world_T_camera"], np.float64)
-                poses = {} if settings.hide_robots else _link_poses(self.run_dir, frame)
-                write_png(layout.image(out, "rgb", frame), renderer.render_rgb(camera, T, poses))
-                record["frames_done"].append(frame)
-                write_json(out / RENDER_JSON, record)
-                if progress is not None:
-                    progress(len(self.done) + i + 1, len(self.frames))
-        finally:
-            renderer.close()
+
+        def save(frame: str, rgb: np.ndarray) -> None:
+            # one writer thread: frames are listed done in order, each after its PNG exists
+            write_png(layout.image(out, "rgb", frame), rgb)
+            record["frames_done"].append(frame)
+            write_json(out / RENDER_JSON, record)
+            if progress is not None:
+                progress(len(record["frames_done"]), len(self.frames))
+
+        # The PNG of one frame is encoded while the next renders (on a GPU, encoding a 1080p
+        # PNG takes about as long as path tracing it).
+        with ThreadPoolExecutor(1) as writer:
+            pending: list[Future] = []
+            try:
+                for frame in todo:
+                    T = np.asarray(self.cameras["frames"][frame]["world_T_camera"], np.float64)
+                    poses = {} if settings.hide_robots else _link_poses(self.run_dir, frame)
+                    rgb = renderer.render_rgb(camera, T, poses)
+                    while pending and (pending[0].done() or len(pending) > 2):  # at most 2 frames queued
+                        pending.pop(0).result()  # (a failed write is raised here)
+                    pending.append(writer.submit(save, frame, rgb))
+            finally:
+                renderer.close()
+            for f in pending:
+                f.result()
         record["status"] = "complete"
         write_json(out / RENDER_JSON, record)
         return out
+
+
+def _render_task(run_dir: str, renderer: str, overrides: dict[str, Any], overwrite: bool) -> dict[str, Any]:
+    """One run's re-render in a Ray worker (checked again there: the worker's files are what
+    count), returning what it did."""
+    plan = RenderPlan(Path(run_dir), renderer, overrides, None, overwrite)
+    out = plan.run()
+    return {"run": run_dir, "out": str(out), "frames": len(plan.frames)}
+
+
+def render_runs(
+    plans: list[RenderPlan],
+    overrides: dict[str, Any],
+    overwrite: bool,
+    ray_address: str | None = None,
+    progress: Callable[[int, int], None] | None = None,
+) -> list[dict[str, Any]]:
+    """Several checked re-renders as Ray tasks, one GPU each where the cluster has GPUs. Returns
+    one record per run, in order."""
+    from agrisim.app.compare import start_ray, stop_ray
+
+    info = start_ray(workers=None, address=ray_address)
+    try:
+        import ray
+
+        resources = ray.cluster_resources()
+        # Mitsuba's CPU variant spreads one render over every core, so CPU tasks ask for one
+        # CPU each and share the cores (their start-up, JIT compiling, overlaps this way)
+        need: dict[str, Any] = {"num_gpus": 1} if resources.get("GPU", 0) >= 1 else {"num_cpus": 1}
+        task = ray.remote(max_retries=0, **need)(_render_task)
+        refs = {task.remote(str(p.run_dir), p.spec.name, overrides, overwrite): i for i, p in enumerate(plans)}
+        records: list[dict[str, Any]] = [{} for _ in plans]
+        pending = list(refs)
+        while pending:
+            ready, pending = ray.wait(pending, num_returns=1)
+            i = refs[ready[0]]
+            try:
+                records[i] = ray.get(ready[0])
+            except ray.exceptions.RayTaskError as exc:
+                records[i] = {"run": str(plans[i].run_dir), "error": str(exc.cause if exc.cause else exc).splitlines()[0]}
+            if progress is not None:
+                progress(len(plans) - len(pending), len(plans))
+        return records
+    finally:
+        stop_ray(info)

@@ -148,3 +148,20 @@ def test_bad_input_writes_nothing(runs: dict[str, Path], tmp_path: Path, make, a
     after = {p: p.read_bytes() for p in sorted(tmp_path.rglob("*")) if p.is_file()}
     assert after == before
     assert not (tmp_path / "run-mitsuba").exists()
+
+
+def test_several_runs_go_to_ray_tasks(runs: dict[str, Path], tmp_path: Path) -> None:
+    """``agrisim render A B``: each run re-rendered by a Ray task (a local cluster here) into
+    A-mitsuba and B-mitsuba, each byte for byte the mitsuba run's RGB."""
+    import shutil
+
+    sources = [tmp_path / "a", tmp_path / "b"]
+    for s in sources:
+        shutil.copytree(runs["raycast"], s)
+    done = rerender(sources[0], str(sources[1]), *sets(), blocked=())
+    assert done.returncode == 0, done.stderr
+    for s in sources:
+        assert files(s.with_name(f"{s.name}-mitsuba"), "rgb") == files(runs["mitsuba"], "rgb")
+        assert f"{s}: " in done.stdout
+    again = rerender(sources[0], str(sources[1]), "--out", str(tmp_path / "x"), *sets(), blocked=())
+    assert again.returncode == 2 and "names the output of one run" in again.stderr
