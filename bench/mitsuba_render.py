@@ -84,8 +84,8 @@ def quality(scene, cell, settings, views, poses, reference_spp: int) -> None:  #
     )
     candidates = {
         "mitsuba defaults": MitsubaRenderer(scene, cell, settings, defaults),
-        "mitsuba path": MitsubaRenderer(scene, cell, settings, MitsubaOptions(integrator="path")),
         "mitsuba volpath": MitsubaRenderer(scene, cell, settings, MitsubaOptions(integrator="volpath")),
+        "mitsuba 16, raw": MitsubaRenderer(scene, cell, settings, MitsubaOptions(denoise="off")),
         "mitsuba 64 spp": MitsubaRenderer(scene, cell, settings, MitsubaOptions(spp=64)),
         "mitsuba 64, raw": MitsubaRenderer(scene, cell, settings, MitsubaOptions(spp=64, denoise="off")),
         "mitsuba 256, raw": MitsubaRenderer(scene, cell, settings, MitsubaOptions(spp=256, denoise="off")),

@@ -1,8 +1,10 @@
 """Denoising of path-traced radiance with Intel Open Image Denoise (``pyoidn``, CPU or CUDA).
 
-The path tracer writes, beside the radiance, the albedo and shading normal of each pixel's first
-hit (Mitsuba's ``aov`` integrator); OIDN's ``RT`` filter uses them to keep texture and edges
-sharp while it removes the sampling noise. The radiance is HDR (lamps are far brighter than 1).
+A second, cheap pass (Mitsuba's ``aov`` integrator alone, the same samples per pixel) gives the
+albedo and shading normal of each pixel's first hits; OIDN's ``RT`` filter uses them to keep
+texture and edges sharp while it removes the path tracer's noise. The radiance is HDR (lamps are
+far brighter than 1). A separate pass, not ``aov`` wrapped around the path tracer: on an H100 the
+wrapped form took 1.21 s a 1080p view against 0.54 s for the path tracer alone.
 """
 
 from __future__ import annotations
@@ -52,10 +54,26 @@ def wanted(options: MitsubaOptions) -> bool:
     return True
 
 
-def denoise(image: np.ndarray) -> np.ndarray:
-    """The denoised radiance (H x W x 3 float32) of an aov image whose channels are radiance,
-    albedo and normal (H x W x 9)."""
+def _cuda_torch():  # noqa: ANN202
+    """PyTorch when it can use the GPU (OIDN's CUDA device takes torch tensors), else None."""
+    try:
+        import torch
+    except ImportError:
+        return None
+    return torch if torch.cuda.is_available() else None
+
+
+def denoise(colour, aux) -> np.ndarray:  # noqa: ANN001 - Dr.Jit tensors or arrays
+    """The denoised radiance (H x W x 3 float32) of ``colour`` (H x W x 3) guided by ``aux``
+    (H x W x 6: albedo and normal, Mitsuba's ``aov`` integrator). Dr.Jit CUDA tensors are
+    denoised on the GPU where PyTorch can hand them to OIDN's CUDA device without a copy
+    (about 4 ms a 1080p image on an H100); anything else on the CPU."""
     pyoidn = _pyoidn()
     assert pyoidn is not None
-    colour, albedo, normal = (np.ascontiguousarray(image[..., i : i + 3], np.float32) for i in (0, 3, 6))
-    return np.asarray(pyoidn.denoise(colour, albedo, normal, hdr=True), np.float32)
+    if "cuda" in type(colour).__module__ and _cuda_torch() is not None:
+        c, a = colour.torch(), aux.torch()
+        albedo, normal = a[..., 0:3].contiguous(), a[..., 3:6].contiguous()
+        return pyoidn.denoise(c[..., :3].contiguous(), albedo, normal, hdr=True).cpu().numpy().astype(np.float32, copy=False)
+    c, a = np.asarray(colour, np.float32), np.asarray(aux, np.float32)
+    albedo, normal = np.ascontiguousarray(a[..., 0:3]), np.ascontiguousarray(a[..., 3:6])
+    return np.asarray(pyoidn.denoise(np.ascontiguousarray(c[..., :3]), albedo, normal, hdr=True), np.float32)

@@ -27,8 +27,8 @@ class MitsubaOptions(Options):
     integrator: Literal["path", "volpath"] = "path"
     """Mitsuba's integrator: ``path``, or ``volpath``, which passes cut-out texels (null
     interactions) without spending path depth on them. Measured on the lab at 16 spp denoised:
-    volpath 0.2 dB closer to the converged image, at 1.7x the time on the CPU and 2.2x on an
-    H100 (bench/mitsuba_render.py, bench/rerender_speed.py)."""
+    volpath 0.3 dB closer to the converged image (34.2 against 33.9 dB), at 1.7x the time on
+    the CPU and 2.2x on an H100 (bench/mitsuba_render.py, bench/rerender_speed.py)."""
     exposure: float = Field(1.0, gt=0.0, le=1e6)
     """Scale of the linear radiance before tone mapping, one for the whole run (NeRF and
     photogrammetry want constant exposure). 1: a white surface lit with irradiance 1 in the

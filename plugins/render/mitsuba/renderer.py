@@ -55,8 +55,7 @@ class MitsubaRenderer(Renderer):
         self._tracer: SceneTracer | None = None
         integrator = {"type": options.integrator, "max_depth": int(options.max_depth)}
         self.denoise = denoise.wanted(options)
-        if self.denoise:
-            integrator = {"type": "aov", "aovs": denoise.AOVS, "integrator": integrator}
+        self.aov = mi.load_dict({"type": "aov", "aovs": denoise.AOVS}) if self.denoise else None
         parts = build(mi, scene.meshes, scene.lights, self._arms, options, integrator)
         self.arm_parts = parts.arms
         self.mi_scene = mi.load_dict(parts.scene)
@@ -116,8 +115,12 @@ class MitsubaRenderer(Renderer):
         sensor = sensor_dict(camera, world_T_camera, o.spp)
         sensor["to_world"] = mi.ScalarTransform4f(sensor["to_world"])
         seed = view_seed(camera, world_T_camera, o.seed) & 0xFFFFFFFF
-        image = np.asarray(mi.render(self.mi_scene, sensor=mi.load_dict(sensor), spp=o.spp, seed=seed), F32)
-        return denoise.denoise(image) if self.denoise else image[..., :3]
+        sensor = mi.load_dict(sensor)
+        image = mi.render(self.mi_scene, sensor=sensor, spp=o.spp, seed=seed)
+        if self.denoise:  # (on the GPU when the image is there and PyTorch can pass it to OIDN)
+            aux = mi.render(self.mi_scene, sensor=sensor, integrator=self.aov, spp=o.spp, seed=seed ^ 0x5A5A5A5A)
+            return denoise.denoise(image, aux)
+        return np.asarray(image, F32)[..., :3]
 
     def render_rgb(
         self,
