@@ -18,7 +18,7 @@ from agrisim.files import layout
 from agrisim.files.atomic import write_bytes, write_json, write_through
 from agrisim.errors import OutputError, UserError
 from agrisim.interfaces import ALL, Cloud, Reconstruction, Reconstructor, SurfaceMesh
-from agrisim.files.rundir import camera_from_json, label_table_from_json, read_run
+from agrisim.files.rundir import camera_from_json, read_run
 from agrisim.evaluation.metrics import GroundTruth, ViewStats, evaluate
 from agrisim.scene.model import LabelTable
 from agrisim.evaluation.views import View, load_view
@@ -232,7 +232,7 @@ def reconstruct_saved_run(
     spec = registry.get("reconstructor", config.recon.backend)
     config.recon.check_tables("recon", registry.specs("reconstructor"))
     options = backend_options(spec.options_model, config.recon.options_for(spec.name), f"reconstructor {spec.name!r}")
-    labels = label_table_from_json(run["labels"])
+    labels = LabelTable.from_json(run["labels"])
     out = out_dir if out_dir is not None else run_dir
     check_writable(out, labels, overwrite)
     truth = truth_from_run(run_dir, config.metrics.truth_samples)

@@ -106,6 +106,7 @@ class DatasetWriter:
         self.versions = package_versions()  # once: run.json is rewritten after every setpoint
         self._writer = ThreadPoolExecutor(max_workers=1, thread_name_prefix="agrisim-dataset")
         self._pending: list[tuple[Future[None], str, dict[str, Any]]] = []
+        self._scene_written: Future[None] | None = None
 
     def _run_json(self, run: Run) -> dict[str, Any]:
         return {
@@ -119,11 +120,7 @@ class DatasetWriter:
             "config": run.config.model_dump(mode="json"),
             "plant_notes": run.plant_notes,
             "versions": self.versions,
-            "labels": [
-                {"id": lab.id, "name": lab.name, "color": list(lab.color)} for lab in run.labels.labels
-            ]
-            if run.labels is not None
-            else None,
+            "labels": run.labels.to_json() if run.labels is not None else None,
             "setpoints_planned": {robot: len(sps) for robot, sps in run.setpoints.items()},
             "frames_complete": sorted(self.frames),
             "results": [_result_row(r) for r in run.results],
@@ -168,9 +165,11 @@ class DatasetWriter:
         if run.scene is not None and run.labels is not None:
             # the ground truth: the plant as placed in the world, with albedo and labels
             export_glb(run.scene.mesh(run.scene.plant), self.out / layout.PLANT_GLB, run.labels)
-            # the whole scene as drawn, for agrisim render (arms shown at home in viewers)
+            # the whole scene as drawn, for agrisim render (arms shown at home in viewers):
+            # encoding its textures takes most of a second, so the writer thread does it while
+            # the robot starts moving
             home = {a.name: run.kinematics[a.name].link_poses(np.asarray(a.home)) for a in run.cell.arms if a.name in run.kinematics}
-            write_scene(self.out / layout.SCENE_GLB, run.scene, home)
+            self._scene_written = self._writer.submit(write_scene, self.out / layout.SCENE_GLB, run.scene, home)
         self._write(run)
 
     @hookimpl
@@ -200,6 +199,8 @@ class DatasetWriter:
     def agrisim_run_finished(self, run: Run, summary: RunSummary) -> None:
         try:
             self._collect(wait=True)
+            if self._scene_written is not None:
+                self._scene_written.result()  # a failed write fails the run here, not silently
             if run.reconstruction is not None and run.metrics is not None:
                 write_reconstruction(self.out, run.reconstruction, run.metrics)
         finally:

@@ -50,7 +50,7 @@ def glb_bytes(mesh: Mesh, labels: LabelTable) -> bytes:
             "extras": {
                 "agrisim": {
                     "format": 1,
-                    "labels": [{"id": lab.id, "name": lab.name, "color": [int(c) for c in lab.color]} for lab in labels.labels],
+                    "labels": labels.to_json(),
                 }
             },
         },

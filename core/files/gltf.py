@@ -17,7 +17,7 @@ import numpy as np
 from PIL import Image
 
 from agrisim.errors import UserError
-from agrisim.scene.model import Label, LabelTable, Material
+from agrisim.scene.model import LabelTable, Material
 
 from agrisim.files.asset_reading import AssetError, label_ids_plain, RawMesh, decode_image, locate, read_bytes_of, rgba_array
 
@@ -459,7 +459,7 @@ class _Gltf:
         if entries is None:
             return None
         try:
-            table = LabelTable([Label(int(e["id"]), str(e["name"]), tuple(int(c) for c in e["color"])) for e in entries])  # type: ignore[arg-type]
+            table = LabelTable.from_json(entries)
         except (KeyError, TypeError, ValueError) as e:
             raise self.error(f"malformed agrisim label table ({e})") from None
         known = {lab.id for lab in table.labels}

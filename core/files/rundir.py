@@ -21,7 +21,6 @@ import numpy as np
 from agrisim.files import layout
 from agrisim.errors import OutputError, UserError
 from agrisim.interfaces import CameraModel
-from agrisim.scene.model import Label, LabelTable
 
 if TYPE_CHECKING:
     from agrisim.config import RunConfig
@@ -74,11 +73,6 @@ def camera_from_json(intrinsics: dict[str, Any]) -> CameraModel:
     """The pinhole of ``cameras.json``'s intrinsics."""
     K = np.asarray(intrinsics["K"], float)
     return CameraModel(int(intrinsics["width"]), int(intrinsics["height"]), K[0, 0], K[1, 1], K[0, 2], K[1, 2])
-
-
-def label_table_from_json(rows: list[dict[str, Any]]) -> LabelTable:
-    """The label table ``run.json`` records."""
-    return LabelTable([Label(int(r["id"]), str(r["name"]), tuple(int(c) for c in r["color"])) for r in rows])
 
 
 # ---------------------------------------------------------------- the output directory of a run

@@ -30,7 +30,7 @@ from agrisim.errors import UserError
 from agrisim.files.atomic import write_bytes
 from agrisim.files.glb import _GlbWriter
 from agrisim.files.gltf import _Gltf
-from agrisim.scene.model import Label, LabelTable, Light, Mesh, Scene
+from agrisim.scene.model import LabelTable, Light, Mesh, Scene
 
 FORMAT = 1
 ARM_PREFIX = "arm:"
@@ -61,7 +61,7 @@ def scene_glb_bytes(scene: Scene, arm_poses: dict[str, dict[str, np.ndarray]] | 
         "format": FORMAT,
         "kind": "scene",
         "plant": scene.plant,
-        "labels": [{"id": lab.id, "name": lab.name, "color": [int(c) for c in lab.color]} for lab in scene.labels.labels],
+        "labels": scene.labels.to_json(),
         "lights": [_light_json(light) for light in scene.lights],
     }
     gltf: dict[str, Any] = {
@@ -103,7 +103,7 @@ def read_scene(path: Path) -> Scene:
     if info.get("format") != FORMAT:
         raise UserError(f"{shown}: agrisim scene format {info.get('format')!r}, this agrisim reads {FORMAT}")
     try:
-        labels = LabelTable([Label(int(e["id"]), str(e["name"]), tuple(int(c) for c in e["color"])) for e in info["labels"]])
+        labels = LabelTable.from_json(info["labels"])
         lights = [
             Light(
                 str(e["name"]),

@@ -165,6 +165,15 @@ class LabelTable:
                 return lab
         raise KeyError(name)
 
+    def to_json(self) -> list[dict]:
+        """The table as JSON rows ``{"id", "name", "color"}`` (run.json, agrisim's GLB extras)."""
+        return [{"id": lab.id, "name": lab.name, "color": [int(c) for c in lab.color]} for lab in self.labels]
+
+    @classmethod
+    def from_json(cls, rows: list[dict]) -> LabelTable:
+        """The table of :meth:`to_json`'s rows (KeyError, TypeError or ValueError if malformed)."""
+        return cls([Label(int(r["id"]), str(r["name"]), tuple(int(c) for c in r["color"])) for r in rows])  # type: ignore[arg-type]
+
     def palette(self) -> np.ndarray:
         """256 x 3 uint8: colour of every label id (black for unused ids)."""
         out = np.zeros((256, 3), np.uint8)

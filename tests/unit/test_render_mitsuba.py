@@ -1,8 +1,8 @@
-"""The ``mitsuba`` renderer (CPU, LLVM variant, small images).
+"""The ``mitsuba`` renderer (CPU, LLVM variant, small images); its camera and light mapping are
+tested on every variant in test_mitsuba_optics.py.
 
-Independent truths: the pinhole projection of K (emissive markers' centroids), the raycast
-renderer (labels, depth and instances must be its bytes), a closed form (an integrating sphere's
-indirect light), a high-sample render of the same view (error falls with samples).
+Independent truths: the raycast renderer (labels, depth and instances must be its bytes), a
+high-sample render of the same view (error falls with samples), PROSPECT-D's leaf colours.
 """
 
 from __future__ import annotations
@@ -15,9 +15,7 @@ from agrisim.config import RenderConfig
 from agrisim.errors import ConfigError
 from agrisim.plugins.plants.procedural import grow
 from agrisim.plugins.render.mitsuba.options import MitsubaOptions
-from agrisim.plugins.render.mitsuba.camera import sensor_dict
-from agrisim.plugins.render.mitsuba.scene import light_dict
-from agrisim.plugins.render.mitsuba.variant import newest_libllvm, resolve_variant, use_variant
+from agrisim.plugins.render.mitsuba.variant import newest_libllvm, resolve_variant
 from agrisim.plugins.render.raycast import RaycastOptions
 from agrisim.plugins.render.raycast.renderer import RaycastRenderer
 from agrisim.scene.camera import CameraModel
@@ -31,10 +29,6 @@ try:
 except ConfigError:
     HAVE_LLVM = False
 pytestmark = pytest.mark.skipif(not HAVE_LLVM, reason="Mitsuba's LLVM variant is not usable here")
-
-
-def mitsuba():  # noqa: ANN201
-    return use_variant("llvm")
 
 
 def renderer(scene: Scene, cell=None, **options):  # noqa: ANN001, ANN201
@@ -53,48 +47,7 @@ def quad(name: str, centre, half_u, half_v, material: Material) -> Mesh:
     return Mesh(name, v, np.array([[0, 1, 2], [0, 2, 3]]), [material], np.zeros(2, np.int32), uv)
 
 
-# ------------------------------------------------------------------------------ camera
-
-
-@pytest.mark.parametrize("cx, cy", [(40.0, 30.0), (33.3, 27.6), (45.75, 21.2)])
-def test_markers_land_on_their_k_projection(cx, cy):
-    """Small emissive discs facing the camera (their images are exact circles about the
-    projections of their centres) at known world points: each blob's intensity centroid is
-    within 0.1 px of K's projection, for off-centre principal points too."""
-    mi = mitsuba()
-    camera = CameraModel(80, 60, 70.0, 70.0, cx, cy)
-    T = look_at(np.array([0.3, -2.0, 1.2]), np.array([0.0, 0.0, 0.9]))
-    R, t = T[:3, :3], T[:3, 3]
-    targets = [(-20, -15), (18, -12), (0, 0), (-25, 18), (22, 20)]  # pixel offsets from (cx, cy)
-    depths = [2.0, 2.4, 1.8, 2.2, 2.6]
-    scene: dict = {"type": "scene", "integrator": {"type": "path", "max_depth": 2}}
-    points = []
-    for i, ((du, dv), z) in enumerate(zip(targets, depths)):
-        p_cam = np.array([du / camera.fx * z, dv / camera.fy * z, z])
-        p = R @ p_cam + t
-        points.append(p)
-        radius = 2.0 / camera.fx * z  # two pixels
-        M = np.eye(4)
-        M[:3, :3] = R @ np.diag([radius, radius, -radius])  # facing the camera (-z of it)
-        M[:3, 3] = p
-        scene[f"m{i}"] = {"type": "disk", "to_world": mi.ScalarTransform4f(M), "emitter": {"type": "area", "radiance": 1.0}}
-    sensor = sensor_dict(camera, T, 512)
-    sensor["to_world"] = mi.ScalarTransform4f(sensor["to_world"])
-    image = np.asarray(mi.render(mi.load_dict(scene), sensor=mi.load_dict(sensor), seed=1), np.float64)[..., 0]
-    for p in points:
-        q = camera.K @ (R.T @ (p - t))
-        u, v = q[0] / q[2], q[1] / q[2]
-        r0, c0 = int(round(v)), int(round(u))
-        win = image[r0 - 5 : r0 + 6, c0 - 5 : c0 + 6]
-        rows, cols = np.mgrid[r0 - 5 : r0 + 6, c0 - 5 : c0 + 6]
-        assert win.sum() > 5.0  # the marker is there
-        cu, cv = (win * cols).sum() / win.sum(), (win * rows).sum() / win.sum()
-        assert abs(cu - u) < 0.1 and abs(cv - v) < 0.1, (cu, u, cv, v)
-
-
-def test_non_square_pixels_are_refused():
-    with pytest.raises(ConfigError, match="square pixels"):
-        sensor_dict(CameraModel(80, 60, 70.0, 72.0, 40.0, 30.0), np.eye(4), 4)
+# ------------------------------------------------------------------------------ set-up
 
 
 def test_newest_libllvm_of_16_or_more_is_named():
@@ -135,50 +88,6 @@ def test_labels_depth_instances_are_raycasts_bytes(cell, kin, lab_scene, seg_mod
 
 
 # ------------------------------------------------------------------------------ light
-
-
-def sphere_radiance(albedo: float, light: Light, max_depth: int, spp: int) -> np.ndarray:
-    """Radiance seen from inside a closed sphere of Lambertian (Mitsuba ``diffuse``) walls lit by
-    ``light`` as the renderer converts it."""
-    import trimesh
-
-    mi = mitsuba()
-    m = trimesh.creation.icosphere(subdivisions=4, radius=1.0)
-    props = mi.Properties()
-    props["bsdf"] = mi.load_dict({"type": "twosided", "bsdf": {"type": "diffuse", "reflectance": {"type": "rgb", "value": [albedo] * 3}}})
-    walls = mi.Mesh("sphere", len(m.vertices), len(m.faces), props=props)
-    params = mi.traverse(walls)
-    params["vertex_positions"] = mi.Float(np.asarray(m.vertices, np.float32).ravel())
-    params["faces"] = mi.UInt32(np.asarray(m.faces, np.uint32).ravel())
-    params.update()
-    scene = {
-        "type": "scene",
-        "integrator": {"type": "path", "max_depth": max_depth},
-        "walls": walls,
-        "lamp": light_dict(light, mi.ScalarTransform4f),
-    }
-    camera = CameraModel(32, 24, 40.0, 40.0, 15.5, 11.5)
-    sensor = sensor_dict(camera, look_at(np.array([0.0, 0.3, -0.2]), np.array([0.0, 0.2, -1.0])), spp)
-    sensor["to_world"] = mi.ScalarTransform4f(sensor["to_world"])
-    return np.asarray(mi.render(mi.load_dict(scene), sensor=mi.load_dict(sensor), seed=3), np.float64)[..., :3]
-
-
-def test_integrating_sphere_reaches_its_closed_form():
-    """Inside a closed sphere of Lambertian walls (albedo a, area A), the light bounced off the
-    walls is the same everywhere: irradiance a Phi / (A (1 - a)). A wall the lamp does not light
-    directly (the lamp faces up; the camera looks down) then shows radiance a E / pi. An area
-    light of raycast intensity I is a Lambertian disc of axial intensity pi I, so of power
-    Phi = pi^2 I: the wall's radiance is pi a^2 I / (A (1 - a)). Path tracing reaches it within a
-    few percent; direct light alone (max_depth 2) leaves that wall black."""
-    a, intensity = 0.8, 2.0
-    light = Light("lamp", "area", np.array([0.0, 0.0, 0.0]), np.array([0.0, 0.0, 1.0]), (1.0, 1.0, 1.0), intensity, 0.05)
-    import trimesh
-
-    area = trimesh.creation.icosphere(subdivisions=4, radius=1.0).area  # its facets lie just inside
-    expected = np.pi * a * a * intensity / (area * (1.0 - a))
-    value = sphere_radiance(a, light, max_depth=100, spp=256).mean()
-    assert abs(value / expected - 1.0) < 0.04, (value, expected)
-    assert sphere_radiance(a, light, max_depth=2, spp=16).mean() < 0.01 * expected
 
 
 def test_back_lit_leaf_glows_green():
@@ -247,18 +156,6 @@ def test_same_seed_same_image_other_seed_other_noise(lab_scene):
     np.testing.assert_array_equal(one.rgb, again.rgb)
     assert (one.rgb != other.rgb).any()
     np.testing.assert_array_equal(one.labels, other.labels)
-
-
-def test_area_light_radiance_keeps_raycast_units():
-    """An area light of intensity I and radius r has radiance I / r^2: its power pi I is what a
-    Lambertian disc of axial intensity pi I emits (raycast's I, times pi for radiance = a E / pi)."""
-    mi = mitsuba()
-    light = Light("l", "area", np.zeros(3), np.array([0.0, 0.0, -1.0]), (1.0, 0.5, 0.25), 3.0, 0.2)
-    d = light_dict(light, mi.ScalarTransform4f)
-    assert np.allclose(d["emitter"]["radiance"]["value"], np.array([1.0, 0.5, 0.25]) * 3.0 / 0.04)
-    M = np.array(d["to_world"].matrix)
-    assert np.allclose(M[:3, 2] / np.linalg.norm(M[:3, 2]), [0.0, 0.0, -1.0])  # faces its direction
-    assert np.allclose(np.linalg.norm(M[:3, :3], axis=0), 0.2)
 
 
 def test_environment_map_lights_what_the_camera_sees_of_the_sky(tmp_path):

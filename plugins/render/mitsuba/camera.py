@@ -29,29 +29,31 @@ def check_square_pixels(camera: CameraModel) -> None:
         raise ConfigError(f"renderer 'mitsuba' needs square pixels (fx == fy); this camera has fx {camera.fx}, fy {camera.fy}")
 
 
-def sensor_dict(camera: CameraModel, world_T_camera: np.ndarray, spp: int, channels: str = "rgb") -> dict:
-    """The ``perspective`` sensor of ``camera`` at ``world_T_camera`` (OpenCV optical frame),
-    with an ``hdrfilm`` of the camera's size and a box filter (each pixel averages its own
-    area, nothing of its neighbours')."""
+def load_sensor(mi, camera: CameraModel, world_T_camera: np.ndarray, spp: int):  # noqa: ANN001, ANN201 - mitsuba's types
+    """Mitsuba's ``perspective`` sensor of ``camera`` at ``world_T_camera`` (OpenCV optical
+    frame), with an ``hdrfilm`` of the camera's size and a box filter (each pixel averages its
+    own area, nothing of its neighbours'); ``mi`` is the mitsuba module, its variant set."""
     check_square_pixels(camera)
     W, H = camera.width, camera.height
     to_world = np.asarray(world_T_camera, np.float64) @ CV_TO_MITSUBA
-    return {
-        "type": "perspective",
-        "fov_axis": "x",
-        "fov": math.degrees(2.0 * math.atan(W / (2.0 * camera.fx))),
-        "principal_point_offset_x": (W / 2.0 - (camera.cx + 0.5)) / W,
-        "principal_point_offset_y": (H / 2.0 - (camera.cy + 0.5)) / H,
-        "near_clip": 1e-3,
-        "far_clip": 1e4,
-        "to_world": to_world,  # (a 4 x 4 array: the renderer makes it a Mitsuba transform)
-        "film": {
-            "type": "hdrfilm",
-            "width": W,
-            "height": H,
-            "pixel_format": channels,
-            "rfilter": {"type": "box"},
-            "sample_border": False,
-        },
-        "sampler": {"type": "independent", "sample_count": int(spp)},
-    }
+    return mi.load_dict(
+        {
+            "type": "perspective",
+            "fov_axis": "x",
+            "fov": math.degrees(2.0 * math.atan(W / (2.0 * camera.fx))),
+            "principal_point_offset_x": (W / 2.0 - (camera.cx + 0.5)) / W,
+            "principal_point_offset_y": (H / 2.0 - (camera.cy + 0.5)) / H,
+            "near_clip": 1e-3,
+            "far_clip": 1e4,
+            "to_world": mi.ScalarTransform4f(to_world),
+            "film": {
+                "type": "hdrfilm",
+                "width": W,
+                "height": H,
+                "pixel_format": "rgb",
+                "rfilter": {"type": "box"},
+                "sample_border": False,
+            },
+            "sampler": {"type": "independent", "sample_count": int(spp)},
+        }
+    )

@@ -70,16 +70,13 @@ class BsdfFactory:
 
         def make() -> np.ndarray:
             albedo = linear_albedo(material)
-            assert albedo is not None
-            out = albedo if tint is None else np.minimum(albedo * tint, 1.0 - albedo)
+            base = np.asarray(material.color[:3], F32) if albedo is None else albedo
+            out = base if tint is None else np.minimum(base * tint, 1.0 - base)
             return out * F32(scale)
 
         if material.albedo is not None:
             return self._bitmap(key, make, "bilinear")
-        rgb = np.asarray(material.color[:3], F32)
-        if tint is not None:
-            rgb = np.minimum(rgb * tint, 1.0 - rgb)
-        return {"type": "rgb", "value": [float(c) for c in rgb * scale]}
+        return {"type": "rgb", "value": [float(c) for c in make()]}
 
     def _reflector(self, material: Material, scale: float = 1.0) -> dict:
         return {

@@ -21,7 +21,7 @@ from agrisim.scene.colour import encode_srgb8
 from agrisim.scene.model import Mesh, Scene
 
 from . import denoise
-from .camera import sensor_dict
+from .camera import load_sensor
 from .options import MitsubaOptions
 from .scene import build
 from .variant import use_variant
@@ -42,8 +42,6 @@ class MitsubaRenderer(Renderer):
     def __init__(self, scene: Scene, cell: Cell | None, settings: RenderConfig, options: MitsubaOptions) -> None:
         super().__init__(scene, cell, settings, options)
         self.mi = mi = use_variant(options.variant)
-        organs = settings.labels == "organs"
-        self.label_map = np.arange(256, dtype=np.uint8) if organs else (np.arange(256) > 0).astype(np.uint8)
         # The exact pass poses the arms as raycast does; the path tracer poses them rounded to
         # float32 in the link frame, as a saved scene stores them, so that a run and a
         # re-render of it (agrisim render) trace exactly the same triangles.
@@ -81,8 +79,7 @@ class MitsubaRenderer(Renderer):
             from agrisim.plugins.render.raycast import RaycastOptions
             from agrisim.plugins.render.raycast.tracing import SceneTracer
 
-            o = self.options
-            options = RaycastOptions(near=o.near, arm_triangles=o.arm_triangles)
+            options = RaycastOptions(near=self.options.near, arm_triangles=self.options.arm_triangles)
             self._tracer = SceneTracer(self.scene, None, options, arms=self._unrounded_arms)
         return self._tracer
 
@@ -112,10 +109,8 @@ class MitsubaRenderer(Renderer):
     def radiance(self, camera: CameraModel, world_T_camera: np.ndarray) -> np.ndarray:
         """Linear RGB radiance, H x W x 3 float32, of one view (arms where last placed)."""
         mi, o = self.mi, self.options
-        sensor = sensor_dict(camera, world_T_camera, o.spp)
-        sensor["to_world"] = mi.ScalarTransform4f(sensor["to_world"])
+        sensor = load_sensor(mi, camera, world_T_camera, o.spp)
         seed = view_seed(camera, world_T_camera, o.seed) & 0xFFFFFFFF
-        sensor = mi.load_dict(sensor)
         image = mi.render(self.mi_scene, sensor=sensor, spp=o.spp, seed=seed)
         if self.denoise:  # (on the GPU when the image is there and PyTorch can pass it to OIDN)
             aux = mi.render(self.mi_scene, sensor=sensor, integrator=self.aov, spp=o.spp, seed=seed ^ 0x5A5A5A5A)
@@ -141,10 +136,12 @@ class MitsubaRenderer(Renderer):
         world_T_camera: np.ndarray,
         link_poses: Mapping[str, Mapping[str, np.ndarray]],
     ) -> Frame:
+        from agrisim.plugins.render.raycast.tracing import label_map
+
         tracer = self.tracer
         if tracer.arms:
             tracer.place_arms(link_poses)
-        exact = tracer.exact(camera, world_T_camera, seg_mode=self.settings.seg_mode, label_map=self.label_map)
+        exact = tracer.exact(camera, world_T_camera, seg_mode=self.settings.seg_mode, label_map=label_map(self.settings.labels))
         return Frame(
             rgb=self.render_rgb(camera, world_T_camera, link_poses),
             labels=exact["labels"],

@@ -15,7 +15,7 @@ from agrisim.interfaces import CameraModel, Frame, Renderer
 from agrisim.plugins.render.raycast import RaycastOptions
 from agrisim.plugins.render.raycast.arm_meshes import arm_link_meshes
 from agrisim.plugins.render.raycast.lights import LightTable, chunks
-from agrisim.plugins.render.raycast.tracing import Hits, SceneTracer, camera_rays, pixel_slopes
+from agrisim.plugins.render.raycast.tracing import Hits, SceneTracer, camera_rays, label_map, pixel_slopes
 from agrisim.scene.cell import Cell
 from agrisim.scene.camera import view_seed
 from agrisim.scene.colour import encode_srgb8
@@ -34,8 +34,7 @@ class RaycastRenderer(Renderer):
         self.shadow_samples = self.options.shadow_samples
         self.supersample = self.options.supersample
         self.hide_robots = settings.hide_robots
-        organs = settings.labels == "organs"
-        self.label_map = np.arange(256, dtype=np.uint8) if organs else (np.arange(256) > 0).astype(np.uint8)
+        self.label_map = label_map(settings.labels)
         self.tracer = SceneTracer(scene, None if self.hide_robots else cell, options)
         self.lights = LightTable(scene.lights)
 
@@ -95,10 +94,7 @@ class RaycastRenderer(Renderer):
         rays = camera_rays(x, y, T, self.options.near)
         hits = self.tracer.trace(rays, raw=self.seg_mode == "repopa")
         hit = hits.face >= 0
-        np.add(hits.t, F32(self.options.near), out=out["depth"])
-        if not hit.all():
-            out["depth"][~hit] = 0.0
-        self.tracer.labels(hits, self.seg_mode == "repopa", self.label_map, out)
+        self.tracer.annotate(hits, self.seg_mode == "repopa", self.label_map, out)
         s, n = self.supersample, self.shadow_samples
         if s == 1:
             linear = self._shade(rays, hits, rng, n)

@@ -48,6 +48,13 @@ def _offsets(by_id: dict[int, int]) -> np.ndarray:
     return out
 
 
+def label_map(labels: str) -> np.ndarray:
+    """Label id -> the id written (uint8, 256): every id as it is for ``labels="organs"``, else
+    every non-zero id to 1 (the plant)."""
+    ids = np.arange(256)
+    return ids.astype(np.uint8) if labels == "organs" else (ids > 0).astype(np.uint8)
+
+
 @lru_cache(maxsize=8)
 def _slopes(width: int, height: int, fx: float, fy: float, cx: float, cy: float) -> tuple[np.ndarray, np.ndarray]:
     x = (np.arange(width, dtype=np.float64) - cx) / fx
@@ -440,6 +447,13 @@ class SceneTracer:
         if "instances" in out:
             out["instances"][on_plant] = np.where(lab > 0, np.take(self.face_inst, face), 0)
 
+    def annotate(self, hits: Hits, repopa: bool, label_map: np.ndarray, out: dict[str, np.ndarray]) -> None:
+        """Depth (planar, m, from rays that start on the near plane; 0 where nothing is hit),
+        labels and leaf instances of the rays' ``hits`` into ``out``."""
+        np.add(hits.t, F32(self.options.near), out=out["depth"])
+        out["depth"][hits.face < 0] = 0.0
+        self.labels(hits, repopa, label_map, out)
+
     def exact(
         self,
         camera: CameraModel,
@@ -456,7 +470,6 @@ class SceneTracer:
         H, W = camera.height, camera.width
         x, y = pixel_slopes(camera)
         T = np.asarray(world_T_camera, np.float64)
-        near = F32(self.options.near)
         out = {"labels": np.zeros(H * W, np.uint8), "depth": np.empty(H * W, F32)}
         if self.has_instances:
             out["instances"] = np.zeros(H * W, np.uint16)
@@ -464,9 +477,7 @@ class SceneTracer:
             r1 = min(r0 + rows_per_batch, H)
             part = {k: v[r0 * W : r1 * W] for k, v in out.items()}
             hits = self.trace(camera_rays(x, y[r0:r1], T, self.options.near), raw=seg_mode == "repopa")
-            np.add(hits.t, near, out=part["depth"])
-            part["depth"][hits.face < 0] = 0.0
-            self.labels(hits, seg_mode == "repopa", label_map, part)
+            self.annotate(hits, seg_mode == "repopa", label_map, part)
         shape = {"labels": (H, W), "depth": (H, W), "instances": (H, W)}
         return {k: v.reshape(shape[k]) for k, v in out.items()}
 

@@ -1,0 +1,159 @@
+"""The mitsuba renderer's camera and light mapping, on each Mitsuba variant: ``llvm`` here and in
+CI, ``cuda`` (marked ``gpu``) on the GPU machine. Only light imports (no Open3D, no trimesh), so
+the GPU machine runs this module from a minimal install: ``pytest --noconftest -m gpu``.
+
+Truths: K's projection of emissive markers, an integrating sphere's closed form.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from agrisim.errors import ConfigError
+from agrisim.plugins.render.mitsuba.camera import load_sensor
+from agrisim.plugins.render.mitsuba.scene import light_dict
+from agrisim.plugins.render.mitsuba.variant import resolve_variant, use_variant
+from agrisim.scene.camera import CameraModel
+from agrisim.scene.model import Light
+from agrisim.scene.transforms import look_at
+
+VARIANTS = ["llvm", pytest.param("cuda", marks=pytest.mark.gpu)]
+
+
+@pytest.fixture(params=VARIANTS)
+def mi(request):  # noqa: ANN001, ANN201
+    """Mitsuba set to the variant; one variant per process, so a process that already renders
+    with the other skips (run the GPU tests alone: ``-m gpu``)."""
+    import mitsuba
+
+    try:
+        resolve_variant(request.param)
+    except ConfigError as exc:
+        pytest.skip(str(exc))
+    current = mitsuba.variant()
+    if current is not None and not current.startswith(request.param):
+        pytest.skip(f"this process renders with {current}")
+    return use_variant(request.param)
+
+
+def render(mi, scene: dict, camera: CameraModel, T: np.ndarray, spp: int) -> np.ndarray:  # noqa: ANN001
+    return np.asarray(mi.render(mi.load_dict(scene), sensor=load_sensor(mi, camera, T, spp), seed=1), np.float64)[..., :3]
+
+
+@pytest.mark.parametrize("cx, cy", [(40.0, 30.0), (33.3, 27.6), (45.75, 21.2)])
+def test_markers_land_on_their_k_projection(mi, cx, cy):  # noqa: ANN001
+    """Small emissive discs facing the camera (their images are exact circles about the
+    projections of their centres) at known world points: each blob's intensity centroid is
+    within 0.1 px of K's projection, for off-centre principal points too."""
+    camera = CameraModel(80, 60, 70.0, 70.0, cx, cy)
+    T = look_at(np.array([0.3, -2.0, 1.2]), np.array([0.0, 0.0, 0.9]))
+    R, t = T[:3, :3], T[:3, 3]
+    targets = [(-20, -15), (18, -12), (0, 0), (-25, 18), (22, 20)]  # pixel offsets from (cx, cy)
+    depths = [2.0, 2.4, 1.8, 2.2, 2.6]
+    scene: dict = {"type": "scene", "integrator": {"type": "path", "max_depth": 2}}
+    points = []
+    for i, ((du, dv), z) in enumerate(zip(targets, depths)):
+        p_cam = np.array([du / camera.fx * z, dv / camera.fy * z, z])
+        p = R @ p_cam + t
+        points.append(p)
+        radius = 2.0 / camera.fx * z  # two pixels
+        M = np.eye(4)
+        M[:3, :3] = R @ np.diag([radius, radius, -radius])  # facing the camera (-z of it)
+        M[:3, 3] = p
+        scene[f"m{i}"] = {"type": "disk", "to_world": mi.ScalarTransform4f(M), "emitter": {"type": "area", "radiance": 1.0}}
+    image = render(mi, scene, camera, T, 512)[..., 0]
+    for p in points:
+        q = camera.K @ (R.T @ (p - t))
+        u, v = q[0] / q[2], q[1] / q[2]
+        r0, c0 = int(round(v)), int(round(u))
+        win = image[r0 - 5 : r0 + 6, c0 - 5 : c0 + 6]
+        rows, cols = np.mgrid[r0 - 5 : r0 + 6, c0 - 5 : c0 + 6]
+        assert win.sum() > 5.0  # the marker is there
+        cu, cv = (win * cols).sum() / win.sum(), (win * rows).sum() / win.sum()
+        assert abs(cu - u) < 0.1 and abs(cv - v) < 0.1, (cu, u, cv, v)
+
+
+def test_non_square_pixels_are_refused(mi):  # noqa: ANN001
+    with pytest.raises(ConfigError, match="square pixels"):
+        load_sensor(mi, CameraModel(80, 60, 70.0, 72.0, 40.0, 30.0), np.eye(4), 4)
+
+
+def icosphere(subdivisions: int) -> tuple[np.ndarray, np.ndarray]:
+    """A unit icosphere (vertices, faces), each subdivision splitting every triangle in four."""
+    t = (1.0 + math.sqrt(5.0)) / 2.0
+    v = [(-1, t, 0), (1, t, 0), (-1, -t, 0), (1, -t, 0), (0, -1, t), (0, 1, t), (0, -1, -t), (0, 1, -t),
+         (t, 0, -1), (t, 0, 1), (-t, 0, -1), (-t, 0, 1)]  # fmt: skip
+    faces = [(0, 11, 5), (0, 5, 1), (0, 1, 7), (0, 7, 10), (0, 10, 11), (1, 5, 9), (5, 11, 4), (11, 10, 2),
+             (10, 7, 6), (7, 1, 8), (3, 9, 4), (3, 4, 2), (3, 2, 6), (3, 6, 8), (3, 8, 9), (4, 9, 5), (2, 4, 11),
+             (6, 2, 10), (8, 6, 7), (9, 8, 1)]  # fmt: skip
+    verts = [np.array(p, float) / np.linalg.norm(p) for p in v]
+    for _ in range(subdivisions):
+        middle: dict[tuple[int, int], int] = {}
+
+        def mid(i: int, j: int) -> int:
+            key = (min(i, j), max(i, j))
+            if key not in middle:
+                m = verts[i] + verts[j]
+                verts.append(m / np.linalg.norm(m))
+                middle[key] = len(verts) - 1
+            return middle[key]
+
+        faces = [
+            tri
+            for (i, j, k) in faces
+            for tri in ((i, mid(i, j), mid(k, i)), (j, mid(j, k), mid(i, j)), (k, mid(k, i), mid(j, k)), (mid(i, j), mid(j, k), mid(k, i)))
+        ]
+    return np.array(verts), np.array(faces)
+
+
+def sphere_radiance(mi, albedo: float, light: Light, max_depth: int, spp: int) -> tuple[float, float]:  # noqa: ANN001
+    """(mean radiance seen inside a closed sphere of Lambertian walls lit by ``light`` as the
+    renderer converts it, the sphere's area)."""
+    V, F = icosphere(4)
+    props = mi.Properties()
+    diffuse = {"type": "diffuse", "reflectance": {"type": "rgb", "value": [albedo] * 3}}
+    props["bsdf"] = mi.load_dict({"type": "twosided", "bsdf": diffuse})
+    walls = mi.Mesh("sphere", len(V), len(F), props=props)
+    params = mi.traverse(walls)
+    params["vertex_positions"] = mi.Float(V.astype(np.float32).ravel())
+    params["faces"] = mi.UInt32(F.astype(np.uint32).ravel())
+    params.update()
+    scene = {
+        "type": "scene",
+        "integrator": {"type": "path", "max_depth": max_depth},
+        "walls": walls,
+        "lamp": light_dict(light, mi.ScalarTransform4f),
+    }
+    camera = CameraModel(32, 24, 40.0, 40.0, 15.5, 11.5)
+    T = look_at(np.array([0.0, 0.3, -0.2]), np.array([0.0, 0.2, -1.0]))
+    area = 0.5 * np.linalg.norm(np.cross(V[F[:, 1]] - V[F[:, 0]], V[F[:, 2]] - V[F[:, 0]]), axis=1).sum()
+    return float(render(mi, scene, camera, T, spp).mean()), float(area)
+
+
+def test_integrating_sphere_reaches_its_closed_form(mi):  # noqa: ANN001
+    """Inside a closed sphere of Lambertian walls (albedo a, area A), the light bounced off the
+    walls is the same everywhere: irradiance a Phi / (A (1 - a)). A wall the lamp does not light
+    directly (the lamp faces up; the camera looks down) then shows radiance a E / pi. An area
+    light of raycast intensity I is a Lambertian disc of axial intensity pi I, so of power
+    Phi = pi^2 I: the wall's radiance is pi a^2 I / (A (1 - a)). Path tracing reaches it within a
+    few percent; direct light alone (max_depth 2) leaves that wall black."""
+    a, intensity = 0.8, 2.0
+    light = Light("lamp", "area", np.array([0.0, 0.0, 0.0]), np.array([0.0, 0.0, 1.0]), (1.0, 1.0, 1.0), intensity, 0.05)
+    value, area = sphere_radiance(mi, a, light, max_depth=100, spp=256)
+    expected = np.pi * a * a * intensity / (area * (1.0 - a))
+    assert abs(value / expected - 1.0) < 0.04, (value, expected)
+    assert sphere_radiance(mi, a, light, max_depth=2, spp=16)[0] < 0.01 * expected
+
+
+def test_area_light_radiance_keeps_raycast_units(mi):  # noqa: ANN001
+    """An area light of intensity I and radius r has radiance I / r^2: its power pi I is what a
+    Lambertian disc of axial intensity pi I emits (raycast's I, times pi for radiance = a E / pi)."""
+    light = Light("l", "area", np.zeros(3), np.array([0.0, 0.0, -1.0]), (1.0, 0.5, 0.25), 3.0, 0.2)
+    d = light_dict(light, mi.ScalarTransform4f)
+    assert np.allclose(d["emitter"]["radiance"]["value"], np.array([1.0, 0.5, 0.25]) * 3.0 / 0.04)
+    M = np.array(d["to_world"].matrix)
+    assert np.allclose(M[:3, 2] / np.linalg.norm(M[:3, 2]), [0.0, 0.0, -1.0])  # faces its direction
+    assert np.allclose(np.linalg.norm(M[:3, :3], axis=0), 0.2)
