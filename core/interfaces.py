@@ -75,6 +75,9 @@ class Frame:
     labels: np.ndarray  # uint8 H x W, label ids (0 = background)
     depth: np.ndarray  # float32 H x W, planar z in metres, 0 where nothing was hit
     instances: np.ndarray | None = None  # uint16 H x W leaf instance ids, 0 = none
+    #: float32 H x W x 3 linear RGB radiance before exposure and tone mapping, from renderers
+    #: asked to keep it (the dataset writes it as ``radiance/<frame>.exr``)
+    radiance: np.ndarray | None = None
 
     def depth_mm(self) -> np.ndarray:
         """Depth as the dataset's PNGs store it: uint16 whole millimetres, 0 = no hit."""
@@ -84,12 +87,16 @@ class Frame:
         """These images as they read back from the run directory: depth rounded to whole
         millimetres (float32 metres, as Open3D reads the PNG with ``depth_scale = 1000``), so
         that a run, its ``--resume`` and ``agrisim recon`` integrate bit-identical data."""
-        return Frame(self.rgb, self.labels, mm_to_depth(self.depth_mm()), self.instances)
+        return Frame(self.rgb, self.labels, mm_to_depth(self.depth_mm()), self.instances, self.radiance)
 
     def copy(self) -> Frame:
         """A deep copy (the arrays too)."""
         return Frame(
-            self.rgb.copy(), self.labels.copy(), self.depth.copy(), None if self.instances is None else self.instances.copy()
+            self.rgb.copy(),
+            self.labels.copy(),
+            self.depth.copy(),
+            None if self.instances is None else self.instances.copy(),
+            None if self.radiance is None else self.radiance.copy(),
         )
 
 
@@ -227,11 +234,12 @@ class Renderer(ABC):
         camera: CameraModel,
         world_T_camera: np.ndarray,
         link_poses: Mapping[str, Mapping[str, np.ndarray]],
-    ) -> np.ndarray:
-        """RGB alone (H x W x 3 uint8), byte for byte :meth:`render`'s, for re-rendering a saved
-        run (``agrisim render``: its labels and depth are kept). Renderers that declare the
-        ``rerender`` capability implement it; ``cell`` may then be None, the arms coming with
-        the scene (:attr:`Scene.arms`)."""
+    ) -> tuple[np.ndarray, np.ndarray | None]:
+        """(RGB, radiance): the RGB alone (H x W x 3 uint8), byte for byte :meth:`render`'s, and
+        the linear radiance it was encoded from when the renderer keeps it (else None), for
+        re-rendering a saved run (``agrisim render``: its labels and depth are kept). Renderers
+        that declare the ``rerender`` capability implement it; ``cell`` may then be None, the
+        arms coming with the scene (:attr:`Scene.arms`)."""
         raise NotImplementedError(f"{type(self).__name__} does not render RGB alone")
 
     def arm_meshes(self) -> dict[str, list[tuple[str, Mesh]]]:

@@ -10,7 +10,8 @@ renderer's own library (Mitsuba) is enough.
 
 The output is a complete dataset: every file of the source (labels, depth, instances, clouds,
 metrics, exports, the scene) carried over (hard links where the filesystem allows, else copies)
-and the RGB re-rendered; the Rerun recording is not carried (it holds the old RGB).
+and the RGB re-rendered (with its radiance when the renderer keeps it); the Rerun recording and
+the source's radiance are not carried (they hold the old light).
 ``render.json`` records what was re-rendered with which options and which frames are done, so
 an interrupted re-render resumes frame by frame. Nothing is replaced without ``--overwrite``.
 """
@@ -30,6 +31,7 @@ from agrisim.errors import OutputError, UserError
 from agrisim.files import layout
 from agrisim.files.atomic import write_json
 from agrisim.files.dataset import write_png
+from agrisim.files.exr import write_exr
 from agrisim.files.rundir import camera_from_json, read_json, read_run
 from agrisim.files.scene_glb import read_scene
 
@@ -44,10 +46,11 @@ def _link_poses(run_dir: Path, frame: str) -> dict[str, dict[str, np.ndarray]]:
 
 
 def _carry(source: Path, out: Path) -> None:
-    """Every file of ``source`` but its RGB and recording into ``out`` (hard links, else copies)."""
+    """Every file of ``source`` but its RGB, radiance and recording into ``out`` (hard links,
+    else copies)."""
     for root, dirs, files in os.walk(source):
         rel = Path(root).relative_to(source)
-        if rel.parts[:1] == ("rgb",):
+        if rel.parts[:1] in (("rgb",), (layout.RADIANCE,)):
             dirs.clear()
             continue
         (out / rel).mkdir(parents=True, exist_ok=True)
@@ -157,8 +160,10 @@ class RenderPlan:
         camera = camera_from_json(self.cameras["intrinsics"])
         todo = [f for f in self.frames if f not in set(self.done)]
 
-        def save(frame: str, rgb: np.ndarray) -> None:
+        def save(frame: str, rgb: np.ndarray, radiance: np.ndarray | None) -> None:
             # one writer thread: frames are listed done in order, each after its PNG exists
+            if radiance is not None:
+                write_exr(layout.radiance(out, frame), radiance)
             write_png(layout.image(out, "rgb", frame), rgb)
             record["frames_done"].append(frame)
             write_json(out / RENDER_JSON, record)
@@ -173,10 +178,10 @@ class RenderPlan:
                 for frame in todo:
                     T = np.asarray(self.cameras["frames"][frame]["world_T_camera"], np.float64)
                     poses = {} if settings.hide_robots else _link_poses(self.run_dir, frame)
-                    rgb = renderer.render_rgb(camera, T, poses)
+                    rgb, radiance = renderer.render_rgb(camera, T, poses)
                     while pending and (pending[0].done() or len(pending) > 2):  # at most 2 frames queued
                         pending.pop(0).result()  # (a failed write is raised here)
-                    pending.append(writer.submit(save, frame, rgb))
+                    pending.append(writer.submit(save, frame, rgb, radiance))
             finally:
                 renderer.close()
             for f in pending:

@@ -31,6 +31,7 @@ from PIL import Image
 from agrisim.files import layout
 from agrisim.evaluation.session import write_reconstruction
 from agrisim.files.atomic import write_bytes, write_json
+from agrisim.files.exr import write_exr
 from agrisim.files.glb import export_glb
 from agrisim.files.scene_glb import write_scene
 from agrisim.files.nerfstudio import write_nerfstudio
@@ -220,13 +221,15 @@ def write_frame(
     palette: np.ndarray | None,
     link_poses: dict[str, dict[str, np.ndarray]] | None = None,
 ) -> None:
-    """One frame's files (rgb, labels, labels_vis, depth, instances, and the arms' link poses it
-    was rendered with), each atomic; none when the run has no renderer. The link poses come
-    first: a frame whose images exist has them."""
+    """One frame's files (rgb, labels, labels_vis, depth, instances, the radiance when kept, and
+    the arms' link poses it was rendered with), each atomic; none when the run has no renderer.
+    The link poses and radiance come first: a frame whose images exist has them."""
     if images is None:
         return
     if link_poses is not None:
         write_json(layout.link_poses(out, frame), {r: {k: np.asarray(T).tolist() for k, T in links.items()} for r, links in link_poses.items()})
+    if images.radiance is not None:
+        write_exr(layout.radiance(out, frame), images.radiance)
     write_png(layout.image(out, "rgb", frame), images.rgb)
     write_png(layout.image(out, "labels", frame), images.labels)
     if palette is not None:

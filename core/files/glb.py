@@ -117,8 +117,9 @@ class _GlbWriter:
 
     def material(self, mat: Material) -> int:
         """Index of ``mat`` among the file's materials (each Material object written once):
-        albedo as ``baseColorTexture``, roughness and metallic, alpha settings, and agrisim's
-        label, label texture, cutoff and transmittance in ``extras``."""
+        albedo as ``baseColorTexture``, roughness and metallic (and their texture), the normal
+        texture, alpha settings, and agrisim's label, label texture, cutoff, transmittance and
+        transmission texture in ``extras``."""
         if id(mat) in self._material_index:
             return self._material_index[id(mat)]
         pbr: dict[str, Any] = {
@@ -133,6 +134,10 @@ class _GlbWriter:
             pbr["baseColorTexture"] = {"index": self.texture(mat.albedo, "RGBA", nearest=False)}
         if mat.labels is not None:
             extras["label_texture"] = self.texture(mat.labels, "L", nearest=True)
+        if mat.transmission is not None:
+            extras["transmission_texture"] = self.texture(mat.transmission, "RGB", nearest=False)
+        if mat.metallic_roughness is not None:
+            pbr["metallicRoughnessTexture"] = {"index": self.texture(mat.metallic_roughness, "RGB", nearest=False)}
         m: dict[str, Any] = {
             "name": mat.name,
             "pbrMetallicRoughness": pbr,
@@ -142,6 +147,8 @@ class _GlbWriter:
         }
         if mat.alpha_mode == "MASK":
             m["alphaCutoff"] = float(mat.alpha_cutoff)
+        if mat.normal_map is not None:
+            m["normalTexture"] = {"index": self.texture(mat.normal_map, "RGB", nearest=False), "scale": float(mat.normal_scale)}
         self.materials.append(m)
         self._material_index[id(mat)] = len(self.materials) - 1
         return len(self.materials) - 1

@@ -17,6 +17,7 @@ import numpy as np
 from PIL import Image
 
 from agrisim.errors import UserError
+from agrisim.scene.colour import linear_to_srgb, srgb_to_linear
 from agrisim.scene.model import LabelTable, Material
 
 from agrisim.files.asset_reading import AssetError, label_ids_plain, RawMesh, decode_image, locate, read_bytes_of, rgba_array
@@ -251,13 +252,8 @@ class _Gltf:
         if tex_info is not None:
             img, tex_name = self.texture_image(tex_info.get("index"))
             albedo = rgba_array(img)
-            texcoord = int(tex_info.get("texCoord", 0))
-            tt = _get(tex_info, "extensions", "KHR_texture_transform")
-            if isinstance(tt, dict):
-                texcoord = int(tt.get("texCoord", texcoord))
-                off, rot, sc = tt.get("offset", [0.0, 0.0]), float(tt.get("rotation", 0.0)), tt.get("scale", [1.0, 1.0])
-                if (off, rot, sc) != ([0.0, 0.0], 0.0, [1.0, 1.0]):
-                    transform = (float(off[0]), float(off[1]), rot, float(sc[0]), float(sc[1]))
+            texcoord, transform = _texture_placement(tex_info)
+        maps = _MapReader(self, mname, None if tex_info is None else (texcoord, transform))
 
         labels, label = None, 1
         if isinstance(extras, dict):
@@ -277,6 +273,14 @@ class _Gltf:
                 if tex_name is None:
                     tex_name = lname
         color, roughness, metallic, transmittance = self._look(m, pbr, factor, extras)
+        albedo, color, transmission = self._transmission(m, extras, maps, albedo, color)
+        normal = m.get("normalTexture")
+        normal_map = maps.rgb(normal, "normalTexture")
+        normal_scale = float(normal.get("scale", 1.0)) if normal_map is not None else 1.0
+        if not (math.isfinite(normal_scale) and normal_scale >= 0.0):
+            raise self.error(f"material '{mname}' has normalTexture.scale {normal_scale!r}; it must be >= 0")
+        if maps.placement is not None:
+            texcoord, transform = maps.placement
         mat = Material(
             mname,
             color=color,
@@ -288,7 +292,11 @@ class _Gltf:
             double_sided=bool(m.get("doubleSided", False)),
             roughness=roughness,
             metallic=metallic,
-            transmittance=transmittance,
+            transmittance=None if transmission is not None else transmittance,
+            transmission=transmission,
+            metallic_roughness=maps.rgb(pbr.get("metallicRoughnessTexture"), "metallicRoughnessTexture"),
+            normal_map=normal_map,
+            normal_scale=normal_scale,
         )
         self._materials[index] = (mat, texcoord, transform, tex_name)
         return self._materials[index]
@@ -296,25 +304,50 @@ class _Gltf:
     @staticmethod
     def _look(m: dict, pbr: dict, factor: list, extras: Any) -> tuple[tuple, float, float, tuple | None]:
         """(colour factor, roughness, metallic, transmittance) of a material: glTF's defaults
-        (metallic and rough) where the file is silent. Diffuse transmission
-        (KHR_materials_diffuse_transmission: a fraction f of the diffuse light goes through,
-        tinted) becomes agrisim's transmittance per unit of albedo, the reflected part keeping
-        the spec's 1 - f; agrisim's own files carry theirs in extras."""
-        clamp = lambda x: min(max(float(x), 0.0), 1.0)  # noqa: E731
+        (metallic and rough) where the file is silent; agrisim's own files carry their
+        transmittance (per unit of albedo) in extras."""
         color = tuple(float(c) for c in factor)
-        roughness, metallic = clamp(pbr.get("roughnessFactor", 1.0)), clamp(pbr.get("metallicFactor", 1.0))
+        roughness, metallic = _unit(pbr.get("roughnessFactor", 1.0)), _unit(pbr.get("metallicFactor", 1.0))
         transmittance = None
         if isinstance(extras, dict) and isinstance(extras.get("transmittance"), list):
             transmittance = tuple(max(float(t), 0.0) for t in extras["transmittance"][:3])
-        else:
-            diffuse = _get(m, "extensions", "KHR_materials_diffuse_transmission")
-            if isinstance(diffuse, dict):
-                f = min(clamp(diffuse.get("diffuseTransmissionFactor", 0.0)), 0.99)
-                tint = diffuse.get("diffuseTransmissionColorFactor", [1.0, 1.0, 1.0])
-                if f > 0.0:
-                    transmittance = tuple(f / (1.0 - f) * max(float(t), 0.0) for t in tint[:3])
-                    color = (*(c * (1.0 - f) for c in color[:3]), color[3])
         return color, roughness, metallic, transmittance  # type: ignore[return-value]
+
+    def _transmission(
+        self, m: dict, extras: Any, maps: _MapReader, albedo: np.ndarray | None, color: tuple
+    ) -> tuple[np.ndarray | None, tuple, np.ndarray | None]:
+        """(albedo, colour factor, transmission texture) under diffuse transmission.
+
+        KHR_materials_diffuse_transmission mixes a diffuse reflector of the base colour and a
+        diffuse transmitter of its own colour, a fraction f = factor x texture alpha going
+        through: the reflected part becomes the albedo x (1 - f) (in the colour factor when f
+        is constant, else texel by texel on the albedo's grid) and the transmitted colour f x
+        colour factor x colour texture becomes agrisim's transmission texture. agrisim's own
+        files keep theirs in extras (already split)."""
+        if isinstance(extras, dict) and "transmission_texture" in extras:
+            img, _ = self.texture_image(extras["transmission_texture"])
+            return albedo, color, np.asarray(img.convert("RGB")).copy()
+        ext = _get(m, "extensions", "KHR_materials_diffuse_transmission")
+        if not isinstance(ext, dict):
+            return albedo, color, None
+        f = _unit(ext.get("diffuseTransmissionFactor", 0.0))
+        tint = [_unit(t) for t in (ext.get("diffuseTransmissionColorFactor") or [1.0, 1.0, 1.0])[:3]]
+        f_tex = maps.rgba(ext.get("diffuseTransmissionTexture"), "diffuseTransmissionTexture")
+        tint_tex = maps.rgba(ext.get("diffuseTransmissionColorTexture"), "diffuseTransmissionColorTexture")
+        if f == 0.0:
+            return albedo, color, None
+        # the transmitted colour, linear, on the grid of whichever texture has one
+        grid = next((t for t in (tint_tex, f_tex) if t is not None), np.zeros((1, 1, 4), np.uint8))
+        f_map = f if f_tex is None else f * _resample(f_tex, grid.shape[:2])[..., 3:4] / 255.0
+        through = f_map * np.asarray(tint) * (1.0 if tint_tex is None else srgb_to_linear(tint_tex[..., :3] / 255.0))
+        transmission = _srgb8(np.broadcast_to(through, (*grid.shape[:2], 3)))
+        if f_tex is None:
+            color = (*(c * (1.0 - f) for c in color[:3]), color[3])
+        else:
+            base = albedo if albedo is not None else np.full((*f_tex.shape[:2], 4), 255, np.uint8)
+            keep = 1.0 - f * _resample(f_tex, base.shape[:2])[..., 3:4] / 255.0
+            albedo = np.dstack([_srgb8(srgb_to_linear(base[..., :3] / 255.0) * keep), base[..., 3]])
+        return albedo, color, transmission
 
     # -- scene graph -------------------------------------------------------------------------
 
@@ -525,6 +558,60 @@ def _strided(buf: memoryview, offset: int, count: int, nc: int, dtype: np.dtype,
         return None
     arr = np.ndarray((count, nc), dtype=dtype, buffer=buf, offset=offset, strides=(stride, dtype.itemsize))
     return arr.copy()
+
+
+def _unit(x: Any) -> float:
+    return min(max(float(x), 0.0), 1.0)
+
+
+def _texture_placement(info: dict) -> tuple[int, tuple[float, ...] | None]:
+    """(TEXCOORD set, KHR_texture_transform or None) of a texture reference."""
+    texcoord, transform = int(info.get("texCoord", 0)), None
+    tt = _get(info, "extensions", "KHR_texture_transform")
+    if isinstance(tt, dict):
+        texcoord = int(tt.get("texCoord", texcoord))
+        off, rot, sc = tt.get("offset", [0.0, 0.0]), float(tt.get("rotation", 0.0)), tt.get("scale", [1.0, 1.0])
+        if (off, rot, sc) != ([0.0, 0.0], 0.0, [1.0, 1.0]):
+            transform = (float(off[0]), float(off[1]), rot, float(sc[0]), float(sc[1]))
+    return texcoord, transform
+
+
+def _srgb8(linear: np.ndarray) -> np.ndarray:
+    return np.round(linear_to_srgb(np.clip(linear, 0.0, 1.0)) * 255.0).astype(np.uint8)
+
+
+def _resample(texture: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
+    """``texture`` sampled nearest at the texel centres of an image of ``shape``."""
+    rows = (np.arange(shape[0]) + 0.5) * texture.shape[0] // shape[0]
+    cols = (np.arange(shape[1]) + 0.5) * texture.shape[1] // shape[1]
+    return texture[rows.astype(np.int64)[:, None], cols.astype(np.int64)[None, :]]
+
+
+class _MapReader:
+    """A material's textures other than the base colour, which must share its UV placement
+    (agrisim keeps one UV set per mesh); the first one fixes it when there is no base colour
+    texture."""
+
+    def __init__(self, doc: _Gltf, material: str, placement: tuple[int, tuple[float, ...] | None] | None) -> None:
+        self.doc, self.material, self.placement = doc, material, placement
+
+    def rgba(self, info: Any, what: str) -> np.ndarray | None:
+        if not isinstance(info, dict):
+            return None
+        placement = _texture_placement(info)
+        if self.placement is None:
+            self.placement = placement
+        elif placement != self.placement:
+            raise self.doc.error(
+                f"material '{self.material}': its {what} uses other texture coordinates (set or transform) than its "
+                "other textures; agrisim reads one UV set per material: re-export with one"
+            )
+        img, _ = self.doc.texture_image(info.get("index"))
+        return rgba_array(img)
+
+    def rgb(self, info: Any, what: str) -> np.ndarray | None:
+        texture = self.rgba(info, what)
+        return None if texture is None else np.ascontiguousarray(texture[..., :3])
 
 
 def _get(obj: Any, *keys: str) -> Any:

@@ -13,6 +13,7 @@
     OUT/scene/lab.glb          the whole scene as rendered: room, clutter, table, pot, plant,
                                lights and the arms' link meshes (``agrisim render`` reads it)
     OUT/link_poses/<frame>.json  world_T_link of every arm link when the frame was rendered
+    OUT/radiance/<frame>.exr   linear RGB radiance (float32), when the renderer was asked for it
     OUT/recording.rrd          the Rerun recording (unless --rrd puts it elsewhere)
 
 The dataset writer writes it; ``--resume``, ``agrisim recon``, the exports and ``agrisim compare``
@@ -31,6 +32,7 @@ RECORDING = "recording.rrd"
 PLANT_GLB = Path("scene") / "plant.glb"
 SCENE_GLB = Path("scene") / "lab.glb"
 LINK_POSES = "link_poses"
+RADIANCE = "radiance"
 CLOUDS = "clouds"
 MASKS = "masks"
 #: the image folders of a frame, each holding ``<frame>.png``
@@ -52,6 +54,11 @@ def cloud(root: Path, label: str) -> Path:
 def surface(root: Path, label: str) -> Path:
     """The reconstructed surface of ``label``: ``root/clouds/<label>_mesh.ply``."""
     return Path(root) / CLOUDS / f"{label}_mesh.ply"
+
+
+def radiance(root: Path, frame: str) -> Path:
+    """The linear radiance of ``frame``: ``root/radiance/<frame>.exr``."""
+    return Path(root) / RADIANCE / f"{frame}.exr"
 
 
 def link_poses(root: Path, frame: str) -> Path:

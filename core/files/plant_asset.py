@@ -23,6 +23,11 @@ Materials and opacity
   ``alphaCutoff`` (default 0.5) and ``doubleSided`` (default false) are honoured as written;
   ``KHR_texture_transform`` on the base colour texture is baked into the UVs;
   ``KHR_materials_pbrSpecularGlossiness`` diffuse textures are read when there is no base colour.
+  For path tracers: ``roughnessFactor``/``metallicFactor`` and ``metallicRoughnessTexture``,
+  ``normalTexture`` (and its scale) and ``KHR_materials_diffuse_transmission`` (a fraction f
+  of the diffuse light goes through in its own colour: factor and colour, and their textures;
+  the reflected albedo keeps 1 - f). These textures must use the base colour's UV set and
+  transform (agrisim keeps one per material); a file that does not is refused.
   Draco/meshopt-compressed or basisu-textured files are refused with a clear message.
 * OBJ + MTL: ``map_Kd`` is the albedo (``Kd`` is its colour when there is none; with a texture,
   ``Kd`` is ignored, as Blender does); a ``map_Kd`` image whose alpha is not all opaque cuts the

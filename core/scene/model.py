@@ -18,6 +18,7 @@ Conventions
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from typing import Literal
 
@@ -63,6 +64,19 @@ class Material:
     """Thin translucent surfaces (leaf cards): diffuse transmittance per unit of albedo, per
     linear R, G, B channel; the back-lit side then glows with ``albedo * transmittance``
     (capped so that reflected plus transmitted light never exceeds 1). None: opaque."""
+    transmission: np.ndarray | None = None
+    """Thin translucent surfaces whose transmitted colour is its own texture (glTF's
+    KHR_materials_diffuse_transmission: factor x colour): H x W x 3 uint8 sRGB, the diffuse
+    transmittance of each texel, not scaled by the albedo. Excludes ``transmittance``."""
+    metallic_roughness: np.ndarray | None = None
+    """glTF's metallic-roughness texture, H x W x 3 uint8, linear: green is the roughness and
+    blue the metallic of each texel, times ``roughness`` and ``metallic``."""
+    normal_map: np.ndarray | None = None
+    """glTF's tangent-space normal texture, H x W x 3 uint8: (r, g, b) / 255 * 2 - 1 is the
+    normal with x along the tangent (the direction u grows), y along the bitangent (up in the
+    image: the direction v shrinks) and z along the surface normal. Path tracers use it."""
+    normal_scale: float = 1.0
+    """glTF's ``normalTexture.scale``: multiplies the map's x and y before normalising."""
 
     def __post_init__(self) -> None:
         if self.albedo is not None:
@@ -79,6 +93,16 @@ class Material:
             raise ValueError(f"material {self.name!r}: roughness and metallic must be in [0, 1]")
         if self.transmittance is not None and (len(self.transmittance) != 3 or min(self.transmittance) < 0.0):
             raise ValueError(f"material {self.name!r}: transmittance must be three non-negative numbers")
+        for what in ("transmission", "metallic_roughness", "normal_map"):
+            tex = getattr(self, what)
+            if tex is not None:
+                t = np.asarray(tex)
+                if t.dtype != np.uint8 or t.ndim != 3 or t.shape[2] != 3 or min(t.shape[:2]) < 1:
+                    raise ValueError(f"material {self.name!r}: {what} must be H x W x 3 uint8, got {t.dtype} {t.shape}")
+        if self.transmission is not None and self.transmittance is not None:
+            raise ValueError(f"material {self.name!r}: give transmittance or a transmission texture, not both")
+        if not (math.isfinite(self.normal_scale) and self.normal_scale >= 0.0):
+            raise ValueError(f"material {self.name!r}: normal scale must be a finite number >= 0, got {self.normal_scale}")
 
     @property
     def cuts(self) -> bool:

@@ -94,6 +94,32 @@ def test_rerender_equals_a_mitsuba_run_without_the_heavy_stack(runs: dict[str, P
     assert sorted(record["frames_done"]) == sorted(p.stem for p in (out / "rgb").glob("*.png"))
 
 
+def test_radiance_is_what_the_rgb_encodes(runs: dict[str, Path], tmp_path: Path) -> None:
+    """``renderer.mitsuba.radiance``: every frame gets radiance/<frame>.exr, which a second
+    reader (Mitsuba's Bitmap) reads as float RGB, and which encodes to the frame's PNG byte for
+    byte; the RGB is the same as without it."""
+    import mitsuba as mi
+    import numpy as np
+    from PIL import Image
+
+    from agrisim.scene.colour import encode_srgb8
+
+    out = tmp_path / "re"
+    done = rerender(runs["raycast"], "--out", str(out), *sets(), "--set", "renderer.mitsuba.radiance=true")
+    assert done.returncode == 0, done.stderr
+    assert files(out, "rgb") == files(runs["mitsuba"], "rgb")
+    frames = sorted(p.stem for p in (out / "rgb").glob("*.png"))
+    assert sorted(p.stem for p in (out / layout.RADIANCE).glob("*.exr")) == frames
+    assert not (runs["mitsuba"] / layout.RADIANCE).exists()  # only when asked
+    for frame in frames:
+        radiance = np.array(mi.Bitmap(str(layout.radiance(out, frame))), np.float32)
+        rgb = np.asarray(Image.open(layout.image(out, "rgb", frame)))
+        assert radiance.shape == rgb.shape and radiance.max() > 0.05
+        encoded = np.empty((rgb.shape[0] * rgb.shape[1], 3), np.uint8)
+        encode_srgb8(radiance.reshape(-1, 3).copy(), encoded)
+        assert np.array_equal(encoded.reshape(rgb.shape), rgb)
+
+
 def test_rerender_resumes_frame_by_frame(runs: dict[str, Path], tmp_path: Path) -> None:
     """An interrupted re-render (render.json lists one frame done) goes on with the others and
     leaves the done one as it is."""

@@ -44,3 +44,26 @@ def test_copy_is_deep() -> None:
         getattr(frame, name)[...] = 7
         assert not np.shares_memory(getattr(copy, name), getattr(frame, name))
         assert not np.all(getattr(copy, name) == 7), name
+
+
+def test_radiance_is_written_as_exact_float_exr(tmp_path) -> None:  # noqa: ANN001
+    """A frame's radiance goes to radiance/<frame>.exr as float32 R, G, B (another reader,
+    OpenEXR's own header, names the channels) and reads back bit for bit, HDR values too."""
+    import OpenEXR
+
+    from agrisim.files import layout
+    from agrisim.files.dataset import write_frame
+    from agrisim.files.exr import read_exr
+
+    rng = np.random.default_rng(4)
+    radiance = (rng.random((6, 7, 3)) ** 3 * 50.0).astype(np.float32)  # above 1: not clipped
+    frame = Frame(np.zeros((6, 7, 3), np.uint8), np.zeros((6, 7), np.uint8), np.ones((6, 7), np.float32), radiance=radiance)
+    write_frame(tmp_path, "r1_000", frame, None)
+    path = layout.radiance(tmp_path, "r1_000")
+    assert np.array_equal(read_exr(path), radiance)
+    with OpenEXR.File(str(path), separate_channels=True) as f:
+        channels = {name: c.pixels for name, c in f.channels().items()}
+    assert sorted(channels) == ["B", "G", "R"]
+    assert all(p.dtype == np.float32 for p in channels.values())
+    assert np.array_equal(np.dstack([channels["R"], channels["G"], channels["B"]]), radiance)
+    assert np.array_equal(frame.copy().radiance, radiance) and frame.copy().radiance is not radiance

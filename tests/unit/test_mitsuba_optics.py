@@ -7,6 +7,7 @@ Truths: K's projection of emissive markers, an integrating sphere's closed form.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -17,7 +18,7 @@ from agrisim.plugins.render.mitsuba.camera import load_sensor
 from agrisim.plugins.render.mitsuba.scene import light_dict
 from agrisim.plugins.render.mitsuba.variant import resolve_variant, use_variant
 from agrisim.scene.camera import CameraModel
-from agrisim.scene.model import Light
+from agrisim.scene.model import Light, Material
 from agrisim.scene.transforms import look_at
 
 VARIANTS = ["llvm", pytest.param("cuda", marks=pytest.mark.gpu)]
@@ -157,3 +158,95 @@ def test_area_light_radiance_keeps_raycast_units(mi):  # noqa: ANN001
     M = np.array(d["to_world"].matrix)
     assert np.allclose(M[:3, 2] / np.linalg.norm(M[:3, 2]), [0.0, 0.0, -1.0])  # faces its direction
     assert np.allclose(np.linalg.norm(M[:3, :3], axis=0), 0.2)
+
+
+def _quad_radiance(mi, material, layout: str = "usual", light=(0.0, 0.6, 0.8), eye=(0.3, -0.4, 0.866), R=np.eye(3)) -> np.ndarray:  # noqa: ANN001, B008
+    """Mean RGB radiance at the middle of a quad (z = 0, normal +z) of ``material`` under a
+    distant light from ``light``, seen from afar from ``eye``, both turned by ``R``. The UVs
+    are laid out as glTF's usually are (``usual``: u along +x, v growing toward -y, down the
+    image) or ``mirrored`` (u along -x)."""
+    from agrisim.plugins.render.mitsuba.options import MitsubaOptions
+    from agrisim.plugins.render.mitsuba.scene import build
+    from agrisim.scene.model import Mesh
+
+    V = np.array([[-1.0, -1.0, 0.0], [1.0, -1.0, 0.0], [1.0, 1.0, 0.0], [-1.0, 1.0, 0.0]])
+    u = (V[:, 0] + 1.0) / 2.0 if layout == "usual" else (1.0 - V[:, 0]) / 2.0
+    uv = np.column_stack([u, (1.0 - V[:, 1]) / 2.0])
+    quad = Mesh("quad", V, np.array([[0, 1, 2], [0, 2, 3]]), [material], np.zeros(2, np.int32), uvs=uv)
+    scene = build(mi, [quad], [], {}, MitsubaOptions(), {"type": "path", "max_depth": 2}).scene
+    to_light = R @ np.asarray(light) / np.linalg.norm(light)
+    scene["sun"] = {"type": "directional", "direction": (-to_light).tolist(), "irradiance": 1.0}
+    origin = R @ np.asarray(eye) / np.linalg.norm(eye) * 50.0
+    up = R @ np.array([0.0, 1.0, 0.0])
+    sensor = mi.load_dict(
+        {
+            "type": "perspective",
+            "fov": 1.0,
+            "to_world": mi.ScalarTransform4f().look_at(origin=origin.tolist(), target=[0, 0, 0], up=up.tolist()),
+            "film": {"type": "hdrfilm", "width": 16, "height": 16, "rfilter": {"type": "box"}},
+            "sampler": {"type": "independent", "sample_count": 4},
+        }
+    )
+    image = np.asarray(mi.render(mi.load_dict(scene), sensor=sensor, seed=1), np.float64)[..., :3]
+    return image[6:10, 6:10].reshape(-1, 3).mean(axis=0)
+
+
+def _rotation_between(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """The rotation taking unit vector ``a`` to unit vector ``b`` (Rodrigues)."""
+    v, c = np.cross(a, b), float(np.dot(a, b))
+    K = np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
+    return np.eye(3) + K + K @ K / (1.0 + c)
+
+
+@pytest.mark.parametrize("layout", ["usual", "mirrored"])
+@pytest.mark.parametrize("axis", ["x", "y"])
+def test_normal_map_follows_gltf_tangent_frame(mi, layout, axis):  # noqa: ANN001
+    """A normal map tilting the normal by 30 degrees along the tangent (x: the direction u
+    grows) or the bitangent (y: up in the image, glTF's convention) shades as a plain quad
+    whose light and camera are turned the other way by that rotation (only directions
+    relative to the normal matter to an isotropic BSDF), on faces with usual and with
+    mirrored UVs. The truth is glTF's frame: tangent = dp/du, bitangent = -dp/dv."""
+    s, c = math.sin(math.radians(30.0)), math.cos(math.radians(30.0))
+    tilt = np.array([s, 0.0, c]) if axis == "x" else np.array([0.0, s, c])
+    decoded = np.round((tilt + 1.0) / 2.0 * 255.0) / 255.0 * 2.0 - 1.0
+    decoded /= np.linalg.norm(decoded)
+    tangent = np.array([1.0, 0.0, 0.0]) if layout == "usual" else np.array([-1.0, 0.0, 0.0])
+    bitangent = np.array([0.0, 1.0, 0.0])  # -dp/dv: v grows toward -y in both layouts
+    world = decoded[0] * tangent + decoded[1] * bitangent + decoded[2] * np.array([0.0, 0.0, 1.0])
+    normal_map = np.broadcast_to(np.round((tilt + 1.0) / 2.0 * 255.0).astype(np.uint8), (4, 4, 3)).copy()
+    grey = Material("grey", color=(0.5, 0.5, 0.5, 1.0), roughness=0.5)
+    mapped = _quad_radiance(mi, dataclasses.replace(grey, normal_map=normal_map), layout)
+    reference = _quad_radiance(mi, grey, layout, R=_rotation_between(world, np.array([0.0, 0.0, 1.0])))
+    flat = _quad_radiance(mi, grey, layout)
+    assert np.allclose(mapped, reference, rtol=0.01), (mapped, reference, flat)
+    assert abs(mapped[0] / flat[0] - 1.0) > 0.05  # the map does something
+
+
+def test_metallic_roughness_texture_scales_the_factors(mi):  # noqa: ANN001
+    """A metallic-roughness texture (green: roughness, blue: metallic, linear) times factors
+    shades as the product given as plain factors; and differently from the factors alone."""
+    texture = np.zeros((4, 4, 3), np.uint8)
+    texture[..., 1], texture[..., 2] = 102, 204  # 0.4, 0.8
+    base = Material("m", color=(0.8, 0.5, 0.3, 1.0), roughness=0.5, metallic=0.5)
+    textured = _quad_radiance(mi, dataclasses.replace(base, metallic_roughness=texture), light=(0.2, 0.1, 0.9), eye=(-0.2, -0.1, 0.9))
+    plain = _quad_radiance(mi, dataclasses.replace(base, roughness=0.2, metallic=0.4), light=(0.2, 0.1, 0.9), eye=(-0.2, -0.1, 0.9))
+    factors = _quad_radiance(mi, base, light=(0.2, 0.1, 0.9), eye=(-0.2, -0.1, 0.9))
+    assert np.allclose(textured, plain, rtol=0.01), (textured, plain)
+    assert not np.allclose(textured, factors, rtol=0.05)
+
+
+def test_transmission_texture_is_the_transmitted_colour(mi):  # noqa: ANN001
+    """Seen from the dark side of a back-lit card, a transmission texture (glTF's colour of
+    diffuse transmission) glows as much as agrisim's transmittance per unit of albedo giving
+    the same colour; an opaque card does not."""
+    from agrisim.scene.colour import srgb_to_linear
+
+    texel = np.array([120, 200, 60], np.uint8)
+    through = srgb_to_linear(texel / 255.0)
+    leaf = Material("leaf", color=(0.2, 0.3, 0.1, 1.0), roughness=0.4)
+    textured = dataclasses.replace(leaf, transmission=np.broadcast_to(texel, (2, 2, 3)).copy())
+    per_albedo = dataclasses.replace(leaf, transmittance=tuple(through / np.array([0.2, 0.3, 0.1])))
+    below = (0.3, 0.2, -0.9)
+    a, b = _quad_radiance(mi, textured, light=below), _quad_radiance(mi, per_albedo, light=below)
+    assert np.allclose(a, b, rtol=0.01), (a, b)
+    assert np.all(_quad_radiance(mi, leaf, light=below) < 0.01 * a)

@@ -75,7 +75,19 @@ def rich_mesh() -> tuple[Mesh, LabelTable]:
     labels_tex = rng.choice(np.array([1, 3], np.uint8), (16, 8))
     leaf = Material("leaf", (0.9, 1.0, 0.8, 0.75), albedo=albedo, labels=labels_tex, alpha_mode="MASK", alpha_cutoff=0.4)
     stem = Material("stem", (0.3, 0.2, 0.1, 1.0), label=2, double_sided=False)
-    petal = Material("petal", albedo=albedo[:8], label=3, alpha_mode="BLEND", alpha_cutoff=0.25)
+    petal = Material(
+        "petal",
+        albedo=albedo[:8],
+        label=3,
+        alpha_mode="BLEND",
+        alpha_cutoff=0.25,
+        roughness=0.3,
+        metallic=0.5,
+        transmission=rng.integers(0, 256, (4, 6, 3), dtype=np.uint8),
+        metallic_roughness=rng.integers(0, 256, (8, 8, 3), dtype=np.uint8),
+        normal_map=rng.integers(0, 256, (8, 4, 3), dtype=np.uint8),
+        normal_scale=0.7,
+    )
     face_material = np.array([0] * 10 + [1] * 10 + [0] * 5 + [2] * 15)
     inst = rng.integers(0, 7, 40).astype(np.uint16)
     mesh = Mesh("plant", vertices, faces, [leaf, stem, petal], face_material, uvs, inst)
@@ -102,7 +114,9 @@ def test_round_trip_is_exact(tmp_path: Path) -> None:
         assert (a.name, a.color, a.label, a.alpha_mode, a.alpha_cutoff, a.double_sided) == (
             b.name, b.color, b.label, b.alpha_mode, b.alpha_cutoff, b.double_sided
         )  # fmt: skip
-        for x, y in ((a.albedo, b.albedo), (a.labels, b.labels)):
+        assert (a.roughness, a.metallic, a.transmittance, a.normal_scale) == (b.roughness, b.metallic, b.transmittance, b.normal_scale)
+        textures = ("albedo", "labels", "transmission", "metallic_roughness", "normal_map")
+        for x, y in ((getattr(a, t), getattr(b, t)) for t in textures):
             assert (x is None) == (y is None)
             if x is not None:
                 assert x.dtype == y.dtype and np.array_equal(x, y)
@@ -513,6 +527,74 @@ def test_texture_transform_moves_the_cut(tmp_path: Path) -> None:
     mesh = load_plant(edit_glb(tmp_path / "card.glb", tmp_path / "shifted.glb", shift), place=False).mesh
     pts, faces, bary = sample_surface(mesh, 2000, np.random.default_rng(0))
     assert np.all(opaque(mesh.materials[0], interpolate_uv(mesh, faces, bary)) == (pts[:, 0] >= 0.125))
+
+
+def test_normal_and_metallic_roughness_textures_from_trimesh(tmp_path: Path) -> None:
+    """trimesh writes glTF's normal and metallic-roughness textures and flips its OpenGL UVs
+    (v up) to glTF's; agrisim reads the texels as written, and the card's UVs come out in
+    glTF's usual layout (unmirrored: the normal map's y is up the image)."""
+    from agrisim.plugins.render.mitsuba.materials import mirrored_faces
+
+    rng = np.random.default_rng(5)
+    normals = rng.integers(0, 256, (8, 8, 3), dtype=np.uint8)
+    mr = rng.integers(0, 256, (8, 8, 3), dtype=np.uint8)
+    path = trimesh_card_glb(
+        tmp_path / "card.glb",
+        half_alpha(),
+        normalTexture=Image.fromarray(normals, "RGB"),
+        metallicRoughnessTexture=Image.fromarray(mr, "RGB"),
+        roughnessFactor=0.5,
+        metallicFactor=0.25,
+    )
+    mesh = load_plant(path, place=False).mesh
+    mat = mesh.materials[0]
+    assert np.array_equal(mat.normal_map, normals) and np.array_equal(mat.metallic_roughness, mr)
+    assert (mat.roughness, mat.metallic) == (0.5, 0.25)
+    assert not mirrored_faces(mesh.faces, mesh.uvs).any()
+    flipped = mesh.uvs.copy()
+    flipped[:, 0] = 1.0 - flipped[:, 0]
+    assert mirrored_faces(mesh.faces, flipped).all()
+
+
+def test_diffuse_transmission_extension(tmp_path: Path) -> None:
+    """KHR_materials_diffuse_transmission: a fraction f of the diffuse light goes through with
+    its own colour: the transmission texture holds f x colour (sRGB), the reflected albedo
+    keeps 1 - f, texel by texel where f has a texture (here the albedo's alpha: f on the
+    opaque half, 0 on the other)."""
+    from agrisim.scene.colour import linear_to_srgb, srgb_to_linear
+
+    own_card_glb(tmp_path / "card.glb")
+    ext = {"diffuseTransmissionFactor": 0.4, "diffuseTransmissionColorFactor": [0.5, 1.0, 0.2]}
+
+    def constant(d):
+        d["materials"][0]["extensions"] = {"KHR_materials_diffuse_transmission": dict(ext)}
+
+    mat = load_plant(edit_glb(tmp_path / "card.glb", tmp_path / "c.glb", constant), place=False).mesh.materials[0]
+    expected = np.round(linear_to_srgb(0.4 * np.array([0.5, 1.0, 0.2])) * 255.0)
+    assert mat.transmittance is None and mat.transmission.shape == (1, 1, 3)
+    assert np.array_equal(mat.transmission[0, 0], expected)
+    assert np.allclose(mat.color[:3], 0.8 * 0.6) and np.array_equal(mat.albedo, half_alpha())  # (0.8: the card's colour)
+
+    def textured(d):
+        d["materials"][0]["extensions"] = {"KHR_materials_diffuse_transmission": dict(ext, diffuseTransmissionTexture={"index": 0})}
+
+    mat = load_plant(edit_glb(tmp_path / "card.glb", tmp_path / "t.glb", textured), place=False).mesh.materials[0]
+    source = half_alpha()
+    f = 0.4 * source[..., 3] / 255.0
+    assert np.allclose(mat.color[:3], 0.8)
+    kept = np.round(linear_to_srgb(srgb_to_linear(source[..., :3] / 255.0) * (1.0 - f)[..., None]) * 255.0)
+    assert np.array_equal(mat.albedo[..., :3], kept) and np.array_equal(mat.albedo[..., 3], source[..., 3])
+    through = np.round(linear_to_srgb(f[..., None] * np.array([0.5, 1.0, 0.2])) * 255.0)
+    assert np.array_equal(mat.transmission, through)
+
+
+def test_textures_on_other_uvs_are_refused(tmp_path: Path) -> None:
+    own_card_glb(tmp_path / "card.glb")
+
+    def other_set(d):
+        d["materials"][0]["normalTexture"] = {"index": 0, "texCoord": 1}
+
+    expect_error(edit_glb(tmp_path / "card.glb", tmp_path / "n.glb", other_set), r"normalTexture uses other texture coordinates")
 
 
 def test_mirrored_node_keeps_the_winding(tmp_path: Path) -> None:

@@ -12,7 +12,9 @@ What each part does:
   roughness and metallic, two-sided where the material is; translucent leaf cards as an even
   blend of that reflector and a ``principledthin`` diffuse transmitter (so reflectance and
   transmittance each keep their own colour, as PROSPECT-D's do); cut-outs as a ``mask`` whose
-  opacity is the label pass's own test (8-bit alpha against the material's cutoff, nearest texel).
+  opacity is the label pass's own test (8-bit alpha against the material's cutoff, nearest texel);
+  glTF's metallic-roughness textures, normal maps (``normalmap``, in glTF's tangent frame) and
+  diffuse transmission colours.
 * :mod:`.scene` builds the Mitsuba scene: every mesh split by material, the lab's lights with
   the raycast renderer's radiometric meaning, an optional environment map, and the arms, whose
   vertices are moved to each frame's link poses.

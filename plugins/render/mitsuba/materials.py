@@ -4,14 +4,16 @@
   the same numbers the raycast renderer shades with, given to Mitsuba as raw float data
   (bilinear, repeating); an untextured material is its colour.
 * Surfaces: ``principled`` with the material's roughness and metallic (specular 0.5, i.e. a
-  dielectric's 4% at normal incidence), wrapped in ``twosided`` when the material is
-  double-sided.
+  dielectric's 4% at normal incidence), times glTF's metallic-roughness texture where there is
+  one, wrapped in ``twosided`` when the material is double-sided; a normal map wraps that in
+  ``normalmap`` (see :meth:`BsdfFactory._normals` for the tangent frame).
 * Translucent cards (``Material.transmittance``, leaves): an even ``blendbsdf`` of that reflector
   with twice the albedo and a ``principledthin`` with ``diff_trans = 2`` (a pure diffuse
   transmitter) with twice the transmitted colour. Each half then gives back what it was given:
   reflectance = albedo, transmittance = albedo x transmittance, capped texel by texel so that the
   two never sum past 1 (Mitsuba's ``principledthin`` alone splits one colour between the two
-  sides; a leaf transmits a greener light than it reflects).
+  sides; a leaf transmits a greener light than it reflects). A transmission texture (glTF's
+  diffuse transmission colour, ``Material.transmission``) is the transmitted colour itself.
 * Cut-outs (MASK/BLEND): a ``mask`` whose opacity is 1 where the label pass keeps the texel and
   0 where it cuts it (8-bit alpha against :func:`agrisim.scene.texturing.alpha_threshold`, the
   nearest texel), so the RGB has the same holes as the labels.
@@ -37,6 +39,17 @@ def linear_albedo(material: Material) -> np.ndarray | None:
     if material.albedo is None:
         return None
     return SRGB_TO_LINEAR[material.albedo[..., :3]] * np.asarray(material.color[:3], F32)
+
+
+def mirrored_faces(faces: np.ndarray, uvs: np.ndarray) -> np.ndarray:
+    """Per face, whether its UVs are mirrored against glTF's usual layout, i.e. whether
+    dp/du x dp/dv points along the face's normal (v grows down the image, so an unmirrored
+    face has them opposed). Degenerate UVs count as unmirrored."""
+    # With p = p0 + [e1 e2] M^-1 (uv - uv0), M = [d1 d2], dp/du x dp/dv = (e1 x e2) / det M:
+    # its sign against the face normal e1 x e2 is that of the UV triangle's signed area.
+    t = uvs[faces].astype(np.float64)
+    d1, d2 = t[:, 1] - t[:, 0], t[:, 2] - t[:, 0]
+    return d1[:, 0] * d2[:, 1] - d1[:, 1] * d2[:, 0] > 0.0
 
 
 def opacity(material: Material) -> np.ndarray | float | None:
@@ -76,37 +89,82 @@ class BsdfFactory:
 
         if material.albedo is not None:
             return self._bitmap(key, make, "bilinear")
-        return {"type": "rgb", "value": [float(c) for c in make()]}
+        value = make()
+        if value.max() > 1.0:  # (the blend's doubled colours: Mitsuba refuses rgb reflectances above 1)
+            return self._bitmap(key, lambda: value.reshape(1, 1, 3), "nearest")
+        return {"type": "rgb", "value": [float(c) for c in value]}
+
+    def _channel(self, material: Material, channel: int, factor: float) -> Any:
+        """Roughness (channel 1) or metallic (channel 2): the factor, times the texture's
+        channel (linear) where the material has one."""
+        texture = material.metallic_roughness
+        if texture is None:
+            return float(factor)
+        key = ("mr", id(texture), channel, factor)
+        return self._bitmap(key, lambda: texture[..., channel : channel + 1] * F32(factor / 255.0), "bilinear")
+
+    def _transmitted(self, material: Material) -> Any:
+        """Twice the transmitted colour (the blend halves it): the transmission texture in
+        linear light, or the albedo times the transmittance, capped to 1 - albedo."""
+        if material.transmission is None:
+            return self._colour(material, 2.0, np.asarray(material.transmittance, F32))
+        texture = material.transmission
+        return self._bitmap(("transmission", id(texture)), lambda: SRGB_TO_LINEAR[texture] * F32(2.0), "bilinear")
 
     def _reflector(self, material: Material, scale: float = 1.0) -> dict:
         return {
             "type": "principled",
             "base_color": self._colour(material, scale),
-            "roughness": float(material.roughness),
-            "metallic": float(material.metallic),
+            "roughness": self._channel(material, 1, material.roughness),
+            "metallic": self._channel(material, 2, material.metallic),
             "specular": 0.5,
         }
 
-    def bsdf(self, material: Material) -> dict:
-        """The BSDF dict of ``material``."""
-        if material.transmittance is not None:
-            tint = np.asarray(material.transmittance, F32)
+    def _normals(self, material: Material, mirrored: bool) -> Any:
+        """The normal map as Mitsuba reads it: unit vectors encoded as (n + 1) / 2, glTF's
+        scale applied, and the bitangent turned to Mitsuba's frame.
+
+        Mitsuba's shading frame has s along dp/du and t = n x s: on a face whose UVs are laid
+        out as glTF's usually are (v growing down the image, so dp/du x dp/dv points against
+        the normal) t is the image's up, glTF's +y; on a mirrored face it is down, so those
+        faces get the map with y negated (``mirrored``)."""
+        texture = material.normal_map
+        assert texture is not None
+
+        def make() -> np.ndarray:
+            n = texture.astype(F32) * F32(2.0 / 255.0) - F32(1.0)
+            n[..., :2] *= F32(material.normal_scale)
+            if mirrored:
+                n[..., 1] = -n[..., 1]
+            n /= np.maximum(np.linalg.norm(n, axis=-1, keepdims=True), F32(1e-6))
+            return (n + F32(1.0)) * F32(0.5)
+
+        return self._bitmap(("normals", id(texture), material.normal_scale, mirrored), make, "bilinear")
+
+    def bsdf(self, material: Material, mirrored: bool = False) -> dict:
+        """The BSDF dict of ``material`` (``mirrored``: for faces whose UVs are mirrored, which
+        matters only to normal maps; see :func:`mirrored_faces`)."""
+        roughness = self._channel(material, 1, material.roughness)
+        if material.transmittance is not None or material.transmission is not None:
             surface: dict = {
                 "type": "blendbsdf",
                 "weight": 0.5,
                 "reflect": {"type": "twosided", "bsdf": self._reflector(material, 2.0)},
                 "transmit": {
                     "type": "principledthin",
-                    "base_color": self._colour(material, 2.0, tint),
+                    "base_color": self._transmitted(material),
                     "diff_trans": 2.0,
                     "spec_trans": 0.0,
-                    "roughness": float(material.roughness),
+                    "roughness": roughness,
                 },
             }
         elif material.double_sided:
             surface = {"type": "twosided", "bsdf": self._reflector(material)}
         else:
             surface = self._reflector(material)
+        if material.normal_map is not None:
+            # outside twosided: the back side is then shaded in the perturbed frame, mirrored
+            surface = {"type": "normalmap", "normalmap": self._normals(material, mirrored), "bsdf": surface}
         cut = opacity(material)
         if cut is None:
             return surface

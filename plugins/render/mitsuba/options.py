@@ -35,6 +35,10 @@ class MitsubaOptions(Options):
     raycast renderer's units is white."""
     tonemap: Literal["clip", "reinhard"] = "clip"
     """Linear to display, as in raycast."""
+    radiance: bool = False
+    """Also keep each view's linear radiance (before exposure and tone mapping, denoised when
+    the RGB is): the dataset gets ``radiance/<frame>.exr``, float32 R, G, B, scaled as the RGB
+    is before exposure (a white surface under irradiance 1 in raycast's units has value 1)."""
     seed: int = Field(0, ge=0, le=2**32 - 1)
     """Seed of the path sampling (mixed with the view: every view has its own noise, the same
     view always the same)."""

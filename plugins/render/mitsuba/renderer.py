@@ -122,13 +122,14 @@ class MitsubaRenderer(Renderer):
         camera: CameraModel,
         world_T_camera: np.ndarray,
         link_poses: Mapping[str, Mapping[str, np.ndarray]],
-    ) -> np.ndarray:
+    ) -> tuple[np.ndarray, np.ndarray | None]:
         H, W = camera.height, camera.width
         self._place_arms(link_poses)
-        linear = np.ascontiguousarray(self.radiance(camera, world_T_camera)).reshape(-1, 3)
+        radiance = np.ascontiguousarray(self.radiance(camera, world_T_camera), F32)
         rgb = np.empty((H * W, 3), np.uint8)
-        encode_srgb8(linear, rgb, self.options.exposure, self.options.tonemap)
-        return rgb.reshape(H, W, 3)
+        linear = radiance.reshape(-1, 3)
+        encode_srgb8(linear.copy() if self.options.radiance else linear, rgb, self.options.exposure, self.options.tonemap)
+        return rgb.reshape(H, W, 3), (radiance.reshape(H, W, 3) if self.options.radiance else None)
 
     def render(
         self,
@@ -142,12 +143,8 @@ class MitsubaRenderer(Renderer):
         if tracer.arms:
             tracer.place_arms(link_poses)
         exact = tracer.exact(camera, world_T_camera, seg_mode=self.settings.seg_mode, label_map=label_map(self.settings.labels))
-        return Frame(
-            rgb=self.render_rgb(camera, world_T_camera, link_poses),
-            labels=exact["labels"],
-            depth=exact["depth"],
-            instances=exact.get("instances"),
-        )
+        rgb, radiance = self.render_rgb(camera, world_T_camera, link_poses)
+        return Frame(rgb=rgb, labels=exact["labels"], depth=exact["depth"], instances=exact.get("instances"), radiance=radiance)
 
     def close(self) -> None:
         if self._tracer is not None:

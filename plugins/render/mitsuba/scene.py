@@ -23,7 +23,7 @@ from agrisim.errors import ConfigError
 from agrisim.scene.model import Light, Mesh
 
 from .options import MitsubaOptions
-from .materials import BsdfFactory
+from .materials import BsdfFactory, mirrored_faces
 
 F32 = np.float32
 #: readable environment maps
@@ -86,14 +86,20 @@ def light_dict(light: Light, transform: Any) -> dict:
     return {"type": "point", "position": [float(x) for x in light.position], "intensity": {"type": "rgb", "value": intensity}}
 
 
-def _split(mesh: Mesh) -> Iterable[tuple[int, np.ndarray, np.ndarray, np.ndarray | None]]:
-    """(material index, vertices, faces, uvs) of each material's part of ``mesh``, its vertices
-    renumbered (Mitsuba gives a mesh one BSDF)."""
+def _split(mesh: Mesh) -> Iterable[tuple[int, bool, np.ndarray, np.ndarray, np.ndarray | None]]:
+    """(material index, mirrored, vertices, faces, uvs) of each material's part of ``mesh``, its
+    vertices renumbered (Mitsuba gives a mesh one BSDF); a normal-mapped material's faces are
+    split further into unmirrored and mirrored UVs (:func:`mirrored_faces`)."""
     for m in np.unique(mesh.face_material):
         faces = mesh.faces[mesh.face_material == m]
-        used, inverse = np.unique(faces, return_inverse=True)
-        uvs = mesh.uvs[used] if mesh.uvs is not None else None
-        yield int(m), mesh.vertices[used], inverse.reshape(-1, 3).astype(np.uint32), uvs
+        groups = [(False, faces)]
+        if mesh.materials[m].normal_map is not None and mesh.uvs is not None:
+            flip = mirrored_faces(faces, mesh.uvs)
+            groups = [(g, faces[flip == g]) for g in (False, True) if np.any(flip == g)]
+        for mirrored, part in groups:
+            used, inverse = np.unique(part, return_inverse=True)
+            uvs = mesh.uvs[used] if mesh.uvs is not None else None
+            yield int(m), mirrored, mesh.vertices[used], inverse.reshape(-1, 3).astype(np.uint32), uvs
 
 
 @dataclass
@@ -132,14 +138,14 @@ def build(
         )
 
     bsdfs = BsdfFactory(texture)
-    made: dict[int, Any] = {}  # id(material) -> loaded BSDF (meshes sharing a material share it)
+    made: dict[tuple[int, bool], Any] = {}  # (id(material), mirrored) -> BSDF, shared by meshes
 
-    def shape(name: str, mesh: Mesh, m: int, v: np.ndarray, f: np.ndarray, uv: np.ndarray | None) -> Any:
+    def shape(name: str, mesh: Mesh, m: int, mirrored: bool, v: np.ndarray, f: np.ndarray, uv: np.ndarray | None) -> Any:
         material = mesh.materials[m]
-        if id(material) not in made:
-            made[id(material)] = mi.load_dict(bsdfs.bsdf(material))
+        if (id(material), mirrored) not in made:
+            made[id(material), mirrored] = mi.load_dict(bsdfs.bsdf(material, mirrored))
         props = mi.Properties()
-        props["bsdf"] = made[id(material)]
+        props["bsdf"] = made[id(material), mirrored]
         shp = mi.Mesh(name, len(v), len(f), props=props, has_vertex_normals=False, has_vertex_texcoords=uv is not None)
         params = mi.traverse(shp)
         params["vertex_positions"] = mi.Float(np.ascontiguousarray(v, F32).ravel())
@@ -153,8 +159,8 @@ def build(
     for i, mesh in enumerate(meshes):
         if len(mesh.faces) == 0:
             continue
-        for m, v, f, uv in _split(mesh):
-            scene[f"mesh_{i:03d}_{m:03d}"] = shape(f"{mesh.name}/{m}", mesh, m, v, f, uv)
+        for m, mirrored, v, f, uv in _split(mesh):
+            scene[f"mesh_{i:03d}_{m:03d}" + ("_mirrored" if mirrored else "")] = shape(f"{mesh.name}/{m}", mesh, m, mirrored, v, f, uv)
     for i, light in enumerate(lights):
         d = light_dict(light, mi.ScalarTransform4f)
         scene[f"light_{i:02d}"] = d
@@ -170,8 +176,8 @@ def build(
     parts = SceneParts(scene)
     for a, (arm, links) in enumerate(arms.items()):
         for j, (link, mesh) in enumerate(links):
-            for m, v, f, uv in _split(mesh):
-                key = f"arm_{a}_{j:02d}_{m:02d}"
-                scene[key] = shape(f"{arm}/{link}/{m}", mesh, m, v, f, uv)
+            for m, mirrored, v, f, uv in _split(mesh):
+                key = f"arm_{a}_{j:02d}_{m:02d}" + ("_mirrored" if mirrored else "")
+                scene[key] = shape(f"{arm}/{link}/{m}", mesh, m, mirrored, v, f, uv)
                 parts.arms.append(ArmPart(arm, link, v, f"{key}.vertex_positions"))
     return parts
