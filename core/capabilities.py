@@ -56,6 +56,13 @@ class ReconstructorCapabilities:
     """A point cloud per label."""
     meshes: bool = False
     """A surface mesh per label."""
+    needs_cuda: bool = False
+    """Runs only with a CUDA GPU that PyTorch can use (refused elsewhere before anything runs)."""
+    needs_hidden_robots: bool = False
+    """Needs views without the arms in them (``--hide-robots``): the arms move between views,
+    which a static scene model cannot explain."""
+    folder: str | None = None
+    """Writes files of its own into ``RUN/<folder>/`` (beside ``clouds/``)."""
 
 
 #: kind -> its capabilities type (kinds without one declare nothing)
@@ -99,3 +106,31 @@ def check_renderer(spec: BackendSpec, renderers: Mapping[str, BackendSpec], seg_
             f"(it does segmentation modes {modes}{', organ labels' if spec.capabilities.organ_labels else ', no organ labels'})"
             f"{offer}"
         )
+
+
+def cuda_usable() -> str | None:
+    """None when PyTorch is installed and sees a CUDA GPU, else why not (one line)."""
+    import importlib.util
+
+    if importlib.util.find_spec("torch") is None:
+        return "PyTorch is not installed"
+    import torch
+
+    if not torch.cuda.is_available():
+        return "PyTorch sees no CUDA GPU here"
+    return None
+
+
+def check_reconstructor(spec: BackendSpec, hide_robots: bool) -> None:
+    """Refuse reconstructing with ``spec`` where it cannot run: without a CUDA GPU when it needs
+    one, or on views with the arms in them when it needs them hidden."""
+    caps = spec.capabilities
+    if getattr(caps, "needs_hidden_robots", False) and not hide_robots:
+        raise UserError(
+            f"reconstructor {spec.name!r} needs views without the arms in them (they move between views): "
+            "render the run with --hide-robots"
+        )
+    if getattr(caps, "needs_cuda", False):
+        why = cuda_usable()
+        if why is not None:
+            raise UserError(f"reconstructor {spec.name!r} needs a CUDA GPU: {why}")

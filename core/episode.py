@@ -44,7 +44,7 @@ from agrisim.robot.segments import segment_is_valid
 from agrisim.evaluation.session import ReconSession, summary_metrics
 from agrisim.files.rundir import prepare_out_dir, resolve_out_dir, saved_run
 from agrisim.scene.model import Scene
-from agrisim.capabilities import check_renderer
+from agrisim.capabilities import check_reconstructor, check_renderer
 from agrisim.records import Run, RunSummary, SetpointResult
 from agrisim.kinds import KINDS
 from agrisim.registry import BackendSpec, Registry, blame, loads_everything, make_plugin_manager
@@ -110,6 +110,7 @@ class Episode:
                 )
             # Reconstruction fuses rendered views; without a renderer there is nothing to fuse.
             if config.recon.backend != "none":
+                check_reconstructor(self.registry.get("reconstructor", config.recon.backend), config.render.hide_robots)
                 self.recon_spec, self.recon_options = self._backend("reconstructor", config.recon)
             else:
                 config.recon.check_tables("recon", self.registry.specs("reconstructor"))

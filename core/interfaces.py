@@ -293,6 +293,11 @@ class Reconstruction:
 
     clouds: dict[str, Cloud] = field(default_factory=dict)
     meshes: dict[str, SurfaceMesh] = field(default_factory=dict)
+    #: the reconstructor's own measurements, written into ``metrics.json`` under its name
+    metrics: dict[str, Any] = field(default_factory=dict)
+    #: the reconstructor's own files, path relative to the run directory (inside the folder its
+    #: capabilities declare) -> contents, each written atomically
+    files: dict[str, bytes] = field(default_factory=dict)
 
 
 class Reconstructor(ABC):

@@ -8,6 +8,7 @@ the same session. :func:`write_reconstruction` writes ``clouds/`` and ``metrics.
 
 from __future__ import annotations
 
+import importlib.util
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -16,6 +17,7 @@ import numpy as np
 
 from agrisim.files import layout
 from agrisim.files.atomic import write_bytes, write_json, write_through
+from agrisim.capabilities import check_reconstructor
 from agrisim.errors import OutputError, UserError
 from agrisim.interfaces import ALL, Cloud, Reconstruction, Reconstructor, SurfaceMesh
 from agrisim.files.rundir import camera_from_json, read_run
@@ -79,6 +81,8 @@ class ReconSession:
             self._announce_merged(final)
         truth = self.stats.truth
         metrics: dict[str, Any] = dict(meta or {})
+        if result.metrics:
+            metrics[str(metrics.get("recon", "recon"))] = result.metrics
         metrics.update(
             {
                 "frames": self.stats.frames,
@@ -118,19 +122,32 @@ def output_files(out_dir: Path, result: Reconstruction) -> list[Path]:
     )
 
 
-def write_reconstruction(out_dir: Path, result: Reconstruction, metrics: dict[str, Any]) -> None:
-    """``clouds/<label>.ply`` (binary PLY, colours), ``clouds/<label>_mesh.ply`` and
-    ``metrics.json``, each written atomically."""
-    import open3d as o3d
+def cloud_ply(cloud: Cloud) -> bytes:
+    """A cloud as binary PLY (float64 x, y, z and uchar red, green, blue): the very bytes
+    Open3D's ``write_point_cloud`` writes, without needing Open3D (a GPU machine's minimal
+    install writes clouds too)."""
+    header = (
+        "ply\nformat binary_little_endian 1.0\ncomment Created by Open3D\n"
+        f"element vertex {len(cloud.points)}\n"
+        "property double x\nproperty double y\nproperty double z\n"
+        "property uchar red\nproperty uchar green\nproperty uchar blue\nend_header\n"
+    )
+    rows = np.empty(len(cloud.points), [("xyz", "<f8", 3), ("rgb", "u1", 3)])
+    rows["xyz"], rows["rgb"] = cloud.points, cloud.colors
+    return header.encode() + rows.tobytes()
 
+
+def write_reconstruction(out_dir: Path, result: Reconstruction, metrics: dict[str, Any]) -> None:
+    """``clouds/<label>.ply`` (binary PLY, colours), ``clouds/<label>_mesh.ply``, the
+    reconstructor's own files and ``metrics.json``, each written atomically."""
     (out_dir / layout.CLOUDS).mkdir(parents=True, exist_ok=True)
     for name, cloud in result.clouds.items():
-        if len(cloud.points) == 0:  # Open3D refuses to write an empty cloud; readers accept one
-            write_bytes(layout.cloud(out_dir, name), _EMPTY_PLY)
-            continue
-        pcd = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(cloud.points))
-        pcd.colors = o3d.utility.Vector3dVector(cloud.colors.astype(np.float64) / 255.0)
-        write_through(layout.cloud(out_dir, name), lambda tmp, g=pcd: o3d.io.write_point_cloud(tmp, g, write_ascii=False))
+        # (an empty cloud too: Open3D refuses to write one, readers accept it)
+        write_bytes(layout.cloud(out_dir, name), cloud_ply(cloud) if len(cloud.points) else _EMPTY_PLY)
+    for relative, data in result.files.items():
+        write_bytes(out_dir / relative, data)
+    if result.meshes:
+        import open3d as o3d
     for name, mesh in result.meshes.items():
         if len(mesh.vertices) == 0:
             write_bytes(layout.surface(out_dir, name), _EMPTY_PLY)
@@ -187,12 +204,15 @@ def rebuild(
     return session
 
 
-def check_writable(out_dir: Path, labels: LabelTable, overwrite: bool) -> None:
-    """Refuse, before any work, to replace a reconstruction's outputs unless ``overwrite``."""
+def check_writable(out_dir: Path, labels: LabelTable, overwrite: bool, folder: str | None = None) -> None:
+    """Refuse, before any work, to replace a reconstruction's outputs (and the reconstructor's
+    own ``folder``) unless ``overwrite``."""
     names = [lab.name for lab in labels.labels if lab.id != 0] + [ALL]
     candidates = [out_dir / layout.METRICS_JSON] + [
         path for name in names for path in (layout.cloud(out_dir, name), layout.surface(out_dir, name))
     ]
+    if folder is not None:
+        candidates.insert(0, out_dir / folder)
     existing = [p for p in candidates if p.exists()]
     if existing and not overwrite:
         raise OutputError(f"{existing[0]} already exists; pass --overwrite to replace it or --out DIR to write elsewhere")
@@ -232,10 +252,16 @@ def reconstruct_saved_run(
     spec = registry.get("reconstructor", config.recon.backend)
     config.recon.check_tables("recon", registry.specs("reconstructor"))
     options = backend_options(spec.options_model, config.recon.options_for(spec.name), f"reconstructor {spec.name!r}")
+    check_reconstructor(spec, config.render.hide_robots)
+    if spec.preflight is not None:
+        spec.preflight(config, options)
     labels = LabelTable.from_json(run["labels"])
     out = out_dir if out_dir is not None else run_dir
-    check_writable(out, labels, overwrite)
-    truth = truth_from_run(run_dir, config.metrics.truth_samples)
+    check_writable(out, labels, overwrite, getattr(spec.capabilities, "folder", None))
+    # Accuracy against the true surface needs Open3D (Embree's closest points); a GPU machine's
+    # minimal install reconstructs without it and says so in metrics.json.
+    measurable = importlib.util.find_spec("open3d") is not None
+    truth = truth_from_run(run_dir, config.metrics.truth_samples) if measurable else None
     session = rebuild(run_dir, registry.build("reconstructor", spec, labels, options), labels, run, cameras, truth, config.metrics.thresholds_mm, progress)
     meta = {
         "plant": config.plant,
@@ -245,6 +271,8 @@ def reconstruct_saved_run(
         "seed": config.seed,
         "source": str(run_dir),
     }
+    if not measurable:
+        meta["truth_note"] = "accuracy not measured: Open3D is not installed here"
     result, metrics = session.finish(meta)
     write_reconstruction(out, result, metrics)
     return out, metrics

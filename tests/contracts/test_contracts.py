@@ -28,6 +28,13 @@ def test_every_kind_with_backends_is_covered() -> None:
 
 @pytest.mark.parametrize(("kind", "name"), CASES, ids=[f"{k}-{n}" for k, n in CASES])
 def test_backend_keeps_its_contract(kind: str, name: str) -> None:
+    caps = REGISTRY.get(kind, name).capabilities
+    if getattr(caps, "needs_cuda", False):
+        from agrisim.capabilities import cuda_usable
+
+        why = cuda_usable()
+        if why is not None:
+            pytest.skip(f"{name} needs a CUDA GPU ({why})")
     check(kind, name, REGISTRY)
 
 

@@ -328,3 +328,18 @@ def test_incomplete_runs_are_refused(run_dir: Path, tmp_path: Path, capsys: pyte
     err = capsys.readouterr().err
     assert exc.value.code == 2 and f"depth/{frame}.png" in err and err.count("\n") == 1
     assert not (copy / "metrics.json").exists() and not any((copy / "clouds").iterdir())
+
+
+def test_cloud_ply_is_open3ds_own_bytes(tmp_path: Path) -> None:
+    """Clouds are written without Open3D (a GPU machine's minimal install writes them too), in
+    the very bytes Open3D's writer gives, every colour value included."""
+    from agrisim.evaluation.session import cloud_ply
+
+    rng = np.random.default_rng(5)
+    colors = np.stack([np.arange(256)] * 3, 1).astype(np.uint8)
+    cloud = Cloud(rng.normal(size=(256, 3)), colors)
+    pcd = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(cloud.points))
+    pcd.colors = o3d.utility.Vector3dVector(colors.astype(np.float64) / 255.0)
+    path = tmp_path / "c.ply"
+    o3d.io.write_point_cloud(str(path), pcd, write_ascii=False)
+    assert cloud_ply(cloud) == path.read_bytes()

@@ -1,0 +1,40 @@
+"""Options of the ``splat`` reconstructor (``[recon.splat]``)."""
+
+from __future__ import annotations
+
+from typing import Literal
+
+from pydantic import Field
+
+from agrisim import Options
+
+
+class SplatOptions(Options):
+    """Options of the ``splat`` reconstructor (3D Gaussian splatting with gsplat)."""
+
+    iterations: int = Field(7000, ge=1, le=1_000_000)
+    """Training steps, one training view each (gsplat's own trainer uses 7,000 for a quick and
+    30,000 for a full fit)."""
+    downscale: Literal[1, 2, 4, 8] = 1
+    """Train and evaluate at 1/downscale of the run's resolution (box-averaged images, K scaled
+    to match)."""
+    test_fraction: float = Field(0.1, gt=0.0, lt=1.0)
+    """Share of the views held out for testing, chosen at random with ``seed`` (the paper: 10%)."""
+    seed: int = Field(0, ge=0, le=2**32 - 1)
+    """Seed of the split, the initialisation and the training order."""
+    init: Literal["depth", "random"] = "depth"
+    """``depth``: Gaussians start at the training views' true depth back-projected (the run's
+    own geometry, where COLMAP's sparse points would be in a photographed scene), thinned to
+    ``init_points``; ``random``: uniform in the box the cameras look into."""
+    init_points: int = Field(100_000, ge=100, le=10_000_000)
+    """Gaussians at the start (densification and pruning then change their number)."""
+    sh_degree: int = Field(3, ge=0, le=3)
+    """Spherical harmonics degree of the colours (view dependence), raised one step every
+    1,000 iterations as gsplat's trainer does."""
+    background: Literal["random", "black", "white"] = "random"
+    """Colour behind the Gaussians while training: ``random`` (a new colour every step, so that
+    no Gaussian can be transparent and pass for background), or a fixed one. Evaluation renders
+    on black; the lab's walls fill every view, so the background shows only where the fit has
+    holes."""
+    ssim_weight: float = Field(0.2, ge=0.0, le=1.0)
+    """Weight of (1 - SSIM) in the loss against the L1 term (3DGS's 0.2)."""

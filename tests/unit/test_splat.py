@@ -1,0 +1,163 @@
+"""The ``splat`` reconstructor's parts that need no GPU (CI runs these; the training itself is in
+tests/gpu/test_splat_cuda.py). Truths: scikit-image's PSNR and SSIM, trimesh's PLY reader,
+OpenCV's pinhole projection of ``cameras.json``'s K and pose, and the refusals' own promises
+(exit 2, one line, nothing written)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+import trimesh
+from skimage.metrics import peak_signal_noise_ratio, structural_similarity
+
+from agrisim.config import build_config
+from agrisim.episode import Episode
+from agrisim.errors import OutputError, UserError
+from agrisim.evaluation.session import check_writable
+from agrisim.plugins.recon.splat.cameras import downscale_image, gsplat_camera
+from agrisim.plugins.recon.splat.ply import splat_ply
+from agrisim.plugins.recon.splat.quality import psnr, ssim
+from agrisim.plugins.recon.splat.split import minimum_views, split_views
+from agrisim.scene.model import Label, LabelTable
+from agrisim.scene.transforms import look_at
+
+FRAMES = [f"r{1 + i % 2}_{i // 2:03d}" for i in range(100)]
+
+
+def test_split_is_seeded_disjoint_and_the_papers_share() -> None:
+    train, test = split_views(FRAMES, 0.1, seed=7)
+    assert len(test) == 10 and len(train) == 90
+    assert not set(train) & set(test) and sorted(train + test) == sorted(FRAMES)
+    assert split_views(FRAMES, 0.1, seed=7) == (train, test)  # the same seed: the same split
+    assert split_views(FRAMES, 0.1, seed=8)[1] != test
+    assert [f for f in FRAMES if f in set(test)] == test  # capture order kept
+
+
+def test_too_few_views_are_refused_naming_the_minimum() -> None:
+    n = minimum_views(0.1)
+    split_views(FRAMES[:n], 0.1, 0)
+    with pytest.raises(UserError, match=f"at least {n}"):
+        split_views(FRAMES[: n - 1], 0.1, 0)
+
+
+@pytest.mark.parametrize("downscale", [1, 2, 4])
+def test_gsplat_camera_puts_points_on_their_opencv_pixels(downscale: int) -> None:
+    """World points through the matrices handed to gsplat (its pixel centres at +0.5) land on
+    the pixel OpenCV's K and the pose put them on, in the box-downscaled image too: OpenCV's
+    (u, v) is corner coordinate (u + 0.5, v + 0.5), divided by the downscale factor."""
+    K = np.array([[800.0, 0.0, 470.3], [0.0, 800.0, 265.9], [0.0, 0.0, 1.0]])
+    T = look_at(np.array([0.4, -0.9, 1.3]), np.array([0.0, 0.0, 0.9]))
+    rng = np.random.default_rng(2)
+    points = rng.uniform([-0.2, -0.2, 0.8], [0.2, 0.2, 1.1], (50, 3))
+    cam = (points - T[:3, 3]) @ T[:3, :3]
+    opencv = (cam @ K.T)[:, :2] / cam[:, 2:]
+    viewmat, Kg = gsplat_camera(K, T, downscale)
+    p = np.column_stack([points, np.ones(len(points))]) @ viewmat.T
+    corner = (p[:, :3] @ Kg.T)[:, :2] / p[:, 2:3]
+    assert np.allclose(corner * downscale - 0.5, opencv, atol=1e-9)
+    assert np.allclose(viewmat @ T, np.eye(4), atol=1e-12)
+
+
+def test_downscale_averages_blocks() -> None:
+    image = np.arange(6 * 8, dtype=np.float64).reshape(6, 8)
+    small = downscale_image(image, 2)
+    assert small.shape == (3, 4) and small[0, 0] == (0 + 1 + 8 + 9) / 4
+
+
+def _natural(rng: np.random.Generator, shape: tuple[int, ...]) -> np.ndarray:
+    """A smooth random image in [0, 1] (noise blurred by cumulative sums)."""
+    x = rng.random(shape).cumsum(axis=0).cumsum(axis=1)
+    x -= x.min()
+    return x / x.max()
+
+
+def test_psnr_and_ssim_agree_with_scikit_image() -> None:
+    rng = np.random.default_rng(0)
+    a = _natural(rng, (64, 80, 3))
+    b = np.clip(a + rng.normal(0, 0.05, a.shape), 0, 1)
+    assert psnr(a, b) == pytest.approx(peak_signal_noise_ratio(a, b, data_range=1.0), rel=1e-12)
+    reference = structural_similarity(a, b, data_range=1.0, channel_axis=2, gaussian_weights=True, sigma=1.5, use_sample_covariance=False)
+    assert ssim(a, b) == pytest.approx(reference, abs=1e-9)
+    assert ssim(a, a) == pytest.approx(1.0) and psnr(a, a) == float("inf")
+    mask = rng.random(a.shape[:2]) < 0.3
+    assert psnr(a, b, mask) == pytest.approx(peak_signal_noise_ratio(a[mask], b[mask], data_range=1.0), rel=1e-12)
+
+
+def test_splat_ply_reads_back_with_trimesh_in_the_viewers_layout(tmp_path: Path) -> None:
+    rng = np.random.default_rng(3)
+    n, k = 40, 15
+    means, quats = rng.normal(size=(n, 3)), rng.normal(size=(n, 4))
+    log_scales, opacity = rng.normal(size=(n, 3)), rng.normal(size=n)
+    sh0, sh_rest = rng.normal(size=(n, 3)), rng.normal(size=(n, k, 3))
+    path = tmp_path / "splats.ply"
+    path.write_bytes(splat_ply(means, quats, log_scales, opacity, sh0, sh_rest))
+    data = trimesh.load(path).metadata["_ply_raw"]["vertex"]["data"]
+    names = list(data.dtype.names)
+    assert names[:9] == ["x", "y", "z", "nx", "ny", "nz", "f_dc_0", "f_dc_1", "f_dc_2"]
+    assert names[9 : 9 + 3 * k] == [f"f_rest_{i}" for i in range(3 * k)]
+    assert names[9 + 3 * k :] == ["opacity", "scale_0", "scale_1", "scale_2", "rot_0", "rot_1", "rot_2", "rot_3"]
+    assert all(data.dtype[name] == np.float32 for name in names) and len(data) == n
+    f32 = lambda a: a.astype(np.float32)  # noqa: E731
+    assert np.array_equal(np.column_stack([data["x"], data["y"], data["z"]]), f32(means))
+    assert np.array_equal(data["opacity"], f32(opacity)) and np.array_equal(data["rot_0"], f32(quats[:, 0]))
+    # f_rest: all of red's coefficients, then green's, then blue's
+    for c in range(3):
+        for j in range(k):
+            assert np.array_equal(data[f"f_rest_{c * k + j}"], f32(sh_rest[:, j, c]))
+
+
+def test_an_existing_splat_folder_needs_overwrite(tmp_path: Path) -> None:
+    table = LabelTable([Label(0, "background", (0, 0, 0)), Label(1, "plant", (0, 255, 0))])
+    check_writable(tmp_path, table, False, "splat")
+    (tmp_path / "splat").mkdir()
+    with pytest.raises(OutputError, match="splat already exists"):
+        check_writable(tmp_path, table, False, "splat")
+    check_writable(tmp_path, table, True, "splat")
+
+
+def _run(out: Path, hide_robots: bool) -> Path:
+    config = build_config(
+        {
+            "plant": "indian_cress",
+            "render": {"hide_robots": hide_robots},
+            "renderer": {"raycast": {"shadow_samples": 0}},
+            "physics": {"backend": "kinematic"},
+            "routine": {"setpoints": "1x3"},
+            "camera": {"resolution": "64x36"},
+            "recon": {"backend": "none"},
+            "output": {"out": str(out), "no_rrd": True},
+        }
+    )
+    _, summary = Episode(config).run()
+    assert summary.status == "complete"
+    return out
+
+
+@pytest.fixture(scope="module")
+def runs(tmp_path_factory: pytest.TempPathFactory) -> dict[bool, Path]:
+    root = tmp_path_factory.mktemp("splat")
+    return {hidden: _run(root / f"hidden_{hidden}", hidden) for hidden in (True, False)}
+
+
+def _listing(root: Path) -> list[str]:
+    return sorted(str(p.relative_to(root)) for p in root.rglob("*"))
+
+
+def test_refusals_write_nothing(runs: dict[bool, Path], cli, tmp_path: Path) -> None:  # noqa: ANN001
+    """Arms in view; no CUDA GPU (CI: no PyTorch); ``agrisim run --recon splat`` without
+    --hide-robots: exit 2, one line, nothing written."""
+    import importlib.util
+
+    before = {h: _listing(p) for h, p in runs.items()}
+    code, _, err = cli(["recon", str(runs[False]), "--recon", "splat"])
+    assert code == 2 and "--hide-robots" in err and len(err.strip().splitlines()) == 1
+    if importlib.util.find_spec("torch") is None or importlib.util.find_spec("gsplat") is None:
+        code, _, err = cli(["recon", str(runs[True]), "--recon", "splat"])
+        assert code == 2 and len(err.strip().splitlines()) == 1
+        assert "needs a CUDA GPU" in err or "needs gsplat" in err
+    out = tmp_path / "new"
+    code, _, err = cli(["run", "--plant", "indian_cress", "--recon", "splat", "--setpoints", "1x3", "--out", str(out)])
+    assert code == 2 and "--hide-robots" in err and not out.exists()
+    assert {h: _listing(p) for h, p in runs.items()} == before
