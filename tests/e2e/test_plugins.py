@@ -502,6 +502,10 @@ def _hookspecs() -> dict[str, object]:
     }
 
 
+#: libraries of optional extras that a backend's submodules may import (not installed in CI)
+OPTIONAL_LIBRARIES = {"torch", "gsplat"}
+
+
 def _builtin_implementations() -> set[str]:
     """Hooks implemented anywhere in agrisim's own entry-point modules (module functions and
     methods of the classes they define, e.g. the sinks' per-run objects)."""
@@ -516,7 +520,12 @@ def _builtin_implementations() -> set[str]:
         root = importlib.import_module(ep.module)
         modules = [root]
         if hasattr(root, "__path__"):  # a backend package: its submodules define the classes
-            modules += [importlib.import_module(m.name) for m in pkgutil.walk_packages(root.__path__, f"{root.__name__}.")]
+            for m in pkgutil.walk_packages(root.__path__, f"{root.__name__}."):
+                try:
+                    modules.append(importlib.import_module(m.name))
+                except ModuleNotFoundError as exc:  # an optional extra's library (splat: PyTorch)
+                    if exc.name not in OPTIONAL_LIBRARIES:
+                        raise
         for module in modules:
             _hook_names(module, marker, found)
     return found

@@ -124,8 +124,11 @@ class SplatReconstructor(Reconstructor):
 
         viewmats, Ks = cams(train)
         centres = np.array([v.world_T_camera[:3, 3] for v in self.views])
-        scene_scale = 1.1 * float(np.linalg.norm(centres - centres.mean(axis=0), axis=1).max())
         init_points, init_colors = self._initial_points(train, rng)
+        if o.extent == "cameras":
+            scene_scale = 1.1 * float(np.linalg.norm(centres - centres.mean(axis=0), axis=1).max())
+        else:
+            scene_scale = float(np.percentile(np.linalg.norm(init_points - centres.mean(axis=0), axis=1), 95))
 
         def report(step: int, total: int) -> None:
             if step == total or step % max(total // 10, 1) < 50:
@@ -193,6 +196,7 @@ class SplatReconstructor(Reconstructor):
             "test_views": len(test),
             "resolution": [int(s) for s in small(train[0].images.rgb).shape[1::-1]],
             "gaussians": int(len(splats.means)),
+            "scene_scale_m": round(scene_scale, 4),
             "train_seconds": round(splats.seconds, 2),
             "psnr": mean("psnr"),
             "ssim": mean("ssim"),

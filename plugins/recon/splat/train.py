@@ -99,10 +99,12 @@ def render(
         height=height,
         sh_degree=sh_degree,
         render_mode="RGB+ED" if depth else "RGB",
-        backgrounds=None if background is None else background[None],
+        packed=False,  # as gsplat's trainer; the strategy's statistics below assume it
     )
-    rgb = colors[0, ..., :3]
-    return rgb, (colors[0, ..., 3] if depth else None), alphas[0, ..., 0], info
+    rgb, alpha = colors[0, ..., :3], alphas[0, ..., 0]
+    if background is not None:  # composited here: gsplat 1.5.3 refuses backgrounds when packed
+        rgb = rgb + background * (1.0 - alpha[..., None])
+    return rgb, (colors[0, ..., 3] if depth else None), alpha, info
 
 
 def params_from_splats(splats: Splats, device: str = "cuda") -> dict[str, torch.Tensor]:
