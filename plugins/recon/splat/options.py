@@ -36,10 +36,11 @@ class SplatOptions(Options):
     no Gaussian can be transparent and pass for background), or a fixed one. Evaluation renders
     on black; the lab's walls fill every view, so the background shows only where the fit has
     holes."""
-    extent: Literal["cameras", "points"] = "cameras"
+    extent: Literal["cameras", "points"] = "points"
     """The scene's size, which scales the centres' learning rate and the size above which
-    Gaussians are pruned: ``cameras``, 1.1 x the cameras' largest distance from their centroid
-    (gsplat's trainer), or ``points``, the radius holding 95% of the initial points (the room
-    around the plant)."""
+    Gaussians are pruned: ``points``, the radius holding 95% of the initial points (the room
+    around the plant, 5.7 m), or ``cameras``, 1.1 x the cameras' largest distance from their
+    centroid (gsplat's trainer; 0.56 m here, which prunes the walls' Gaussians: 19.8 against
+    30.1 dB held-out PSNR on indian cress at 960x540, 7,000 steps)."""
     ssim_weight: float = Field(0.2, ge=0.0, le=1.0)
     """Weight of (1 - SSIM) in the loss against the L1 term (3DGS's 0.2)."""
