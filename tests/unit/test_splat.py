@@ -161,3 +161,31 @@ def test_refusals_write_nothing(runs: dict[bool, Path], cli, tmp_path: Path) -> 
     code, _, err = cli(["run", "--plant", "indian_cress", "--recon", "splat", "--setpoints", "1x3", "--out", str(out)])
     assert code == 2 and "--hide-robots" in err and not out.exists()
     assert {h: _listing(p) for h, p in runs.items()} == before
+
+
+def test_training_recording_reads_back_with_rerun(tmp_path: Path) -> None:
+    """The loss on the step timeline (one chunk per column), the test images and the centres,
+    read back by Rerun's own reader."""
+    pytest.importorskip("rerun")
+    from rerun.chunk import RrdReader
+
+    from agrisim.plugins.recon.splat.recording import TIMELINE, training_recording
+
+    rng = np.random.default_rng(6)
+    loss = [(s, 1.0 / (1 + s), 1000 + s) for s in range(0, 500, 10)]
+    tests = {"r1_003": rng.integers(0, 256, (12, 30, 3), dtype=np.uint8)}
+    centres = rng.normal(size=(25, 3))
+    data = training_recording(loss, tests, centres, rng.integers(0, 256, (25, 3), dtype=np.uint8), np.full(25, 0.001))
+    path = tmp_path / "training.rrd"
+    path.write_bytes(data)
+    chunks: dict[str, list] = {}
+    for chunk in RrdReader(path).stream():
+        chunks.setdefault(chunk.entity_path.lstrip("/"), []).append(chunk.to_record_batch())
+    (batch,) = chunks["training/loss"]
+    scalars = [c for c in batch.schema.names if c.endswith("scalars")]
+    assert batch.column(TIMELINE).to_pylist() == [s for s, _, _ in loss]
+    assert np.allclose(np.concatenate(batch.column(scalars[0]).to_pylist()), [x for _, x, _ in loss])
+    assert "test/r1_003" in chunks
+    (points,) = chunks["world/splat_centres"]
+    positions = [c for c in points.schema.names if c.endswith("positions")]
+    assert np.allclose(np.array(points.column(positions[0]).to_pylist()[0]), centres.astype(np.float32))

@@ -11,7 +11,8 @@ What each part does:
 * :mod:`.train` fits the Gaussians (gsplat's rasteriser and its default densification
   strategy) and renders colour and depth; :mod:`.reconstructor` collects the views, trains,
   evaluates and returns the outputs (``RUN/splat/``, the metrics, the plant's splat centres as
-  its clouds).
+  its clouds); :mod:`.recording` writes the training as a Rerun recording where Rerun is
+  installed.
 """
 
 from __future__ import annotations

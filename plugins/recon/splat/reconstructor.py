@@ -4,7 +4,8 @@ with their true poses, and measures them on the held-out views and against the t
 Outputs (:class:`Reconstruction`): the plant's Gaussian centres as its clouds (per label, by a
 vote of the labels they project onto where the true depth says they are visible); the
 measurements (``metrics.json``, under ``splat``); and ``splat/``: ``splats.ply`` (the layout of
-:mod:`.ply`), ``split.json``, ``loss.csv`` and ``test/<frame>.png`` (truth, render, error).
+:mod:`.ply`), ``split.json``, ``loss.csv``, ``test/<frame>.png`` (truth, render, error) and,
+where Rerun is installed, ``training.rrd`` (:mod:`.recording`).
 """
 
 from __future__ import annotations
@@ -25,6 +26,7 @@ from .cameras import downscale_image, gsplat_camera
 from .options import SplatOptions
 from .ply import splat_ply
 from .quality import psnr, ssim
+from .recording import training_recording
 from .split import split_views
 
 #: a Gaussian counts as part of the reconstruction when at least this opaque
@@ -217,6 +219,11 @@ class SplatReconstructor(Reconstructor):
         files[f"{FOLDER}/loss.csv"] = ("step,loss,gaussians\n" + "".join(f"{s},{x:.6f},{n}\n" for s, x, n in splats.loss)).encode()
 
         colors = splats.colors
+        sigma = np.exp(splats.log_scales[plant].mean(axis=1))
+        tests = {v.frame: np.asarray(Image.open(io.BytesIO(files[f"{FOLDER}/test/{v.frame}.png"]))) for v in test}
+        rrd = training_recording(splats.loss, tests, splats.means[plant], colors[plant], sigma)
+        if rrd is not None:
+            files[f"{FOLDER}/training.rrd"] = rrd
         clouds = {}
         for lab in self.labels.labels:
             if lab.id != 0:
