@@ -189,3 +189,13 @@ def test_training_recording_reads_back_with_rerun(tmp_path: Path) -> None:
     (points,) = chunks["world/splat_centres"]
     positions = [c for c in points.schema.names if c.endswith("positions")]
     assert np.allclose(np.array(points.column(positions[0]).to_pylist()[0]), centres.astype(np.float32))
+
+
+def test_a_replaced_folder_keeps_nothing_stale(tmp_path: Path) -> None:
+    from agrisim.evaluation.session import write_reconstruction
+    from agrisim.interfaces import Reconstruction
+
+    write_reconstruction(tmp_path, Reconstruction(files={"splat/test/a.png": b"1", "splat/split.json": b"{}"}), {})
+    write_reconstruction(tmp_path, Reconstruction(files={"splat/test/b.png": b"2", "splat/split.json": b"[]"}), {})
+    assert sorted(str(p.relative_to(tmp_path / "splat")) for p in (tmp_path / "splat").rglob("*") if p.is_file()) == ["split.json", "test/b.png"]
+    assert (tmp_path / "splat" / "split.json").read_bytes() == b"[]"
