@@ -124,10 +124,12 @@ def _parser() -> argparse.ArgumentParser:
     export = sub.add_parser(
         "export",
         help="export a run directory to another tool's format",
-        description="Export a run directory: nerfstudio writes RUN_DIR/transforms.json and RUN_DIR/masks/.",
+        description="Export a run directory: nerfstudio writes RUN_DIR/transforms.json and RUN_DIR/masks/; "
+        "coco writes RUN_DIR/coco/annotations.json (COCO instance masks).",
     )
-    export.add_argument("format", choices=["nerfstudio"], help="the format: nerfstudio (transforms.json)")
+    export.add_argument("format", choices=["nerfstudio", "coco"], help="the format: nerfstudio (transforms.json) or coco")
     export.add_argument("run_dir", type=Path, metavar="RUN_DIR", help="a run's output directory (agrisim run --out)")
+    export.add_argument("--overwrite", action="store_true", help="replace an existing export (coco)")
     compare = sub.add_parser(
         "compare",
         help="the paper's Table 2: every plant in both segmentation modes, episodes on Ray",
@@ -399,6 +401,12 @@ def _cmd_plants(args: argparse.Namespace) -> int:
 
 
 def _cmd_export(args: argparse.Namespace) -> int:
+    if args.format == "coco":
+        from agrisim.files.coco import write_coco
+
+        out = write_coco(args.run_dir, args.overwrite)
+        print(f"wrote {out}")
+        return 0
     from agrisim.files.nerfstudio import write_nerfstudio
 
     out = write_nerfstudio(args.run_dir)

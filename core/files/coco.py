@@ -1,0 +1,104 @@
+"""The COCO export: ``RUN_DIR/coco/annotations.json`` in COCO's instance format, which
+pycocotools, Detectron2, MMDetection and Ultralytics' converters read.
+
+- ``images``: one per complete frame, ``file_name`` ``rgb/<frame>.png`` relative to the run
+  directory (the image root to give a loader), ``width``, ``height``.
+- ``categories``: the run's label table without background: id = label id, name = organ name
+  (or ``plant``), supercategory ``plant``.
+- ``annotations`` (rule): where the frame has leaf instances, each leaf instance's pixels are
+  one annotation whose category is the label most of its pixels carry; every other labelled
+  pixel (instance 0) is split into 8-connected regions per label (``scipy.ndimage.label``),
+  one annotation each. Masks are exact: the arms and the lab are background. Each has an RLE
+  ``segmentation`` (pycocotools' compressed counts), ``area`` (pixels), ``bbox`` [x, y, w, h]
+  and ``iscrowd`` 0.
+
+The semantic masks are the run's ``labels/<frame>.png`` themselves (uint8 label ids).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from PIL import Image
+
+from agrisim.errors import OutputError, UserError
+from agrisim.files import layout
+from agrisim.files.atomic import write_json
+from agrisim.files.rundir import read_run
+
+COCO_JSON = Path("coco") / "annotations.json"
+#: 8-connectivity: diagonal neighbours belong to one region (thin stems stay whole)
+EIGHT = np.ones((3, 3), bool)
+
+
+def _png(path: Path) -> np.ndarray:
+    with Image.open(path) as im:
+        return np.asarray(im)
+
+
+def frame_regions(labels: np.ndarray, instances: np.ndarray | None) -> list[tuple[int, np.ndarray]]:
+    """(category, mask) of every annotation of one frame, by the module's rule."""
+    from scipy import ndimage
+
+    out: list[tuple[int, np.ndarray]] = []
+    rest = labels != 0
+    if instances is not None:
+        for inst in np.unique(instances[rest]):
+            if inst == 0:
+                continue
+            mask = (instances == inst) & rest
+            out.append((int(np.bincount(labels[mask]).argmax()), mask))
+        rest &= instances == 0
+    for label in np.unique(labels[rest]):
+        regions, n = ndimage.label(rest & (labels == label), structure=EIGHT)
+        out += [(int(label), regions == k) for k in range(1, n + 1)]
+    return out
+
+
+def coco_document(run_dir: Path) -> dict[str, Any]:
+    """The annotations document of a complete run (everything read and checked first)."""
+    from pycocotools import mask as rle
+
+    run, cameras = read_run(run_dir)
+    frames = sorted(run.get("frames_complete") or [])
+    if not frames:
+        raise UserError(f"the run in {run_dir} has no rendered frames to annotate (was it made with --renderer none?)")
+    width, height = int(cameras["intrinsics"]["width"]), int(cameras["intrinsics"]["height"])
+    categories = [{"id": int(r["id"]), "name": r["name"], "supercategory": "plant"} for r in run["labels"] if int(r["id"]) != 0]
+    images, annotations = [], []
+    for image_id, frame in enumerate(frames, start=1):
+        images.append({"id": image_id, "file_name": f"rgb/{frame}.png", "width": width, "height": height})
+        labels = _png(layout.image(run_dir, "labels", frame))
+        path = layout.image(run_dir, "instances", frame)
+        instances = _png(path) if path.is_file() else None
+        for category, mask in frame_regions(labels, instances):
+            encoded = rle.encode(np.asfortranarray(mask.astype(np.uint8)))
+            annotations.append(
+                {
+                    "id": len(annotations) + 1,
+                    "image_id": image_id,
+                    "category_id": category,
+                    "segmentation": {"size": encoded["size"], "counts": encoded["counts"].decode("ascii")},
+                    "area": int(rle.area(encoded)),
+                    "bbox": [float(x) for x in rle.toBbox(encoded)],
+                    "iscrowd": 0,
+                }
+            )
+    return {
+        "info": {"description": f"agrisim run {run_dir.name}", "version": str(run.get("agrisim_version", ""))},
+        "images": images,
+        "annotations": annotations,
+        "categories": categories,
+    }
+
+
+def write_coco(run_dir: Path, overwrite: bool = False) -> Path:
+    """Write ``run_dir/coco/annotations.json``; an existing one needs ``overwrite``."""
+    run_dir = Path(run_dir)
+    out = run_dir / COCO_JSON
+    if out.exists() and not overwrite:
+        raise OutputError(f"{out} already exists; pass --overwrite to replace it")
+    write_json(out, coco_document(run_dir))
+    return out
