@@ -42,6 +42,25 @@ def kin(cell: Cell) -> dict[str, ArmKinematics]:
     return {arm.name: ArmKinematics(arm) for arm in cell.arms}
 
 
+def small_run(out, **sections):  # noqa: ANN001, ANN201
+    """Run a small complete episode into ``out`` and return it: kinematic arms, 1x3 setpoints
+    (every one reached without an OMPL search), 320x180, raycast without shadow rays, no
+    recording; ``sections`` (``plant="..."``, ``render={...}``, ``recon={...}``) go on top."""
+    from agrisim.config import build_config, merge
+    from agrisim.episode import Episode
+
+    base = {
+        "renderer": {"raycast": {"shadow_samples": 0}},
+        "physics": {"backend": "kinematic"},
+        "routine": {"setpoints": "1x3"},
+        "camera": {"resolution": "320x180"},
+        "output": {"out": str(out), "no_rrd": True},
+    }
+    _, summary = Episode(build_config(merge(base, sections))).run()
+    assert summary.status == "complete"
+    return out
+
+
 def _run_cli(args: list[str], capsys: pytest.CaptureFixture[str]) -> tuple[int, str, str]:
     """Run ``agrisim ARGS`` in-process: (exit status, stdout, stderr)."""
     from agrisim.app.cli import main

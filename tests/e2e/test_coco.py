@@ -14,30 +14,15 @@ from PIL import Image
 from pycocotools.coco import COCO
 from skimage.measure import label as connected
 
-from agrisim.config import build_config
-from agrisim.episode import Episode
 from agrisim.files.coco import COCO_JSON
+from conftest import small_run
 
 
 @pytest.fixture(scope="module")
 def run_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """Hydrangea with organ labels and leaf instances, the arms in view."""
     out = tmp_path_factory.mktemp("coco") / "run"
-    config = build_config(
-        {
-            "plant": "hydrangea",
-            "render": {"labels": "organs"},
-            "renderer": {"raycast": {"shadow_samples": 0}},
-            "physics": {"backend": "kinematic"},
-            "routine": {"setpoints": "1x3"},
-            "camera": {"resolution": "320x180"},
-            "recon": {"backend": "none"},
-            "output": {"out": str(out), "no_rrd": True},
-        }
-    )
-    _, summary = Episode(config).run()
-    assert summary.status == "complete"
-    return out
+    return small_run(out, plant="hydrangea", render={"labels": "organs"}, recon={"backend": "none"})
 
 
 def png(path: Path) -> np.ndarray:

@@ -12,8 +12,6 @@ import pytest
 import trimesh
 from skimage.metrics import peak_signal_noise_ratio, structural_similarity
 
-from agrisim.config import build_config
-from agrisim.episode import Episode
 from agrisim.errors import OutputError, UserError
 from agrisim.evaluation.session import check_writable
 from agrisim.plugins.recon.splat.cameras import downscale_image, gsplat_camera
@@ -22,6 +20,7 @@ from agrisim.plugins.recon.splat.quality import psnr, ssim
 from agrisim.plugins.recon.splat.split import minimum_views, split_views
 from agrisim.scene.model import Label, LabelTable
 from agrisim.scene.transforms import look_at
+from conftest import small_run
 
 FRAMES = [f"r{1 + i % 2}_{i // 2:03d}" for i in range(100)]
 
@@ -118,21 +117,7 @@ def test_an_existing_splat_folder_needs_overwrite(tmp_path: Path) -> None:
 
 
 def _run(out: Path, hide_robots: bool) -> Path:
-    config = build_config(
-        {
-            "plant": "indian_cress",
-            "render": {"hide_robots": hide_robots},
-            "renderer": {"raycast": {"shadow_samples": 0}},
-            "physics": {"backend": "kinematic"},
-            "routine": {"setpoints": "1x3"},
-            "camera": {"resolution": "64x36"},
-            "recon": {"backend": "none"},
-            "output": {"out": str(out), "no_rrd": True},
-        }
-    )
-    _, summary = Episode(config).run()
-    assert summary.status == "complete"
-    return out
+    return small_run(out, plant="indian_cress", render={"hide_robots": hide_robots}, camera={"resolution": "64x36"}, recon={"backend": "none"})
 
 
 @pytest.fixture(scope="module")
