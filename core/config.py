@@ -235,6 +235,10 @@ class RenderConfig(_Model):
     """One label for the whole plant, or one per organ where the species has them."""
     hide_robots: bool = False
     """Render without the arms (the paper's NeRF captures)."""
+    depth_format: Literal["png16", "exr", "both"] = "png16"
+    """How the dataset stores depth: ``png16`` (uint16 whole millimetres, 0 = no hit), ``exr``
+    (float32 planar z in metres, exact, 0 = no hit) or both; reconstruction uses the exact
+    depth when it is there."""
 
 
 class PlantFileConfig(_Model):

@@ -464,7 +464,7 @@ class Episode:
                 elif self._renderer is not None and self.renderer_spec is not None:
                     with self._stage("render"), blame("renderer", self.renderer_spec, f" rendering {capture.frame}"):
                         capture.images = self._renderer.render(self.camera, world_T_camera, capture.link_poses or {})
-                    view = view_from_capture(capture)
+                    view = view_from_capture(capture, self.config.render.depth_format != "png16")
                 with self._stage("capture"):
                     self.pm.hook.agrisim_capture(run=self._run, capture=capture)
                 if self._session is not None and view is not None and self.recon_spec is not None:

@@ -83,11 +83,13 @@ class Frame:
         """Depth as the dataset's PNGs store it: uint16 whole millimetres, 0 = no hit."""
         return depth_to_mm(self.depth)
 
-    def stored(self) -> Frame:
+    def stored(self, exact_depth: bool = False) -> Frame:
         """These images as they read back from the run directory: depth rounded to whole
-        millimetres (float32 metres, as Open3D reads the PNG with ``depth_scale = 1000``), so
-        that a run, its ``--resume`` and ``agrisim recon`` integrate bit-identical data."""
-        return Frame(self.rgb, self.labels, mm_to_depth(self.depth_mm()), self.instances, self.radiance)
+        millimetres (float32 metres, as Open3D reads the PNG with ``depth_scale = 1000``), or
+        as it is where the dataset keeps it exactly (EXR), so that a run, its ``--resume`` and
+        ``agrisim recon`` integrate bit-identical data."""
+        depth = np.asarray(self.depth, np.float32) if exact_depth else mm_to_depth(self.depth_mm())
+        return Frame(self.rgb, self.labels, depth, self.instances, self.radiance)
 
     def copy(self) -> Frame:
         """A deep copy (the arrays too)."""

@@ -55,6 +55,9 @@ def _parser() -> argparse.ArgumentParser:
     run.add_argument("--shadow-samples", type=int, metavar="N", help="shadow rays per pixel, 0..32 (default: 1)")
     run.add_argument("--supersample", type=int, metavar="S", help="S x S RGB rays per pixel, 1..4 (default: 1)")
     run.add_argument("--hide-robots", action="store_true", default=None, help="render without the arms")
+    run.add_argument(
+        "--depth-format", choices=["png16", "exr", "both"], help="depth as uint16 mm PNG, float32 m EXR, or both (default: png16)"
+    )
     run.add_argument("--pcg-seed", type=int, metavar="N", help="seed of the lab clutter (default: 42)")
     run.add_argument("--physics", metavar="NAME", help="physics backend (default: pybullet)")
     run.add_argument("--planner", metavar="NAME", help="motion planner (default: ompl)")
@@ -205,6 +208,7 @@ def overrides_from_args(args: argparse.Namespace) -> dict[str, Any]:
         "render.shadow_samples": args.shadow_samples,
         "render.supersample": args.supersample,
         "render.hide_robots": args.hide_robots,
+        "render.depth_format": args.depth_format,
         "pcg_seed": args.pcg_seed,
         "physics.backend": args.physics,
         "planner.backend": args.planner,

@@ -16,15 +16,16 @@ from PIL import Image
 
 from agrisim.files import layout
 from agrisim.files.encoding import mm_to_depth
+from agrisim.files.exr import read_exr
 from agrisim.errors import UserError
 from agrisim.interfaces import CameraModel, Capture, Frame, View
 
 
-def view_from_capture(capture: Capture) -> View:
-    """The view of a freshly rendered capture, with depth rounded to the millimetres the
-    dataset stores."""
+def view_from_capture(capture: Capture, exact_depth: bool = False) -> View:
+    """The view of a freshly rendered capture, with depth as the dataset stores it: rounded to
+    millimetres, or exact where the run keeps EXR depth."""
     assert capture.images is not None, "a capture without images has no view"
-    return View(capture.frame, capture.camera, np.asarray(capture.world_T_camera, float), capture.images.stored())
+    return View(capture.frame, capture.camera, np.asarray(capture.world_T_camera, float), capture.images.stored(exact_depth))
 
 
 def _read_png(path: Path, what: str) -> np.ndarray:
@@ -38,10 +39,15 @@ def _read_png(path: Path, what: str) -> np.ndarray:
 
 
 def load_view(run_dir: Path, frame: str, camera: CameraModel, world_T_camera: np.ndarray) -> View:
-    """A frame of a dataset on disk (``rgb/``, ``labels/``, ``depth/``, ``instances/``)."""
+    """A frame of a dataset on disk (``rgb/``, ``labels/``, ``depth/`` as EXR if there, else
+    PNG, ``instances/``)."""
     rgb = _read_png(layout.image(run_dir, "rgb", frame), "rgb")
     labels = _read_png(layout.image(run_dir, "labels", frame), "labels")
-    depth = _read_png(layout.image(run_dir, "depth", frame), "depth")
+    exr = layout.depth_exr(run_dir, frame)
+    if exr.is_file():  # the exact depth, where the run kept it
+        depth = read_exr(exr)
+    else:
+        depth = mm_to_depth(_read_png(layout.image(run_dir, "depth", frame), "depth").astype(np.uint16))
     shape = (camera.height, camera.width)
     if rgb.shape[:2] != shape or labels.shape != shape or depth.shape != shape:
         raise UserError(f"frame {frame} in {run_dir} is not {camera.width}x{camera.height} as cameras.json says")
@@ -51,7 +57,7 @@ def load_view(run_dir: Path, frame: str, camera: CameraModel, world_T_camera: np
     path = layout.image(run_dir, "instances", frame)
     if path.exists():
         instances = _read_png(path, "instances").astype(np.uint16)
-    images = Frame(rgb, labels.astype(np.uint8), mm_to_depth(depth.astype(np.uint16)), instances)
+    images = Frame(rgb, labels.astype(np.uint8), depth, instances)
     return View(frame, camera, np.asarray(world_T_camera, float), images)
 
 

@@ -192,7 +192,9 @@ class DatasetWriter:
             self.frames[capture.frame] = entry
             self._write_cameras()
             return
-        future = self._writer.submit(write_frame, self.out, capture.frame, capture.images, palette, capture.link_poses)
+        future = self._writer.submit(
+            write_frame, self.out, capture.frame, capture.images, palette, capture.link_poses, run.config.render.depth_format
+        )
         self._pending.append((future, capture.frame, entry))
         self._collect()
 
@@ -220,9 +222,11 @@ def write_frame(
     images: Frame | None,
     palette: np.ndarray | None,
     link_poses: dict[str, dict[str, np.ndarray]] | None = None,
+    depth_format: str = "png16",
 ) -> None:
-    """One frame's files (rgb, labels, labels_vis, depth, instances, the radiance when kept, and
-    the arms' link poses it was rendered with), each atomic; none when the run has no renderer.
+    """One frame's files (rgb, labels, labels_vis, depth as ``depth_format`` says, instances,
+    the radiance when kept, and the arms' link poses it was rendered with), each atomic; none
+    when the run has no renderer.
     The link poses and radiance come first: a frame whose images exist has them."""
     if images is None:
         return
@@ -234,7 +238,10 @@ def write_frame(
     write_png(layout.image(out, "labels", frame), images.labels)
     if palette is not None:
         write_png(layout.image(out, "labels_vis", frame), images.labels, palette=palette)
-    write_png(layout.image(out, "depth", frame), images.depth_mm())
+    if depth_format in ("exr", "both"):
+        write_exr(layout.depth_exr(out, frame), np.asarray(images.depth, np.float32))
+    if depth_format in ("png16", "both"):
+        write_png(layout.image(out, "depth", frame), images.depth_mm())
     if images.instances is not None:
         write_png(layout.image(out, "instances", frame), images.instances.astype(np.uint16))
 

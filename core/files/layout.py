@@ -5,6 +5,7 @@
     OUT/run.json               what ran and how far it got (status, per-setpoint results)
     OUT/cameras.json           intrinsics and the pose of every complete frame
     OUT/<folder>/<frame>.png   folder: rgb, labels, labels_vis, depth, instances
+    OUT/depth/<frame>.exr      float32 planar depth in metres (--depth-format exr or both)
     OUT/masks/<frame>.png      nerfstudio's masks (255 = plant)
     OUT/clouds/<label>.ply     reconstructed clouds; <label>_mesh.ply for surfaces
     OUT/metrics.json           accuracy against the true plant
@@ -44,6 +45,16 @@ REQUIRED_FOLDERS = ("rgb", "labels", "depth")
 def image(root: Path, folder: str, frame: str) -> Path:
     """``root/<folder>/<frame>.png``."""
     return Path(root) / folder / f"{frame}.png"
+
+
+def depth_exr(root: Path, frame: str) -> Path:
+    """The exact depth of ``frame``: ``root/depth/<frame>.exr``."""
+    return Path(root) / "depth" / f"{frame}.exr"
+
+
+def has_image(root: Path, folder: str, frame: str) -> bool:
+    """Does ``frame`` have its image of ``folder`` (depth: as PNG or as EXR)?"""
+    return image(root, folder, frame).is_file() or (folder == "depth" and depth_exr(root, frame).is_file())
 
 
 def cloud(root: Path, label: str) -> Path:

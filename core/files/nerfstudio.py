@@ -11,7 +11,8 @@
   ``cx`` and ``cy`` are ours + 0.5; ``fl_x``, ``fl_y``, ``w``, ``h`` are unchanged.
 - ``file_path`` is ``rgb/<frame>.png``, ``depth_file_path`` ``depth/<frame>.png`` (uint16
   millimetres, 0 = no hit, which nerfstudio's depth losses skip): ``depth_unit_scale_factor``
-  0.001 is nerfstudio's default and is written for readers that take it from the file.
+  0.001 is nerfstudio's default and is written for readers that take it from the file. A run
+  that keeps its depth as EXR only (``--depth-format exr``) gets no ``depth_file_path``.
 - ``mask_path`` is ``masks/<frame>.png``: single-channel uint8, 255 where any plant label is
   (label id != 0), 0 elsewhere. nerfstudio trains only on nonzero mask pixels, so a NeRF of this
   export models the plant, not the lab; drop ``mask_path`` to train on the whole image.
@@ -155,11 +156,14 @@ def write_nerfstudio(run_dir: Path) -> Path:
         if not ok:
             raise ExportError(f"{run_dir / 'cameras.json'}: frame {name} has no 4x4 world_T_camera")
         for folder in layout.REQUIRED_FOLDERS:
-            if not layout.image(run_dir, folder, name).is_file():
+            if not layout.has_image(run_dir, folder, name):
                 raise ExportError(f"{layout.image(run_dir, folder, name)} is missing: a half-written run")
     width, height = int(intrinsics["width"]), int(intrinsics["height"])
     masks = {name: _mask_png(layout.image(run_dir, "labels", name), width, height) for name in complete}
     doc = nerfstudio_transforms(intrinsics, {name: known[name] for name in complete})
+    if not all(layout.image(run_dir, "depth", name).is_file() for name in complete):
+        for frame in doc["frames"]:  # EXR depth only (--depth-format exr): nerfstudio reads PNGs
+            del frame["depth_file_path"]
     if layout.cloud(run_dir, ALL).is_file():
         doc["ply_file_path"] = layout.cloud(Path(), ALL).as_posix()  # splatfacto starts from it: clouds/all.ply
 

@@ -64,7 +64,7 @@ def read_run(run_dir: Path) -> tuple[dict[str, Any], dict[str, Any]]:
         raise UserError(f"{run_dir / 'cameras.json'} lacks frames {', '.join(missing[:3])} that run.json lists")
     for name in complete:
         for folder in layout.REQUIRED_FOLDERS:
-            if not layout.image(run_dir, folder, name).is_file():
+            if not layout.has_image(run_dir, folder, name):
                 raise UserError(f"missing {folder} image {layout.image(run_dir, folder, name)}: the run's frames are incomplete")
     return run, cameras
 
