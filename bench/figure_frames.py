@@ -7,36 +7,27 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-import numpy as np
 from PIL import Image, ImageDraw
 
-from agrisim.scene.camera import preset
-from agrisim.scene.cell import build_cell
-from agrisim.config import CellConfig, RenderConfig, RoutineConfig, build_config
-from agrisim.episode import resolve_plant
-from agrisim.robot.kinematics import ArmKinematics
-from agrisim.lab.room import build_scene
-from agrisim.registry import Registry, make_plugin_manager
-from agrisim.robot.setpoints import hemisphere
+from agrisim.config import RenderConfig
+
+sys.path.insert(0, str(Path(__file__).parent))
+from figure_views import figure_views  # noqa: E402
 
 ROWS = [("boxwood", "plant", ("r1", 13)), ("hydrangea", "organs", ("r2", 16)), ("basket_grass", "plant", ("r1", 24))]
 W, H = 480, 270
 
 
 def main(out: Path) -> None:
-    registry = Registry(make_plugin_manager())
-    cell = build_cell(CellConfig())
-    kin = {a.name: ArmKinematics(a) for a in cell.arms}
-    poses = {a.name: kin[a.name].link_poses(np.array(a.home)) for a in cell.arms}
-    camera = preset("rpi3-wide-1080p", f"{W}x{H}")
-    sps = hemisphere(cell, RoutineConfig())
+    views = figure_views(W, H)
+    cell, camera, poses = views.cell, views.camera, views.poses
     sheet = Image.new("RGB", (3 * W, len(ROWS) * H), "white")
     draw = ImageDraw.Draw(sheet)
-    spec = registry.get("renderer", "raycast")
+    spec = views.registry.get("renderer", "raycast")
     for row, (name, labels, (robot, index)) in enumerate(ROWS):
-        scene = build_scene(cell, resolve_plant(registry, build_config({"plant": name})), labels=labels)
+        scene = views.scene(name, labels)
         palette = scene.labels.palette()
-        T = sps[robot][index].world_T_camera
+        T = views.pose(robot, index)
         counts = {}
         for col, mode in enumerate(("texture", "repopa")):
             r = spec.factory(scene, cell, RenderConfig(seg_mode=mode, labels=labels), spec.options_model(shadow_samples=8))

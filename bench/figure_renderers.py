@@ -11,34 +11,26 @@ from pathlib import Path
 import numpy as np
 from PIL import Image, ImageDraw
 
-from agrisim.config import CellConfig, RenderConfig, RoutineConfig, build_config
-from agrisim.lab.room import build_scene
-from agrisim.registry import Registry, make_plugin_manager
-from agrisim.robot.kinematics import ArmKinematics
-from agrisim.robot.setpoints import hemisphere
-from agrisim.scene.camera import preset
-from agrisim.scene.cell import build_cell
-from agrisim.scene.plant_choice import resolve_plant
+from agrisim.config import RenderConfig
+
+sys.path.insert(0, str(Path(__file__).parent))
+from figure_views import figure_views  # noqa: E402
 
 ROWS = [("hydrangea", "organs", ("r2", 16)), ("indian_cress", "plant", ("r1", 30))]
 W, H = 480, 270
 
 
 def main(out: Path) -> None:
-    registry = Registry(make_plugin_manager())
-    cell = build_cell(CellConfig())
-    kin = {a.name: ArmKinematics(a) for a in cell.arms}
-    poses = {a.name: kin[a.name].link_poses(np.array(a.home)) for a in cell.arms}
-    camera = preset("rpi3-wide-1080p", f"{W}x{H}")
-    sps = hemisphere(cell, RoutineConfig())
+    views = figure_views(W, H)
+    cell, camera, poses = views.cell, views.camera, views.poses
     sheet = Image.new("RGB", (3 * W, len(ROWS) * H), "white")
     draw = ImageDraw.Draw(sheet)
     for row, (name, labels, (robot, index)) in enumerate(ROWS):
-        scene = build_scene(cell, resolve_plant(registry, build_config({"plant": name})), labels=labels)
-        T = sps[robot][index].world_T_camera
+        scene = views.scene(name, labels)
+        T = views.pose(robot, index)
         frames, seconds = {}, {}
         for col, backend in enumerate(("raycast", "mitsuba")):
-            spec = registry.get("renderer", backend)
+            spec = views.registry.get("renderer", backend)
             r = spec.factory(scene, cell, RenderConfig(labels=labels), spec.options_model())
             r.render(camera, T, poses)  # warm-up (Mitsuba compiles its kernels on the first view)
             t0 = time.perf_counter()

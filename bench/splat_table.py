@@ -68,15 +68,15 @@ def prepare(root: Path, species: list[str], resolution: str) -> None:
         print(f"{s}: carry {size(run):.1f} MB + truth {size(truth):.1f} MB")
 
 
-def gpu(root: Path, work: Path, species: list[str], stage: str) -> None:
+def gpu(root: Path, work: Path, species: list[str], step: str) -> None:
     (work / "metrics").mkdir(parents=True, exist_ok=True)
     for s in species:
         out = work / s
-        if stage in ("render", "both"):
+        if step in ("render", "both"):
             shutil.rmtree(out, ignore_errors=True)
             agrisim("render", str(root / s / "run"), "--out", str(out),
                     "--set", "renderer.mitsuba.spp=64", "--set", "renderer.mitsuba.denoise=off")  # fmt: skip
-        if stage in ("train", "both"):
+        if step in ("train", "both"):
             for folder in ("labels", "depth"):
                 for png in (root / s / "truth" / folder).glob("*.png"):
                     shutil.copy2(png, out / folder / png.name)
@@ -104,7 +104,7 @@ def table(folder: Path) -> None:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    sub = parser.add_subparsers(dest="stage", required=True)
+    sub = parser.add_subparsers(dest="command", required=True)
     p = sub.add_parser("prepare")
     p.add_argument("root", type=Path)
     p.add_argument("--species", nargs="+", default=SPECIES)
@@ -113,14 +113,14 @@ def main() -> None:
     g.add_argument("root", type=Path)
     g.add_argument("work", type=Path)
     g.add_argument("--species", nargs="+", default=SPECIES)
-    g.add_argument("--step", dest="stage_", choices=["render", "train", "both"], default="both")
+    g.add_argument("--step", choices=["render", "train", "both"], default="both")
     t = sub.add_parser("table")
     t.add_argument("folder", type=Path)
     args = parser.parse_args()
-    if args.stage == "prepare":
+    if args.command == "prepare":
         prepare(args.root, args.species, args.resolution)
-    elif args.stage == "gpu":
-        gpu(args.root, args.work, args.species, args.stage_)
+    elif args.command == "gpu":
+        gpu(args.root, args.work, args.species, args.step)
     else:
         table(args.folder)
 

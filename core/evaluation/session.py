@@ -147,8 +147,8 @@ def write_reconstruction(out_dir: Path, result: Reconstruction, metrics: dict[st
     for relative, data in result.files.items():
         write_bytes(out_dir / relative, data)
     # a replaced reconstructor folder keeps nothing of the old result (e.g. another split's views)
+    written = {out_dir / relative for relative in result.files}
     for folder in {Path(relative).parts[0] for relative in result.files}:
-        written = {out_dir / relative for relative in result.files}
         for stale in [p for p in (out_dir / folder).rglob("*") if p.is_file() and p not in written]:
             stale.unlink()
     if result.meshes:

@@ -50,11 +50,14 @@ def opencv_to_opengl(world_T_camera: np.ndarray) -> np.ndarray:
     return np.asarray(world_T_camera, np.float64) @ CV_TO_GL
 
 
-def nerfstudio_transforms(intrinsics: dict[str, Any], frames: dict[str, dict[str, Any]]) -> dict[str, Any]:
+def nerfstudio_transforms(
+    intrinsics: dict[str, Any], frames: dict[str, dict[str, Any]], depth_png: bool = True
+) -> dict[str, Any]:
     """The ``transforms.json`` document for ``frames`` (name -> cameras.json frame entry).
 
     ``intrinsics`` is cameras.json's: ``K`` (pixel centres at integers), ``width``, ``height``.
-    Paths are relative to the run directory, where transforms.json lives.
+    Paths are relative to the run directory, where transforms.json lives; ``depth_png``: the
+    frames have millimetre depth PNGs to name (not an EXR-only run).
     """
     K = np.asarray(intrinsics["K"], np.float64)
     return {
@@ -75,7 +78,7 @@ def nerfstudio_transforms(intrinsics: dict[str, Any], frames: dict[str, dict[str
                 "file_path": f"rgb/{name}.png",
                 "transform_matrix": np.round(opencv_to_opengl(frames[name]["world_T_camera"]), 12).tolist(),
                 "mask_path": f"masks/{name}.png",
-                "depth_file_path": f"depth/{name}.png",
+                **({"depth_file_path": f"depth/{name}.png"} if depth_png else {}),
             }
             for name in sorted(frames)
         ],
@@ -160,10 +163,9 @@ def write_nerfstudio(run_dir: Path) -> Path:
                 raise ExportError(f"{layout.image(run_dir, folder, name)} is missing: a half-written run")
     width, height = int(intrinsics["width"]), int(intrinsics["height"])
     masks = {name: _mask_png(layout.image(run_dir, "labels", name), width, height) for name in complete}
-    doc = nerfstudio_transforms(intrinsics, {name: known[name] for name in complete})
-    if not all(layout.image(run_dir, "depth", name).is_file() for name in complete):
-        for frame in doc["frames"]:  # EXR depth only (--depth-format exr): nerfstudio reads PNGs
-            del frame["depth_file_path"]
+    # nerfstudio reads PNG depth: an EXR-only run (--depth-format exr) names none
+    depth_png = all(layout.image(run_dir, "depth", name).is_file() for name in complete)
+    doc = nerfstudio_transforms(intrinsics, {name: known[name] for name in complete}, depth_png)
     if layout.cloud(run_dir, ALL).is_file():
         doc["ply_file_path"] = layout.cloud(Path(), ALL).as_posix()  # splatfacto starts from it: clouds/all.ply
 

@@ -136,21 +136,19 @@ class SplatReconstructor(Reconstructor):
             if step == total or step % max(total // 10, 1) < 50:
                 print(f"splat: step {step}/{total}", file=sys.stderr, flush=True)
 
-        splats = gs.fit([small(v.images.rgb) for v in train], viewmats, Ks, init_points, init_colors, scene_scale, o, report)
+        images = [small(v.images.rgb) for v in train]
+        splats = gs.fit(images, viewmats, Ks, init_points, init_colors, scene_scale, o, report)
 
         # -- held-out views: image quality and depth --------------------------------------
         params = gs.params_from_splats(splats)
         test_viewmats, test_Ks = cams(test)
-        files: dict[str, bytes] = {}
+        panels: dict[str, np.ndarray] = {}  # frame -> truth | render | error
         rows = []
         depth_errors = []
+        height, width = images[0].shape[:2]
         for v, vm, K in zip(test, test_viewmats, test_Ks):
             truth = small(v.images.rgb)
-            h, w = truth.shape[:2]
-            t = lambda a: gs.torch.as_tensor(a, dtype=gs.torch.float32, device="cuda")  # noqa: E731
-            rgb, depth, _, _ = gs.render(params, t(vm), t(K), w, h, o.sh_degree, depth=True)
-            render = rgb.clamp(0, 1).cpu().numpy()
-            depth = depth.cpu().numpy()
+            render, depth = gs.render_view(params, vm, K, width, height, o.sh_degree)
             plant = downscale_image((v.images.labels != 0).astype(np.float32), o.downscale) == 1.0
             true_depth = downscale_image(v.images.depth, o.downscale)
             reference = truth / 255.0
@@ -167,7 +165,7 @@ class SplatReconstructor(Reconstructor):
             depth_errors.append(np.abs(depth[on_plant] - true_depth[on_plant]))
             shown = (render * 255 + 0.5).astype(np.uint8)
             error = error_ramp(np.abs(reference - render).mean(axis=2))
-            files[f"{FOLDER}/test/{v.frame}.png"] = png(np.concatenate([truth, shown, error], axis=1))
+            panels[v.frame] = np.concatenate([truth, shown, error], axis=1)
         errors_mm = np.concatenate(depth_errors) * 1000.0 if depth_errors else np.zeros(0)
 
         # -- the plant's Gaussians against the true geometry -----------------------------------
@@ -196,7 +194,7 @@ class SplatReconstructor(Reconstructor):
             "iterations": o.iterations,
             "train_views": len(train),
             "test_views": len(test),
-            "resolution": [int(s) for s in small(train[0].images.rgb).shape[1::-1]],
+            "resolution": [width, height],
             "gaussians": int(len(splats.means)),
             "scene_scale_m": round(scene_scale, 4),
             "train_seconds": round(splats.seconds, 2),
@@ -211,6 +209,7 @@ class SplatReconstructor(Reconstructor):
             "geometry": geometry,
             "views": rows,
         }
+        files = {f"{FOLDER}/test/{frame}.png": png(panel) for frame, panel in panels.items()}
         files[f"{FOLDER}/splats.ply"] = splat_ply(
             splats.means, splats.quats, splats.log_scales, splats.opacity_logits, splats.sh0, splats.sh_rest
         )
@@ -220,8 +219,7 @@ class SplatReconstructor(Reconstructor):
 
         colors = splats.colors
         sigma = np.exp(splats.log_scales[plant].mean(axis=1))
-        tests = {v.frame: np.asarray(Image.open(io.BytesIO(files[f"{FOLDER}/test/{v.frame}.png"]))) for v in test}
-        rrd = training_recording(splats.loss, tests, splats.means[plant], colors[plant], sigma)
+        rrd = training_recording(splats.loss, panels, splats.means[plant], colors[plant], sigma)
         if rrd is not None:
             files[f"{FOLDER}/training.rrd"] = rrd
         clouds = {}

@@ -107,6 +107,17 @@ def render(
     return rgb, (colors[0, ..., 3] if depth else None), alpha, info
 
 
+def render_view(
+    params: dict[str, torch.Tensor], viewmat: np.ndarray, K: np.ndarray, width: int, height: int, sh_degree: int
+) -> tuple[np.ndarray, np.ndarray]:
+    """(RGB H x W x 3 in [0, 1], expected planar depth H x W) of one view on black, as NumPy."""
+    t = lambda a: torch.as_tensor(a, dtype=torch.float32, device="cuda")  # noqa: E731
+    with torch.no_grad():
+        rgb, depth, _, _ = render(params, t(viewmat), t(K), width, height, sh_degree, depth=True)
+    assert depth is not None
+    return rgb.clamp(0, 1).cpu().numpy(), depth.cpu().numpy()
+
+
 def params_from_splats(splats: Splats, device: str = "cuda") -> dict[str, torch.Tensor]:
     """The tensors :func:`render` takes, from trained splats."""
     t = lambda a: torch.as_tensor(np.ascontiguousarray(a), dtype=torch.float32, device=device)  # noqa: E731
