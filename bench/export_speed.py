@@ -1,6 +1,6 @@
 """Time and size of the dataset exports for one run (the default: 100 views at 1080p): the COCO
-annotations, and float depth as EXR beside the millimetre PNGs. Prints figures with the CPU
-model; asserts nothing.
+annotations, the ROS 2 bag, and float depth as EXR beside the millimetre PNGs. Prints figures
+with the CPU model; asserts nothing.
 
     python bench/export_speed.py [RUN_DIR]   # without RUN_DIR: makes the default run first
 """
@@ -18,6 +18,7 @@ from machine import cpu_model  # noqa: E402
 from agrisim.config import build_config  # noqa: E402
 from agrisim.episode import Episode  # noqa: E402
 from agrisim.files.coco import COCO_JSON, write_coco  # noqa: E402
+from agrisim.files.rosbag import write_rosbag  # noqa: E402
 
 
 def size_mb(paths: list[Path]) -> float:
@@ -32,7 +33,6 @@ def main() -> None:
         config = {
             "render": {"labels": "organs", "depth_format": "both"},
             "physics": {"backend": "kinematic"},
-            "recon": {"backend": "none"},
             "output": {"out": str(run_dir), "no_rrd": True},
         }
         t = time.perf_counter()
@@ -44,6 +44,14 @@ def main() -> None:
     frames = sorted((run_dir / "rgb").glob("*.png"))
     print(f"CPU: {cpu_model()}")
     print(f"agrisim export coco: {seconds:.1f} s for {len(frames)} frames, {size_mb([run_dir / COCO_JSON]):.1f} MB")
+    t = time.perf_counter()
+    bag = write_rosbag(run_dir, overwrite=True)
+    seconds = time.perf_counter() - t
+    images = size_mb(sorted((run_dir / "rgb").glob("*.png")) + sorted((run_dir / "labels").glob("*.png")) + sorted((run_dir / "depth").glob("*.png")))
+    print(
+        f"agrisim export rosbag: {seconds:.1f} s, {size_mb(sorted(bag.iterdir())):.0f} MB "
+        f"(the run's rgb, labels and depth PNGs: {images:.0f} MB)"
+    )
     png, exr = sorted((run_dir / "depth").glob("*.png")), sorted((run_dir / "depth").glob("*.exr"))
     print(f"depth: {len(png)} PNGs {size_mb(png):.1f} MB, {len(exr)} EXRs {size_mb(exr):.1f} MB")
 

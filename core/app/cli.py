@@ -128,11 +128,14 @@ def _parser() -> argparse.ArgumentParser:
         "export",
         help="export a run directory to another tool's format",
         description="Export a run directory: nerfstudio writes RUN_DIR/transforms.json and RUN_DIR/masks/; "
-        "coco writes RUN_DIR/coco/annotations.json (COCO instance masks).",
+        "coco writes RUN_DIR/coco/annotations.json (COCO instance masks); rosbag writes RUN_DIR/rosbag/ "
+        "(a ROS 2 bag in MCAP: TF, joint states, planned trajectories, camera images, depth, labels, clouds).",
     )
-    export.add_argument("format", choices=["nerfstudio", "coco"], help="the format: nerfstudio (transforms.json) or coco")
+    export.add_argument(
+        "format", choices=["nerfstudio", "coco", "rosbag"], help="the format: nerfstudio (transforms.json), coco or rosbag"
+    )
     export.add_argument("run_dir", type=Path, metavar="RUN_DIR", help="a run's output directory (agrisim run --out)")
-    export.add_argument("--overwrite", action="store_true", help="replace an existing export (coco)")
+    export.add_argument("--overwrite", action="store_true", help="replace an existing export (coco, rosbag)")
     compare = sub.add_parser(
         "compare",
         help="the paper's Table 2: every plant in both segmentation modes, episodes on Ray",
@@ -405,6 +408,14 @@ def _cmd_plants(args: argparse.Namespace) -> int:
 
 
 def _cmd_export(args: argparse.Namespace) -> int:
+    if args.format == "rosbag":
+        from agrisim.app.progress import EpisodeProgress
+        from agrisim.files.rosbag import write_rosbag
+
+        with EpisodeProgress("stamps and frames") as progress:
+            out = write_rosbag(args.run_dir, args.overwrite, progress.update)
+        print(f"wrote {out} (ros2 bag info {out}; open {out / 'rosbag.mcap'} in Foxglove)")
+        return 0
     if args.format == "coco":
         from agrisim.files.coco import write_coco
 

@@ -73,9 +73,11 @@ def remove_partial(root: Path) -> int:
     return count
 
 
-def write_json(path: Path, obj: Any) -> None:
-    """Pretty JSON, written atomically."""
-    write_bytes(path, (json.dumps(obj, indent=2, default=_default) + "\n").encode())
+def write_json(path: Path, obj: Any, compact: bool = False) -> None:
+    """Pretty JSON (``compact``: without spaces or line breaks, for long number arrays),
+    written atomically."""
+    text = json.dumps(obj, separators=(",", ":"), default=_default) if compact else json.dumps(obj, indent=2, default=_default)
+    write_bytes(path, (text + "\n").encode())
 
 
 def _default(obj: Any) -> Any:

@@ -6,7 +6,9 @@ sink plugin; it observes the run through the same event hooks.
 
 ``run.json`` is rewritten atomically after every setpoint, so at any moment it tells how far the
 run got (``status`` running / complete / failed / interrupted) and what each setpoint did.
-``cameras.json`` holds the intrinsics and the camera pose of every captured frame. Rendered
+``cameras.json`` holds the intrinsics and the camera pose of every captured frame;
+``trajectories/`` every move of an arm (planned and executed joints in simulated time, what the
+ROS 2 bag export publishes as joint states and TF), rendered or not. Rendered
 frames go to ``rgb/``, ``labels/`` (uint8 ids), ``labels_vis/`` (label colours), ``depth/``
 (uint16 millimetres, 0 = no hit) and ``instances/`` (uint16 leaf ids), each PNG written
 atomically; a frame is listed in ``run.json`` only once all its files exist. A complete run's
@@ -35,7 +37,7 @@ from agrisim.files.exr import write_exr
 from agrisim.files.glb import export_glb
 from agrisim.files.scene_glb import write_scene
 from agrisim.files.nerfstudio import write_nerfstudio
-from agrisim.interfaces import CameraModel, Capture, Frame
+from agrisim.interfaces import CameraModel, Capture, Frame, JointTrajectory, Trajectory
 from agrisim.records import Run, RunSummary, SetpointResult
 from agrisim.registry import hookimpl
 from agrisim.version import __version__
@@ -107,6 +109,7 @@ class DatasetWriter:
         self.versions = package_versions()  # once: run.json is rewritten after every setpoint
         self._writer = ThreadPoolExecutor(max_workers=1, thread_name_prefix="agrisim-dataset")
         self._pending: list[tuple[Future[None], str, dict[str, Any]]] = []
+        self._moves: list[Future[None]] = []  # trajectory files being written
         self._scene_written: Future[None] | None = None
 
     def _run_json(self, run: Run) -> dict[str, Any]:
@@ -130,6 +133,9 @@ class DatasetWriter:
 
     def _collect(self, wait: bool = False) -> bool:
         """Move frames whose files are written into the index; True if any moved."""
+        for future in [f for f in self._moves if wait or f.done()]:
+            future.result()  # a failed write fails the run here, not silently
+            self._moves.remove(future)
         moved = False
         still = []
         for future, frame, entry in self._pending:
@@ -174,6 +180,12 @@ class DatasetWriter:
         self._write(run)
 
     @hookimpl
+    def agrisim_trajectory(self, run: Run, robot: str, trajectory: Trajectory) -> None:
+        frame = next(sp.frame for sp in run.setpoints[robot] if sp.index == trajectory.setpoint)
+        doc = trajectory_document(trajectory, frame, run.cell.arm(robot).joints)
+        self._moves.append(self._writer.submit(write_json, layout.trajectory(self.out, frame), doc, True))
+
+    @hookimpl
     def agrisim_setpoint(self, run: Run, robot: str, result: SetpointResult) -> None:
         self._write(run)
 
@@ -184,7 +196,7 @@ class DatasetWriter:
         entry = {
             "robot": capture.robot,
             "setpoint": capture.setpoint,
-            "sim_time": round(capture.sim_time, 6),
+            "sim_time": float(capture.sim_time),  # full precision: the bag export stamps by it
             # full precision: a re-render (agrisim render) must see the very pose rendered
             "world_T_camera": np.asarray(capture.world_T_camera, np.float64).tolist(),
         }
@@ -214,6 +226,26 @@ class DatasetWriter:
         if self.frames and run.labels is not None:
             # after run.json: the export reads the frames it lists as complete
             write_nerfstudio(self.out)
+
+
+def _joint_trajectory(jt: JointTrajectory) -> dict[str, Any]:
+    return {"t": jt.t.tolist(), "q": jt.q.tolist(), "qd": jt.qd.tolist() if jt.qd is not None else None}
+
+
+def trajectory_document(trajectory: Trajectory, frame: str, joints: tuple[str, ...]) -> dict[str, Any]:
+    """``trajectories/<frame>.json``: one arm's move, full precision (a resumed run rewrites
+    it with the very same bytes). ``t`` in simulated seconds since the run started, ``q`` in
+    radians (one row per time, columns in ``joints`` order), ``qd`` in rad/s or null where the
+    physics reports no velocities."""
+    return {
+        "robot": trajectory.robot,
+        "setpoint": trajectory.setpoint,
+        "frame": frame,
+        "joints": list(joints),
+        "path": np.asarray(trajectory.path, float).tolist(),
+        "planned": _joint_trajectory(trajectory.planned),
+        "executed": _joint_trajectory(trajectory.executed),
+    }
 
 
 def write_frame(

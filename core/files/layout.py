@@ -14,8 +14,12 @@
     OUT/scene/lab.glb          the whole scene as rendered: room, clutter, table, pot, plant,
                                lights and the arms' link meshes (``agrisim render`` reads it)
     OUT/link_poses/<frame>.json  world_T_link of every arm link when the frame was rendered
+    OUT/trajectories/<frame>.json  the arm's move to that setpoint: planner waypoints, the
+                               planned and the executed joint trajectory in simulated time
     OUT/radiance/<frame>.exr   linear RGB radiance (float32), when the renderer was asked for it
     OUT/recording.rrd          the Rerun recording (unless --rrd puts it elsewhere)
+    OUT/coco/annotations.json  the COCO export (agrisim export coco)
+    OUT/rosbag/                the ROS 2 bag export (agrisim export rosbag)
 
 The dataset writer writes it; ``--resume``, ``agrisim recon``, the exports and ``agrisim compare``
 read it, all through these names.
@@ -33,6 +37,7 @@ RECORDING = "recording.rrd"
 PLANT_GLB = Path("scene") / "plant.glb"
 SCENE_GLB = Path("scene") / "lab.glb"
 LINK_POSES = "link_poses"
+TRAJECTORIES = "trajectories"
 RADIANCE = "radiance"
 CLOUDS = "clouds"
 MASKS = "masks"
@@ -75,3 +80,8 @@ def radiance(root: Path, frame: str) -> Path:
 def link_poses(root: Path, frame: str) -> Path:
     """The arms' link poses of ``frame``: ``root/link_poses/<frame>.json``."""
     return Path(root) / LINK_POSES / f"{frame}.json"
+
+
+def trajectory(root: Path, frame: str) -> Path:
+    """The arm's move to the setpoint of ``frame``: ``root/trajectories/<frame>.json``."""
+    return Path(root) / TRAJECTORIES / f"{frame}.json"

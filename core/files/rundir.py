@@ -41,20 +41,21 @@ def read_json(path: Path, missing: str, error: type[UserError] = UserError, pref
     return doc
 
 
-def read_run(run_dir: Path) -> tuple[dict[str, Any], dict[str, Any]]:
+def read_run(run_dir: Path, rendered: bool = True) -> tuple[dict[str, Any], dict[str, Any]]:
     """``run.json`` and ``cameras.json`` of a *complete* run, checked; a run that is still
-    running, was interrupted or failed is refused (its frames are not all there)."""
+    running, was interrupted or failed is refused (its frames are not all there), and so is a
+    run without rendered frames unless ``rendered`` is False."""
     if not run_dir.is_dir():
         raise UserError(f"{run_dir} is not a directory")
-    run, cameras = (read_json(run_dir / name, "not a rendered agrisim run") for name in (layout.RUN_JSON, layout.CAMERAS_JSON))
+    run, cameras = (read_json(run_dir / name, "not a rendered agrisim run" if rendered else "not an agrisim run") for name in (layout.RUN_JSON, layout.CAMERAS_JSON))
     status = run.get("status")
     if status != "complete":
         raise UserError(
             f"the run in {run_dir} is {status or 'of unknown status'}, not complete: "
             f"finish it first with agrisim run --resume --out {run_dir}"
         )
-    if not isinstance(run.get("labels"), list):
-        raise UserError(f"the run in {run_dir} has no label table (was it rendered?)")
+    if rendered and not isinstance(run.get("labels"), list):
+        raise UserError(f"the run in {run_dir} has no rendered frames (was it made with --renderer none?)")
     frames = cameras.get("frames")
     if not isinstance(frames, dict) or not isinstance(cameras.get("intrinsics"), dict):
         raise UserError(f"{run_dir / 'cameras.json'} has no intrinsics and frames")
@@ -62,7 +63,7 @@ def read_run(run_dir: Path) -> tuple[dict[str, Any], dict[str, Any]]:
     missing = sorted(set(complete) - set(frames))
     if missing:
         raise UserError(f"{run_dir / 'cameras.json'} lacks frames {', '.join(missing[:3])} that run.json lists")
-    for name in complete:
+    for name in complete if isinstance(run.get("labels"), list) else []:  # a robot-only run has no images
         for folder in layout.REQUIRED_FOLDERS:
             if not layout.has_image(run_dir, folder, name):
                 raise UserError(f"missing {folder} image {layout.image(run_dir, folder, name)}: the run's frames are incomplete")

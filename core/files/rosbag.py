@@ -1,0 +1,485 @@
+"""The ROS 2 bag export: ``RUN_DIR/rosbag/`` (rosbag2 format 9: ``rosbag.mcap`` and the
+``metadata.yaml`` that ``ros2 bag info`` reads), written without ROS by the ``rosbags`` library.
+
+Why ``rosbags``: it writes the rosbag2 directory (MCAP storage, zstd-compressed chunks, the
+metadata file with per-topic QoS) and serialises messages with the ROS 2 message definitions it
+ships (Jazzy's), in pure Python; ``mcap`` + ``mcap-ros2-support`` write the MCAP file alone and
+would leave ``metadata.yaml`` and the definitions to us.
+
+Every stamp is simulated time, seconds since the run started (``header.stamp`` equals the
+message's log time; play it with ``ros2 bag play --clock``). Topics, for each arm ``A``
+(``r1``, ``r2``):
+
+- ``/tf_static`` (``tf2_msgs/TFMessage``, transient local, once at 0): ``world`` ->
+  ``A/world`` (where the arm's base stands) and every fixed joint of the arm's URDF (base, flange,
+  camera body, ``A/camera_optical_frame``).
+- ``/tf`` (``tf2_msgs/TFMessage``): every revolute joint of every arm, at every stamp of the
+  timeline (below), as ``robot_state_publisher`` would send them.
+- ``/A/joint_states`` (``sensor_msgs/JointState``): the six joints at every stamp; positions
+  in radians, velocities in rad/s where the physics reported them (else empty).
+- ``/A/planned_trajectory`` (``trajectory_msgs/JointTrajectory``): each planned move, stamped
+  at its start, points every 1/240 s with positions and velocities.
+- ``/A/camera/image_raw`` (``rgb8``), ``/A/camera/depth`` (``32FC1``, planar z in metres, REP
+  118; +Inf where nothing was hit, REP 117's "no return"), ``/A/camera/labels`` (``mono8`` label
+  ids), ``/A/camera/instances`` (``mono16`` leaf ids, where the run numbers leaves) and
+  ``/A/camera/camera_info`` (K, P, no distortion): one each per rendered frame, in
+  ``A/camera_optical_frame`` (OpenCV axes, which are ROS's optical-frame axes).
+- ``/reconstruction/cloud`` (``sensor_msgs/PointCloud2`` in ``world``): the merged clouds of
+  every label, fields ``x y z`` (float32), ``rgb`` (PCL's packed float) and ``label`` (uint8), at
+  the last frame's stamp.
+
+The timeline is every sample the physics reported for any arm (``trajectories/``), every
+capture and 0; between its own samples an arm holds its last one, so TF is complete at every
+stamp and at each image's stamp equals the pose it was rendered from. The bag's custom data
+holds the label table (``agrisim.labels``, JSON).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import xml.etree.ElementTree as ET
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from PIL import Image
+
+from agrisim.errors import OutputError, UserError
+from agrisim.files import layout
+from agrisim.files.rundir import read_json, read_run
+
+ROSBAG_DIR = "rosbag"
+#: the world frame every other frame hangs from
+WORLD = "world"
+CLOUD_TOPIC = "/reconstruction/cloud"
+
+
+@dataclass
+class ArmTrack:
+    """One arm's joint samples over the whole run, in time order (all its moves' executed
+    samples): ``t_ns`` (N,), ``q`` (N x dof), ``qd`` (N x dof, NaN rows where the physics
+    reported no velocity)."""
+
+    joints: list[str]
+    t_ns: np.ndarray
+    q: np.ndarray
+    qd: np.ndarray
+
+
+def to_ns(t: float | np.ndarray) -> Any:
+    """Seconds to integer nanoseconds (the bag's clock)."""
+    return np.rint(np.asarray(t, float) * 1e9).astype(np.int64)
+
+
+def read_tracks(run_dir: Path, run: dict[str, Any], home: dict[str, np.ndarray], joints: dict[str, list[str]]) -> dict[str, ArmTrack]:
+    """Every arm's executed samples from ``trajectories/``; an arm starts at ``home`` (its
+    state before its first sample). A run written before trajectories were kept is refused."""
+    folder = run_dir / layout.TRAJECTORIES
+    frames = [row["frame"] for row in run.get("results") or [] if isinstance(row, dict)]
+    if not folder.is_dir() and frames:
+        raise UserError(f"the run in {run_dir} has no {layout.TRAJECTORIES}/ (it predates them): run it again to export it")
+    moves: dict[str, list[dict[str, Any]]] = {arm: [] for arm in home}
+    for path in sorted(folder.glob("*.json")) if folder.is_dir() else []:
+        doc = read_json(path, "")
+        if doc.get("robot") not in moves:
+            raise UserError(f"{path} is for robot {doc.get('robot')!r}, not one of the run's arms {sorted(moves)}")
+        moves[doc["robot"]].append(doc)
+    for frame in run.get("frames_complete") or []:
+        if not layout.trajectory(run_dir, frame).is_file():
+            raise UserError(f"missing {layout.trajectory(run_dir, frame)}: the run's trajectories are incomplete")
+    tracks = {}
+    for arm, docs in moves.items():
+        dof = len(joints[arm])
+        t, q, qd = [np.zeros(1, np.int64)], [home[arm][None, :]], [np.zeros((1, dof))]
+        for doc in sorted(docs, key=lambda d: d["executed"]["t"][0] if d["executed"]["t"] else 0.0):
+            ex = doc["executed"]
+            if list(doc.get("joints") or []) != joints[arm]:
+                raise UserError(f"{layout.trajectory(run_dir, doc['frame'])} names joints {doc.get('joints')}, not {joints[arm]}")
+            if not ex["t"]:
+                continue
+            t.append(to_ns(ex["t"]))
+            q.append(np.asarray(ex["q"], float).reshape(len(ex["t"]), dof))
+            qd.append(np.asarray(ex["qd"], float) if ex.get("qd") is not None else np.full((len(ex["t"]), dof), np.nan))
+        tracks[arm] = ArmTrack(joints[arm], np.concatenate(t), np.concatenate(q), np.concatenate(qd))
+    return tracks
+
+
+@dataclass(frozen=True)
+class UrdfJoint:
+    name: str
+    kind: str  # revolute, fixed, ...
+    parent: str
+    child: str
+
+
+def urdf_joints(urdf: str) -> list[UrdfJoint]:
+    """The joints of a URDF document, as the TF tree's edges."""
+    root = ET.fromstring(urdf)
+    return [
+        UrdfJoint(j.get("name", ""), j.get("type", ""), j.find("parent").get("link"), j.find("child").get("link"))  # type: ignore[union-attr]
+        for j in root.findall("joint")
+    ]
+
+
+def relative(world_T_parent: np.ndarray, world_T_child: np.ndarray) -> np.ndarray:
+    """``parent_T_child`` of rigid transforms (batched over leading axes)."""
+    R, p = world_T_parent[..., :3, :3], world_T_parent[..., :3, 3]
+    out = np.zeros(np.broadcast_shapes(world_T_parent.shape, world_T_child.shape))
+    Rt = np.swapaxes(R, -1, -2)
+    out[..., :3, :3] = Rt @ world_T_child[..., :3, :3]
+    out[..., :3, 3] = (Rt @ (world_T_child[..., :3, 3] - p)[..., None])[..., 0]
+    out[..., 3, 3] = 1.0
+    return out
+
+
+class BagMessages:
+    """The rosbags message types of one type store, and builders for agrisim's data."""
+
+    def __init__(self) -> None:
+        from rosbags.typesys import Stores, get_typestore
+
+        self.store = get_typestore(Stores.ROS2_JAZZY)
+        t = self.store.types
+        self.Time, self.Header = t["builtin_interfaces/msg/Time"], t["std_msgs/msg/Header"]
+        self.Duration = t["builtin_interfaces/msg/Duration"]
+        self.TFMessage, self.TransformStamped = t["tf2_msgs/msg/TFMessage"], t["geometry_msgs/msg/TransformStamped"]
+        self.Transform, self.Vector3, self.Quaternion = (
+            t["geometry_msgs/msg/Transform"],
+            t["geometry_msgs/msg/Vector3"],
+            t["geometry_msgs/msg/Quaternion"],
+        )
+        self.JointState, self.Image, self.CameraInfo = (
+            t["sensor_msgs/msg/JointState"],
+            t["sensor_msgs/msg/Image"],
+            t["sensor_msgs/msg/CameraInfo"],
+        )
+        self.RegionOfInterest = t["sensor_msgs/msg/RegionOfInterest"]
+        self.PointCloud2, self.PointField = t["sensor_msgs/msg/PointCloud2"], t["sensor_msgs/msg/PointField"]
+        self.JointTrajectory = t["trajectory_msgs/msg/JointTrajectory"]
+        self.JointTrajectoryPoint = t["trajectory_msgs/msg/JointTrajectoryPoint"]
+
+    def header(self, stamp_ns: int, frame: str) -> Any:
+        return self.Header(stamp=self.Time(sec=int(stamp_ns // 1_000_000_000), nanosec=int(stamp_ns % 1_000_000_000)), frame_id=frame)
+
+    def transforms(self, stamp_ns: int, edges: list[tuple[str, str]], T: np.ndarray, quat: np.ndarray) -> list[Any]:
+        """TransformStamped of each (parent, child) edge with its 4x4 ``T[i]`` and (x, y, z, w)
+        quaternion ``quat[i]``."""
+        header = {}
+        out = []
+        for (parent, child), Ti, qi in zip(edges, T, quat, strict=True):
+            if parent not in header:
+                header[parent] = self.header(stamp_ns, parent)
+            x, y, z = (float(v) for v in Ti[:3, 3])
+            out.append(
+                self.TransformStamped(
+                    header=header[parent],
+                    child_frame_id=child,
+                    transform=self.Transform(
+                        translation=self.Vector3(x=x, y=y, z=z),
+                        rotation=self.Quaternion(x=float(qi[0]), y=float(qi[1]), z=float(qi[2]), w=float(qi[3])),
+                    ),
+                )
+            )
+        return out
+
+    def image(self, stamp_ns: int, frame: str, pixels: np.ndarray, encoding: str) -> Any:
+        """An ``Image`` of an H x W (x C) array, little-endian, rows packed."""
+        pixels = np.ascontiguousarray(pixels)
+        if pixels.dtype.byteorder == ">":
+            pixels = pixels.astype(pixels.dtype.newbyteorder("<"))
+        h, w = pixels.shape[:2]
+        return self.Image(
+            header=self.header(stamp_ns, frame),
+            height=h,
+            width=w,
+            encoding=encoding,
+            is_bigendian=0,
+            step=int(pixels.strides[0]),
+            data=pixels.reshape(-1).view(np.uint8),
+        )
+
+    def camera_info(self, stamp_ns: int, frame: str, intrinsics: dict[str, Any]) -> Any:
+        K = np.asarray(intrinsics["K"], float)
+        P = np.zeros((3, 4))
+        P[:, :3] = K
+        return self.CameraInfo(
+            header=self.header(stamp_ns, frame),
+            height=int(intrinsics["height"]),
+            width=int(intrinsics["width"]),
+            distortion_model="plumb_bob",
+            d=np.zeros(5),
+            k=K.reshape(-1),
+            r=np.eye(3).reshape(-1),
+            p=P.reshape(-1),
+            binning_x=0,
+            binning_y=0,
+            roi=self.RegionOfInterest(x_offset=0, y_offset=0, height=0, width=0, do_rectify=False),
+        )
+
+    def joint_state(self, stamp_ns: int, names: list[str], q: np.ndarray, qd: np.ndarray) -> Any:
+        return self.JointState(
+            header=self.header(stamp_ns, ""),
+            name=names,
+            position=np.asarray(q, float),
+            velocity=np.zeros(0) if np.isnan(qd).any() else np.asarray(qd, float),
+            effort=np.zeros(0),
+        )
+
+    def trajectory(self, names: list[str], planned: dict[str, Any]) -> tuple[int, Any]:
+        """A planned move as a ``JointTrajectory`` stamped at its start (and that stamp)."""
+        t = np.asarray(planned["t"], float)
+        q = np.asarray(planned["q"], float).reshape(len(t), len(names))
+        qd = np.asarray(planned["qd"], float).reshape(len(t), len(names)) if planned.get("qd") is not None else None
+        start = int(to_ns(t[0]))
+        offsets = to_ns(t) - start
+        points = [
+            self.JointTrajectoryPoint(
+                positions=q[i],
+                velocities=qd[i] if qd is not None else np.zeros(0),
+                accelerations=np.zeros(0),
+                effort=np.zeros(0),
+                time_from_start=self.Duration(sec=int(offsets[i] // 1_000_000_000), nanosec=int(offsets[i] % 1_000_000_000)),
+            )
+            for i in range(len(t))
+        ]
+        return start, self.JointTrajectory(header=self.header(start, ""), joint_names=names, points=points)
+
+    def cloud(self, stamp_ns: int, points: np.ndarray, colors: np.ndarray, labels: np.ndarray) -> Any:
+        """``PointCloud2``: float32 x, y, z, PCL's packed ``rgb`` (0x00RRGGBB as float32 bits)
+        and a uint8 ``label``; 20 bytes a point, unorganised."""
+        F = self.PointField
+        rows = np.zeros(len(points), np.dtype([("xyz", "<f4", 3), ("rgb", "<u4"), ("label", "u1"), ("pad", "u1", 3)]))
+        rows["xyz"] = points
+        c = np.asarray(colors, np.uint32)
+        rows["rgb"] = (c[:, 0] << 16) | (c[:, 1] << 8) | c[:, 2]
+        rows["label"] = labels
+        fields = [
+            F(name="x", offset=0, datatype=F.FLOAT32, count=1),
+            F(name="y", offset=4, datatype=F.FLOAT32, count=1),
+            F(name="z", offset=8, datatype=F.FLOAT32, count=1),
+            F(name="rgb", offset=12, datatype=F.FLOAT32, count=1),
+            F(name="label", offset=16, datatype=F.UINT8, count=1),
+        ]
+        return self.PointCloud2(
+            header=self.header(stamp_ns, WORLD),
+            height=1,
+            width=len(points),
+            fields=fields,
+            is_bigendian=False,
+            point_step=rows.itemsize,
+            row_step=rows.itemsize * len(points),
+            data=rows.view(np.uint8).reshape(-1) if len(points) else np.zeros(0, np.uint8),
+            is_dense=True,
+        )
+
+
+def _png(path: Path) -> np.ndarray:
+    with Image.open(path) as im:
+        return np.asarray(im)
+
+
+def frame_depth(run_dir: Path, frame: str) -> np.ndarray:
+    """The frame's planar depth in metres as REP 118 wants it: float32, +Inf where nothing was
+    hit (the exact EXR when the run kept one, else the PNG's millimetres)."""
+    from agrisim.files.exr import read_exr
+
+    exr = layout.depth_exr(run_dir, frame)
+    depth = read_exr(exr) if exr.is_file() else _png(layout.image(run_dir, "depth", frame)).astype(np.float32) / np.float32(1000.0)
+    depth = np.asarray(depth, np.float32).copy()
+    depth[depth == 0] = np.inf
+    return depth
+
+
+def read_cloud(path: Path) -> tuple[np.ndarray, np.ndarray]:
+    """Points and uint8 colours of a ``clouds/<label>.ply``."""
+    import trimesh
+
+    cloud = trimesh.load(path, file_type="ply", process=False)
+    points = np.asarray(getattr(cloud, "vertices", np.zeros((0, 3))), float).reshape(-1, 3)
+    colors = getattr(cloud, "colors", None)
+    colors = np.asarray(colors, np.uint8)[:, :3] if colors is not None and len(colors) == len(points) else np.full((len(points), 3), 200, np.uint8)
+    return points, colors
+
+
+class RosbagExport:
+    """Everything a bag is made of, read and checked before anything is written."""
+
+    def __init__(self, run_dir: Path) -> None:
+        from agrisim.config import build_config
+        from agrisim.robot.kinematics import ArmKinematics
+        from agrisim.scene.cell import build_cell
+
+        self.run_dir = Path(run_dir)
+        self.run, self.cameras = read_run(self.run_dir, rendered=False)
+        saved = self.run.get("config")
+        if not isinstance(saved, dict):
+            raise UserError(f"{self.run_dir / layout.RUN_JSON} holds no run configuration")
+        cell = build_cell(build_config({k: v for k, v in saved.items() if k != "output"}).cell)
+        self.kin = {arm.name: ArmKinematics(arm) for arm in cell.arms}
+        self.joints = {arm.name: list(arm.joints) for arm in cell.arms}
+        home = {arm.name: np.asarray(arm.home, float) for arm in cell.arms}
+        self.tracks = read_tracks(self.run_dir, self.run, home, self.joints)
+        self.edges = {arm.name: urdf_joints(arm.urdf) for arm in cell.arms}
+        self.frames = dict(sorted((self.cameras.get("frames") or {}).items()))
+        self.rendered = bool(self.run.get("frames_complete")) and isinstance(self.run.get("labels"), list)
+        self.labels = self.run.get("labels") if isinstance(self.run.get("labels"), list) else []
+        captures = to_ns([float(f["sim_time"]) for f in self.frames.values()]) if self.frames else np.zeros(0, np.int64)
+        self.capture_ns = dict(zip(self.frames, (int(c) for c in captures), strict=True))
+        self.stamps = np.unique(np.concatenate([np.zeros(1, np.int64), captures, *(tr.t_ns for tr in self.tracks.values())]))
+
+    # ------------------------------------------------------------------ the arms
+    def arm_samples(self, arm: str) -> np.ndarray:
+        """For every stamp of the timeline, the index of the arm's sample it holds."""
+        return np.searchsorted(self.tracks[arm].t_ns, self.stamps, side="right") - 1
+
+    def moving_transforms(self, arm: str, samples: np.ndarray) -> tuple[list[tuple[str, str]], np.ndarray]:
+        """The arm's revolute joints as (parent, child) frames, and ``parent_T_child`` at every
+        sample index in ``samples`` (S x J x 4 x 4)."""
+        kin, track = self.kin[arm], self.tracks[arm]
+        moving = [j for j in self.edges[arm] if j.kind != "fixed"]
+        links = sorted({j.parent for j in moving} | {j.child for j in moving})
+        out = np.empty((len(samples), len(moving), 4, 4))
+        for s, i in enumerate(samples):
+            poses = kin.link_poses(track.q[i])
+            world = np.stack([poses[name] for name in links])
+            idx = {name: k for k, name in enumerate(links)}
+            out[s] = relative(world[[idx[j.parent] for j in moving]], world[[idx[j.child] for j in moving]])
+        return [(f"{arm}/{j.parent}", f"{arm}/{j.child}") for j in moving], out
+
+    def static_transforms(self) -> tuple[list[tuple[str, str]], np.ndarray]:
+        """``world`` -> each arm's URDF root and every fixed joint of every arm."""
+        edges, T = [], []
+        for arm, kin in self.kin.items():
+            poses = kin.link_poses(self.tracks[arm].q[0])  # fixed joints are the same at any q
+            roots = {j.parent for j in self.edges[arm]} - {j.child for j in self.edges[arm]}
+            for root in sorted(roots):
+                edges.append((WORLD, f"{arm}/{root}"))
+                T.append(poses[root])
+            for j in self.edges[arm]:
+                if j.kind == "fixed":
+                    edges.append((f"{arm}/{j.parent}", f"{arm}/{j.child}"))
+                    T.append(relative(poses[j.parent], poses[j.child]))
+        return edges, np.asarray(T)
+
+
+def _quaternions(T: np.ndarray) -> np.ndarray:
+    from scipy.spatial.transform import Rotation
+
+    return Rotation.from_matrix(T[..., :3, :3].reshape(-1, 3, 3)).as_quat().reshape(*T.shape[:-2], 4)
+
+
+def _qos_latched() -> Any:
+    from rosbags.interfaces import Qos, QosDurability, QosHistory, QosLiveliness, QosReliability, QosTime
+
+    never = QosTime(0, 0)  # rosbag2's "default" (unset) duration
+    return Qos(QosHistory.KEEP_LAST, 1, QosReliability.RELIABLE, QosDurability.TRANSIENT_LOCAL, never, never, QosLiveliness.AUTOMATIC, never, False)
+
+
+def bag_messages(export: RosbagExport, msgs: BagMessages) -> Iterator[tuple[str, str, int, Any]]:
+    """(topic, message type, stamp in ns, message) in time order: at one stamp TF and joint
+    states come before the images taken there. Images are read as they are reached."""
+    events: list[tuple[int, int, int, str, Any]] = []  # (stamp, order, sequence, kind, what)
+    static_edges, static_T = export.static_transforms()
+    yield "/tf_static", "tf2_msgs/msg/TFMessage", 0, msgs.TFMessage(transforms=msgs.transforms(0, static_edges, static_T, _quaternions(static_T)))
+    held = {arm: export.arm_samples(arm) for arm in export.tracks}
+    moving = {}
+    for arm in export.tracks:
+        edges, T = export.moving_transforms(arm, np.arange(len(export.tracks[arm].t_ns)))
+        moving[arm] = (edges, T, _quaternions(T))
+    for k, stamp in enumerate(export.stamps):
+        events.append((int(stamp), 0, len(events), "state", k))
+    for arm in export.tracks:
+        for path in sorted((export.run_dir / layout.TRAJECTORIES).glob(f"{arm}_*.json")):
+            doc = read_json(path, "")
+            if doc["planned"]["t"]:
+                events.append((int(to_ns(doc["planned"]["t"][0])), 1, len(events), "plan", doc))
+    if export.rendered:
+        for frame, stamp in export.capture_ns.items():
+            events.append((stamp, 2, len(events), "frame", frame))
+        if any(layout.cloud(export.run_dir, row["name"]).is_file() for row in export.labels if int(row["id"]) != 0):
+            events.append((int(export.stamps[-1]), 3, len(events), "cloud", None))
+    events.sort(key=lambda e: e[:3])
+    intrinsics = export.cameras.get("intrinsics") or {}
+    for stamp, _, _, kind, what in events:
+        if kind == "state":
+            transforms = []
+            for arm, track in export.tracks.items():
+                i = held[arm][what]
+                edges, T, quat = moving[arm]
+                transforms += msgs.transforms(stamp, edges, T[i], quat[i])
+                yield f"/{arm}/joint_states", "sensor_msgs/msg/JointState", stamp, msgs.joint_state(stamp, track.joints, track.q[i], track.qd[i])
+            yield "/tf", "tf2_msgs/msg/TFMessage", stamp, msgs.TFMessage(transforms=transforms)
+        elif kind == "plan":
+            arm = what["robot"]
+            start, message = msgs.trajectory(export.joints[arm], what["planned"])
+            yield f"/{arm}/planned_trajectory", "trajectory_msgs/msg/JointTrajectory", start, message
+        elif kind == "frame":
+            arm = export.frames[what]["robot"]
+            optical = f"{arm}/{export.kin[arm].arm.camera_frame}"
+            run_dir = export.run_dir
+            yield f"/{arm}/camera/camera_info", "sensor_msgs/msg/CameraInfo", stamp, msgs.camera_info(stamp, optical, intrinsics)
+            yield f"/{arm}/camera/image_raw", "sensor_msgs/msg/Image", stamp, msgs.image(stamp, optical, _png(layout.image(run_dir, "rgb", what)), "rgb8")
+            yield f"/{arm}/camera/depth", "sensor_msgs/msg/Image", stamp, msgs.image(stamp, optical, frame_depth(run_dir, what), "32FC1")
+            yield f"/{arm}/camera/labels", "sensor_msgs/msg/Image", stamp, msgs.image(stamp, optical, _png(layout.image(run_dir, "labels", what)), "mono8")
+            instances = layout.image(run_dir, "instances", what)
+            if instances.is_file():
+                yield f"/{arm}/camera/instances", "sensor_msgs/msg/Image", stamp, msgs.image(stamp, optical, _png(instances).astype(np.uint16), "mono16")
+        else:
+            points, colors, labels = [np.zeros((0, 3))], [np.zeros((0, 3), np.uint8)], [np.zeros(0, np.uint8)]
+            for row in export.labels:
+                path = layout.cloud(export.run_dir, row["name"])
+                if int(row["id"]) != 0 and path.is_file():
+                    p, c = read_cloud(path)
+                    points.append(p)
+                    colors.append(c)
+                    labels.append(np.full(len(p), int(row["id"]), np.uint8))
+            yield CLOUD_TOPIC, "sensor_msgs/msg/PointCloud2", stamp, msgs.cloud(stamp, np.concatenate(points), np.concatenate(colors), np.concatenate(labels))
+
+
+def write_rosbag(run_dir: Path, overwrite: bool = False, progress: Callable[[int, int], None] | None = None) -> Path:
+    """Write ``run_dir/rosbag/``; an existing one needs ``overwrite`` and is replaced only once
+    the new bag is complete. Returns the bag's directory."""
+    from rosbags.rosbag2 import CompressionFormat, CompressionMode, StoragePlugin, Writer
+
+    run_dir = Path(run_dir)
+    out = run_dir / ROSBAG_DIR
+    if out.exists() and not overwrite:
+        raise OutputError(f"{out} already exists; pass --overwrite to replace it")
+    export = RosbagExport(run_dir)
+    msgs = BagMessages()
+    staging = run_dir / f".{ROSBAG_DIR}.{os.getpid()}.tmp"
+    shutil.rmtree(staging, ignore_errors=True)
+    try:
+        staging.mkdir()
+        writer = Writer(staging / ROSBAG_DIR, version=9, storage_plugin=StoragePlugin.MCAP)
+        # MCAP's own chunk compression: Foxglove and ros2 bag read it transparently
+        writer.set_compression(CompressionMode.STORAGE, CompressionFormat.ZSTD)
+        writer.set_custom_data("agrisim.labels", json.dumps(export.labels))
+        writer.set_custom_data("agrisim.run", str(run_dir.resolve()))
+        connections: dict[str, Any] = {}
+        total = len(export.stamps) + len(export.frames)
+        done = 0
+        with writer:
+            for topic, msgtype, stamp, message in bag_messages(export, msgs):
+                if topic not in connections:
+                    qos = [_qos_latched()] if topic == "/tf_static" else []
+                    connections[topic] = writer.add_connection(topic, msgtype, typestore=msgs.store, offered_qos_profiles=qos)
+                writer.write(connections[topic], stamp, msgs.store.serialize_cdr(message, msgtype))
+                if topic == "/tf" or topic.endswith("/image_raw"):
+                    done += 1
+                    if progress is not None and (done % 500 == 0 or done == total):
+                        progress(done, total)
+        if out.exists():
+            trash = run_dir / f".{ROSBAG_DIR}.{os.getpid()}.old.tmp"
+            os.replace(out, trash)
+            os.replace(staging / ROSBAG_DIR, out)
+            shutil.rmtree(trash)
+        else:
+            os.replace(staging / ROSBAG_DIR, out)
+    finally:
+        shutil.rmtree(staging, ignore_errors=True)
+    return out
