@@ -11,6 +11,7 @@ run: setup
 	$(VENV)/bin/agrisim run $(ARGS)
 
 test: setup
+	bash scripts/test-deps.sh
 	$(VENV)/bin/python -m pytest -q tests
 
 bench: setup

@@ -73,6 +73,12 @@ def _parser() -> argparse.ArgumentParser:
     rec.add_argument("--rrd", type=Path, metavar="PATH", help="Rerun recording path (default: OUT/recording.rrd)")
     rec.add_argument("--no-rrd", action="store_true", default=None, help="write no Rerun recording")
     run.add_argument("--spawn", action="store_true", default=None, help="stream to a spawned Rerun viewer")
+    run.add_argument(
+        "--serve-web",
+        action="store_true",
+        help="stream the run live to Rerun's web viewer, served here (print its address; after the run, serve until Ctrl-C)",
+    )
+    _web_flags(run)
     run.add_argument("--overwrite", action="store_true", default=None, help="replace an existing --out")
     run.add_argument(
         "--resume",
@@ -136,6 +142,14 @@ def _parser() -> argparse.ArgumentParser:
     )
     export.add_argument("run_dir", type=Path, metavar="RUN_DIR", help="a run's output directory (agrisim run --out)")
     export.add_argument("--overwrite", action="store_true", help="replace an existing export (coco, rosbag)")
+    view = sub.add_parser(
+        "view",
+        help="serve a run's Rerun recording to a web browser",
+        description="Serve a run's recording (RUN_DIR/recording.rrd, or an .rrd file) with Rerun's web viewer and "
+        "print the address to open; Ctrl-C stops. Loopback only unless --bind says otherwise.",
+    )
+    view.add_argument("target", type=Path, metavar="RUN_DIR|RRD", help="a run's output directory or a recording file")
+    _web_flags(view)
     compare = sub.add_parser(
         "compare",
         help="the paper's Table 2: every plant in both segmentation modes, episodes on Ray",
@@ -199,6 +213,27 @@ def _parse_value(text: str) -> Any:
         return text
 
 
+def _web_flags(parser: argparse.ArgumentParser) -> None:
+    from agrisim.app.web import DEFAULT_BIND, DEFAULT_GRPC_PORT, DEFAULT_WEB_PORT
+
+    parser.add_argument("--web-port", type=int, metavar="N", help=f"port of the web page (default: {DEFAULT_WEB_PORT})")
+    parser.add_argument("--grpc-port", type=int, metavar="N", help=f"port the page reads the recording from (default: {DEFAULT_GRPC_PORT})")
+    parser.add_argument("--bind", metavar="ADDR", help=f"address to serve on (default: {DEFAULT_BIND}, this machine only; 0.0.0.0: every interface)")
+
+
+def _web_address(args: argparse.Namespace) -> tuple[str, int, int]:
+    """(bind, web port, gRPC port) of ``--bind``, ``--web-port``, ``--grpc-port``, checked."""
+    from agrisim.app.web import DEFAULT_BIND, DEFAULT_GRPC_PORT, DEFAULT_WEB_PORT, check_address
+
+    bind = args.bind or DEFAULT_BIND
+    web = args.web_port if args.web_port is not None else DEFAULT_WEB_PORT
+    grpc = args.grpc_port if args.grpc_port is not None else DEFAULT_GRPC_PORT
+    if web == grpc:
+        raise UserError(f"--web-port and --grpc-port must differ (both {web})")
+    check_address(bind, {"--web-port": web, "--grpc-port": grpc})
+    return bind, web, grpc
+
+
 def overrides_from_args(args: argparse.Namespace) -> dict[str, Any]:
     """The flags given on the command line, as a nested config dictionary."""
     out: dict[str, Any] = {}
@@ -250,6 +285,14 @@ def _cmd_run(args: argparse.Namespace) -> int:
     from agrisim.app.progress import EpisodeProgress
 
     overrides = overrides_from_args(args)
+    web = None
+    if args.serve_web:
+        from agrisim.app.web import grpc_url
+
+        web = _web_address(args)
+        _set(overrides, "sink.rerun.connect", grpc_url(web[0], web[2]))
+    elif any(v is not None for v in (args.web_port, args.grpc_port, args.bind)):
+        raise UserError("--web-port, --grpc-port and --bind go with --serve-web")
     if args.resume:
         config = _resume_config(args, overrides)
     else:
@@ -258,8 +301,26 @@ def _cmd_run(args: argparse.Namespace) -> int:
     episode = Episode(config)  # validates everything; nothing is written before run()
     for note in getattr(getattr(episode, "plant", None), "notes", []):
         print(f"plant: {note}")
-    with EpisodeProgress() as progress:
-        run, summary = episode.run(progress=progress.update)
+    viewer = None
+    try:
+        if web is not None:
+            from agrisim.app.web import serve_web
+
+            viewer = serve_web(None, *web)
+            print(f"watch the run in a browser: {viewer.url}", flush=True)
+        with EpisodeProgress() as progress:
+            run, summary = episode.run(progress=progress.update)
+        _report_run(run, summary)
+        if viewer is not None:
+            print(f"the run is over; still serving it at {viewer.url} (Ctrl-C to stop; agrisim view {run.out_dir} serves it again)", flush=True)
+            viewer.wait()
+    finally:
+        if viewer is not None:
+            viewer.stop()
+    return 0
+
+
+def _report_run(run: Any, summary: Any) -> None:
     print(f"reached {summary.reached}/{summary.setpoints} setpoints, {summary.collisions} with collisions")
     worst = max((r.ee_error_mm for r in run.results if r.reached and r.ee_error_mm is not None), default=None)
     if worst is not None:
@@ -269,7 +330,19 @@ def _cmd_run(args: argparse.Namespace) -> int:
             print(f"  {r.frame}: {r.reason}")
     stages = ", ".join(f"{k} {v:.1f} s" for k, v in summary.wall_s.items())
     print(f"simulated {summary.sim_time:.1f} s; wall time: {stages}")
-    print(f"output: {run.out_dir}" + "".join(f"  {what}: {path}" for what, path in run.outputs.items()))
+    print(f"output: {run.out_dir}" + "".join(f"  {what}: {path}" for what, path in run.outputs.items()), flush=True)
+
+
+def _cmd_view(args: argparse.Namespace) -> int:
+    from agrisim.app.web import recording_of, serve_web
+
+    recording = recording_of(args.target)
+    bind, web, grpc = _web_address(args)
+    with serve_web(recording, bind, web, grpc) as viewer:
+        print(f"serving {recording} at {viewer.url} (Ctrl-C to stop)", flush=True)
+        status = viewer.wait()
+    if status not in (0, -2, -15):
+        _fail(f"the Rerun web viewer stopped with status {status}", status=1)
     return 0
 
 
@@ -496,6 +569,8 @@ def main(argv: Sequence[str] | None = None) -> int:
             return _cmd_render(args)
         if args.command == "compare":
             return _cmd_compare(args)
+        if args.command == "view":
+            return _cmd_view(args)
         return _cmd_plugins(args)
     except UserError as exc:
         _fail(str(exc))

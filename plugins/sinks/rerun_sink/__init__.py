@@ -2,7 +2,8 @@
 
 One :class:`rerun.RecordingStream` per run (never the process-global one), written to
 ``OUT/recording.rrd`` (or ``[sink.rerun] path``, ``--rrd``) and, with ``spawn`` (``--spawn``),
-streamed to a spawned viewer as well; ``save = false`` (``--no-rrd``) writes no file. Two timelines: ``setpoint`` (sequence, the setpoint index) and ``sim_time`` (duration,
+streamed to a spawned viewer as well, with ``connect`` (``--serve-web``) to a Rerun server;
+``save = false`` (``--no-rrd``) writes no file. Two timelines: ``setpoint`` (sequence, the setpoint index) and ``sim_time`` (duration,
 simulated seconds since the run started). Every temporal row carries both, so scrubbing either
 shows the same state.
 
@@ -54,7 +55,7 @@ def preflight(config: RunConfig, options: RerunOptions) -> None:
 def make_sink(run: Run, options: RerunOptions) -> RerunSink | None:
     """The sink for ``run``, or None when it neither saves nor spawns (Rerun is then never
     imported)."""
-    if not options.save and not options.spawn:
+    if not options.save and not options.spawn and options.connect is None:
         return None
     from .recording import RerunSink
 

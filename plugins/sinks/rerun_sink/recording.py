@@ -9,6 +9,7 @@ import socket
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
+from urllib.parse import urlparse
 
 import numpy as np
 
@@ -51,6 +52,8 @@ if TYPE_CHECKING:
 
 log = logging.getLogger(__name__)
 
+#: where the 3D view's eye starts, from the plant (metres, world z up)
+EYE_OFFSET = np.array([0.4, -2.2, 1.1])
 #: port of the viewer started by ``--spawn`` (Rerun's default)
 SPAWN_PORT = 9876
 #: seconds to wait for the sinks (file, viewer) to take the last data at the end of the run
@@ -88,6 +91,7 @@ class RerunSink:
         self.run = run
         self.path = options.recording_path(run.out_dir)
         self.spawn = options.spawn
+        self.connect = options.connect
         self.save = options.save
         self.rec: rr.RecordingStream | None = None
         self.visuals = {arm.name: robot_meshes.link_visuals(arm.urdf) for arm in run.cell.arms}
@@ -102,7 +106,17 @@ class RerunSink:
         side.append(rrb.TimeSeriesView(origin=paths.METRICS, name="camera error (mm)"))
         return rrb.Blueprint(
             rrb.Horizontal(
-                rrb.Spatial3DView(origin=paths.WORLD, name="cell"),
+                # the eye inside the room, above the table, the plant and both arms in view
+                # (Rerun's default eye frames the whole room from outside its walls)
+                rrb.Spatial3DView(
+                    origin=paths.WORLD,
+                    name="cell",
+                    eye_controls=rrb.EyeControls3D(
+                        position=(self.run.cell.plant_center + EYE_OFFSET).tolist(),
+                        look_target=self.run.cell.plant_center.tolist(),
+                        eye_up=(0.0, 0.0, 1.0),
+                    ),
+                ),
                 rrb.Vertical(*side),
                 column_shares=[2, 1],
             ),
@@ -131,6 +145,12 @@ class RerunSink:
                 sinks.append(rr.GrpcSink(f"rerun+http://127.0.0.1:{SPAWN_PORT}/proxy"))
             else:
                 log.warning("no Rerun viewer listens on port %d; %s", SPAWN_PORT, "recording to file only" if self.save else "nothing is recorded")
+        if self.connect is not None:
+            url = urlparse(self.connect)
+            if _listening(url.port or 0, url.hostname or "127.0.0.1"):
+                sinks.append(rr.GrpcSink(self.connect))
+            else:
+                log.warning("no Rerun server listens at %s; not streaming there", self.connect)
         if not sinks:
             return None
         rec.set_sinks(*sinks, default_blueprint=self.blueprint())

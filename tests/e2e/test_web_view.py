@@ -1,0 +1,153 @@
+"""``agrisim view`` and ``agrisim run --serve-web``: the recording served to a real headless
+browser (Debian's Chromium, WebGL on its CPU rasterizer), whose screenshot must show the 3D view
+and the camera views with content; loopback only by default; Ctrl-C stops cleanly; bad
+addresses refused."""
+
+from __future__ import annotations
+
+import os
+import queue
+import signal
+import socket
+import subprocess
+import sys
+import threading
+from pathlib import Path
+
+import numpy as np
+import pytest
+from PIL import Image
+
+from browser import Page, browser
+from conftest import small_run
+
+pytestmark = pytest.mark.skipif(
+    browser() is None and not os.environ.get("CI"), reason="no headless Chromium (make test installs it)"
+)
+
+
+def free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def listening_addresses(port: int) -> set[str]:
+    """The local IPv4 addresses listening on ``port`` (from /proc/net/tcp, state 0A)."""
+    out = set()
+    for line in Path("/proc/net/tcp").read_text().splitlines()[1:]:
+        local, state = line.split()[1], line.split()[3]
+        address, hex_port = local.split(":")
+        if state == "0A" and int(hex_port, 16) == port:
+            out.add(socket.inet_ntoa(bytes.fromhex(address)[::-1]))
+    return out
+
+
+def shows_views(shot: np.ndarray) -> bool:
+    """Does the viewer show content in its 3D view (the left two thirds: coloured clouds) and
+    its camera views (upper right: the plant, green)? A loading or empty viewer is all grey."""
+    h, w = shot.shape[:2]
+    s = shot.astype(int)
+    colourful = (s.max(axis=2) - s.min(axis=2)) > 60
+    green = (s[..., 1] > s[..., 0] + 40) & (s[..., 1] > s[..., 2] + 40)
+    view3d = (slice(int(0.07 * h), int(0.8 * h)), slice(int(0.13 * w), int(0.57 * w)))
+    cameras = (slice(int(0.07 * h), int(0.55 * h)), slice(int(0.59 * w), int(0.80 * w)))
+    return bool(colourful[view3d].mean() > 0.005 and colourful[cameras].mean() > 0.15 and green[cameras].mean() > 0.01)
+
+
+class Lines:
+    """A child's stdout, line by line, with a timeout."""
+
+    def __init__(self, process: subprocess.Popen[str]) -> None:
+        self.lines: queue.Queue[str] = queue.Queue()
+        threading.Thread(target=lambda: [self.lines.put(line) for line in process.stdout], daemon=True).start()  # type: ignore[union-attr]
+        self.seen: list[str] = []
+
+    def until(self, words: str, timeout: float) -> str:
+        while True:
+            try:
+                line = self.lines.get(timeout=timeout)
+            except queue.Empty:
+                raise AssertionError(f"no line with {words!r} within {timeout} s; got {self.seen}") from None
+            self.seen.append(line)
+            if words in line:
+                return line
+
+
+def agrisim(*args: str) -> subprocess.Popen[str]:
+    return subprocess.Popen(
+        [sys.executable, "-m", "agrisim", *args], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True
+    )
+
+
+def stop(process: subprocess.Popen[str]) -> int:
+    process.send_signal(signal.SIGINT)
+    try:
+        return process.wait(timeout=30)
+    finally:
+        if process.poll() is None:
+            process.kill()
+
+
+def look(url: str, tmp_path: Path, name: str) -> np.ndarray:
+    with Page(url) as page:
+        shot = page.wait_for(shows_views, timeout=150)
+    Image.fromarray(shot).save(tmp_path / f"{name}.png")  # for a look when it fails
+    return shot
+
+
+def test_view_serves_a_runs_recording_to_a_browser(tmp_path: Path) -> None:
+    run_dir = small_run(tmp_path / "run", output={"out": str(tmp_path / "run"), "no_rrd": False})
+    web, grpc = free_port(), free_port()
+    process = agrisim("view", str(run_dir), "--web-port", str(web), "--grpc-port", str(grpc))
+    try:
+        line = Lines(process).until("serving", timeout=60)
+        url = line.split(" at ", 1)[1].split()[0]
+        assert url.startswith(f"http://127.0.0.1:{web}/")
+        assert listening_addresses(web) == listening_addresses(grpc) == {"127.0.0.1"}  # loopback only
+        shot = look(url, tmp_path, "view")
+        assert shows_views(shot), f"the page shows no 3D and camera views: {tmp_path / 'view.png'}"
+    finally:
+        code = stop(process)
+    assert code == 0, process.stderr.read() if process.stderr else ""
+    assert not listening_addresses(web) and not listening_addresses(grpc)  # the server is gone
+
+
+def test_run_serve_web_streams_the_run_live(tmp_path: Path) -> None:
+    out = tmp_path / "run"
+    web, grpc = free_port(), free_port()
+    process = agrisim(
+        "run", "--physics", "kinematic", "--setpoints", "1x3", "--resolution", "320x180", "--shadow-samples", "0",
+        "--out", str(out), "--serve-web", "--web-port", str(web), "--grpc-port", str(grpc),
+    )
+    try:
+        lines = Lines(process)
+        url = lines.until("watch the run in a browser", timeout=120).split(": ", 1)[1].strip()
+        lines.until("the run is over", timeout=300)
+        # everything the page shows came through the gRPC stream: the server reads no file
+        shot = look(url, tmp_path, "serve_web")
+        assert shows_views(shot), f"the page shows no 3D and camera views: {tmp_path / 'serve_web.png'}"
+    finally:
+        code = stop(process)
+    assert code == 0, process.stderr.read() if process.stderr else ""
+    assert '"status": "complete"' in (out / "run.json").read_text() and (out / "recording.rrd").is_file()
+
+
+def test_bad_addresses_are_refused(tmp_path: Path, cli) -> None:  # noqa: ANN001
+    with socket.socket() as taken:
+        taken.bind(("127.0.0.1", 0))
+        taken.listen()
+        port = taken.getsockname()[1]
+        rrd = tmp_path / "x.rrd"
+        rrd.write_bytes(b"")
+        for args, words in (
+            (["view", str(rrd), "--web-port", str(port)], "cannot be used"),
+            (["view", str(rrd), "--bind", "localhost:80"], "not an IP address"),
+            (["view", str(rrd), "--web-port", "70000"], "not a port"),
+            (["view", str(tmp_path)], "holds no recording.rrd"),
+            (["run", "--web-port", "9000"], "go with --serve-web"),
+            (["run", "--serve-web", "--grpc-port", str(port), "--out", str(tmp_path / "r")], "cannot be used"),
+        ):
+            code, _, err = cli(args)
+            assert code == 2 and words in err and len(err.strip().splitlines()) == 1, (args, err)
+    assert not (tmp_path / "r").exists()
