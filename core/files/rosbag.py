@@ -75,37 +75,49 @@ def to_ns(t: float | np.ndarray) -> Any:
     return np.rint(np.asarray(t, float) * 1e9).astype(np.int64)
 
 
-def read_tracks(run_dir: Path, run: dict[str, Any], home: dict[str, np.ndarray], joints: dict[str, list[str]]) -> dict[str, ArmTrack]:
-    """Every arm's executed samples from ``trajectories/``; an arm starts at ``home`` (its
-    state before its first sample). A run written before trajectories were kept is refused."""
+def read_moves(run_dir: Path, run: dict[str, Any], joints: dict[str, list[str]]) -> dict[str, list[dict[str, Any]]]:
+    """Every arm's moves (``trajectories/<frame>.json``), in time order, checked: a run written
+    before trajectories were kept, a missing or malformed file is refused, naming it."""
     folder = run_dir / layout.TRAJECTORIES
-    frames = [row["frame"] for row in run.get("results") or [] if isinstance(row, dict)]
-    if not folder.is_dir() and frames:
+    if not folder.is_dir() and run.get("results"):
         raise UserError(f"the run in {run_dir} has no {layout.TRAJECTORIES}/ (it predates them): run it again to export it")
-    moves: dict[str, list[dict[str, Any]]] = {arm: [] for arm in home}
-    for path in sorted(folder.glob("*.json")) if folder.is_dir() else []:
-        doc = read_json(path, "")
-        if doc.get("robot") not in moves:
-            raise UserError(f"{path} is for robot {doc.get('robot')!r}, not one of the run's arms {sorted(moves)}")
-        moves[doc["robot"]].append(doc)
     for frame in run.get("frames_complete") or []:
         if not layout.trajectory(run_dir, frame).is_file():
             raise UserError(f"missing {layout.trajectory(run_dir, frame)}: the run's trajectories are incomplete")
-    tracks = {}
-    for arm, docs in moves.items():
-        dof = len(joints[arm])
-        t, q, qd = [np.zeros(1, np.int64)], [home[arm][None, :]], [np.zeros((1, dof))]
-        for doc in sorted(docs, key=lambda d: d["executed"]["t"][0] if d["executed"]["t"] else 0.0):
-            ex = doc["executed"]
-            if list(doc.get("joints") or []) != joints[arm]:
-                raise UserError(f"{layout.trajectory(run_dir, doc['frame'])} names joints {doc.get('joints')}, not {joints[arm]}")
-            if not ex["t"]:
-                continue
-            t.append(to_ns(ex["t"]))
-            q.append(np.asarray(ex["q"], float).reshape(len(ex["t"]), dof))
-            qd.append(np.asarray(ex["qd"], float) if ex.get("qd") is not None else np.full((len(ex["t"]), dof), np.nan))
-        tracks[arm] = ArmTrack(joints[arm], np.concatenate(t), np.concatenate(q), np.concatenate(qd))
-    return tracks
+    moves: dict[str, list[dict[str, Any]]] = {arm: [] for arm in joints}
+    for path in sorted(folder.glob("*.json")) if folder.is_dir() else []:
+        doc = read_json(path, "")
+        arm = doc.get("robot")
+        if arm not in moves:
+            raise UserError(f"{path} is for robot {arm!r}, not one of the run's arms {sorted(moves)}")
+        if list(doc.get("joints") or []) != joints[arm]:
+            raise UserError(f"{path} names joints {doc.get('joints')}, not {joints[arm]}")
+        try:
+            for part in ("planned", "executed"):
+                n = len(doc[part]["t"])
+                for key in ("q", "qd"):
+                    if doc[part].get(key) is not None and np.shape(doc[part][key]) != (n, len(joints[arm])):
+                        raise ValueError(f"{part} {key} is not {n} x {len(joints[arm])}")
+        except (KeyError, TypeError, ValueError) as exc:
+            raise UserError(f"{path} is not an agrisim trajectory: {exc}") from None
+        moves[arm].append(doc)
+    for docs in moves.values():
+        docs.sort(key=lambda d: d["executed"]["t"][0] if d["executed"]["t"] else 0.0)
+    return moves
+
+
+def arm_track(moves: list[dict[str, Any]], home: np.ndarray, joints: list[str]) -> ArmTrack:
+    """One arm's samples: ``home`` at 0, then every executed sample of its ``moves``."""
+    dof = len(joints)
+    t, q, qd = [np.zeros(1, np.int64)], [np.asarray(home, float)[None, :]], [np.zeros((1, dof))]
+    for doc in moves:
+        ex = doc["executed"]
+        if not ex["t"]:
+            continue
+        t.append(to_ns(ex["t"]))
+        q.append(np.asarray(ex["q"], float))
+        qd.append(np.asarray(ex["qd"], float) if ex.get("qd") is not None else np.full((len(ex["t"]), dof), np.nan))
+    return ArmTrack(joints, np.concatenate(t), np.concatenate(q), np.concatenate(qd))
 
 
 @dataclass(frozen=True)
@@ -321,8 +333,8 @@ class RosbagExport:
         cell = build_cell(build_config({k: v for k, v in saved.items() if k != "output"}).cell)
         self.kin = {arm.name: ArmKinematics(arm) for arm in cell.arms}
         self.joints = {arm.name: list(arm.joints) for arm in cell.arms}
-        home = {arm.name: np.asarray(arm.home, float) for arm in cell.arms}
-        self.tracks = read_tracks(self.run_dir, self.run, home, self.joints)
+        self.moves = read_moves(self.run_dir, self.run, self.joints)
+        self.tracks = {arm.name: arm_track(self.moves[arm.name], np.asarray(arm.home), self.joints[arm.name]) for arm in cell.arms}
         self.edges = {arm.name: urdf_joints(arm.urdf) for arm in cell.arms}
         self.frames = dict(sorted((self.cameras.get("frames") or {}).items()))
         self.rendered = bool(self.run.get("frames_complete")) and isinstance(self.run.get("labels"), list)
@@ -392,9 +404,8 @@ def bag_messages(export: RosbagExport, msgs: BagMessages) -> Iterator[tuple[str,
         moving[arm] = (edges, T, _quaternions(T))
     for k, stamp in enumerate(export.stamps):
         events.append((int(stamp), 0, len(events), "state", k))
-    for arm in export.tracks:
-        for path in sorted((export.run_dir / layout.TRAJECTORIES).glob(f"{arm}_*.json")):
-            doc = read_json(path, "")
+    for docs in export.moves.values():
+        for doc in docs:
             if doc["planned"]["t"]:
                 events.append((int(to_ns(doc["planned"]["t"][0])), 1, len(events), "plan", doc))
     if export.rendered:

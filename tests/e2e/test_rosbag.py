@@ -218,7 +218,15 @@ def test_refusals_write_nothing(run_dir: Path, cli, tmp_path: Path) -> None:  # 
         (out / "run.json").write_text(json.dumps(dict(doc, status=status)))
         return out
 
-    for broken, words in ((copy("running", status="running"), "not complete"), (copy("old", trajectories=False), "trajectories")):
+    malformed = copy("malformed")
+    move = next((malformed / "trajectories").glob("*.json"))
+    move.write_text(json.dumps({k: v for k, v in json.loads(move.read_text()).items() if k != "executed"}))
+    cases = (
+        (copy("running", status="running"), "not complete"),
+        (copy("old", trajectories=False), "trajectories"),
+        (malformed, "not an agrisim trajectory"),
+    )
+    for broken, words in cases:
         code, _, err = cli(["export", "rosbag", str(broken)])
         assert code == 2 and words in err and len(err.strip().splitlines()) == 1, err
         assert not (broken / "rosbag").exists() and not [p for p in broken.iterdir() if p.name.startswith(".")]
