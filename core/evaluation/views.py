@@ -38,16 +38,21 @@ def _read_png(path: Path, what: str) -> np.ndarray:
         raise UserError(f"cannot read {what} image {path}: {exc}") from None
 
 
+def load_depth(run_dir: Path, frame: str) -> np.ndarray:
+    """A frame's planar depth in metres (0 = nothing hit): the exact EXR where the run kept it,
+    else the PNG's millimetres."""
+    exr = layout.depth_exr(run_dir, frame)
+    if exr.is_file():
+        return read_exr(exr)
+    return mm_to_depth(_read_png(layout.image(run_dir, "depth", frame), "depth").astype(np.uint16))
+
+
 def load_view(run_dir: Path, frame: str, camera: CameraModel, world_T_camera: np.ndarray) -> View:
     """A frame of a dataset on disk (``rgb/``, ``labels/``, ``depth/`` as EXR if there, else
     PNG, ``instances/``)."""
     rgb = _read_png(layout.image(run_dir, "rgb", frame), "rgb")
     labels = _read_png(layout.image(run_dir, "labels", frame), "labels")
-    exr = layout.depth_exr(run_dir, frame)
-    if exr.is_file():  # the exact depth, where the run kept it
-        depth = read_exr(exr)
-    else:
-        depth = mm_to_depth(_read_png(layout.image(run_dir, "depth", frame), "depth").astype(np.uint16))
+    depth = load_depth(run_dir, frame)
     shape = (camera.height, camera.width)
     if rgb.shape[:2] != shape or labels.shape != shape or depth.shape != shape:
         raise UserError(f"frame {frame} in {run_dir} is not {camera.width}x{camera.height} as cameras.json says")

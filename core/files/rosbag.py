@@ -46,7 +46,6 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from PIL import Image
 
 from agrisim.errors import OutputError, UserError
 from agrisim.files import layout
@@ -289,21 +288,18 @@ class BagMessages:
         )
 
 
-def _png(path: Path) -> np.ndarray:
-    with Image.open(path) as im:
-        return np.asarray(im)
-
-
-def frame_depth(run_dir: Path, frame: str) -> np.ndarray:
-    """The frame's planar depth in metres as REP 118 wants it: float32, +Inf where nothing was
-    hit (the exact EXR when the run kept one, else the PNG's millimetres)."""
-    from agrisim.files.exr import read_exr
-
-    exr = layout.depth_exr(run_dir, frame)
-    depth = read_exr(exr) if exr.is_file() else _png(layout.image(run_dir, "depth", frame)).astype(np.float32) / np.float32(1000.0)
+def rep118(depth: np.ndarray) -> np.ndarray:
+    """Planar depth in metres as REP 118 wants it: float32, +Inf where nothing was hit."""
     depth = np.asarray(depth, np.float32).copy()
     depth[depth == 0] = np.inf
     return depth
+
+
+def frame_depth(run_dir: Path, frame: str) -> np.ndarray:
+    """A saved frame's depth for the bag (the exact EXR when the run kept one)."""
+    from agrisim.evaluation.views import load_depth
+
+    return rep118(load_depth(run_dir, frame))
 
 
 def read_cloud(path: Path) -> tuple[np.ndarray, np.ndarray]:
@@ -354,12 +350,13 @@ class RosbagExport:
         kin, track = self.kin[arm], self.tracks[arm]
         moving = [j for j in self.edges[arm] if j.kind != "fixed"]
         links = sorted({j.parent for j in moving} | {j.child for j in moving})
+        parents = [links.index(j.parent) for j in moving]
+        children = [links.index(j.child) for j in moving]
         out = np.empty((len(samples), len(moving), 4, 4))
         for s, i in enumerate(samples):
             poses = kin.link_poses(track.q[i])
             world = np.stack([poses[name] for name in links])
-            idx = {name: k for k, name in enumerate(links)}
-            out[s] = relative(world[[idx[j.parent] for j in moving]], world[[idx[j.child] for j in moving]])
+            out[s] = relative(world[parents], world[children])
         return [(f"{arm}/{j.parent}", f"{arm}/{j.child}") for j in moving], out
 
     def static_transforms(self) -> tuple[list[tuple[str, str]], np.ndarray]:
@@ -414,7 +411,11 @@ def bag_messages(export: RosbagExport, msgs: BagMessages) -> Iterator[tuple[str,
         if any(layout.cloud(export.run_dir, row["name"]).is_file() for row in export.labels if int(row["id"]) != 0):
             events.append((int(export.stamps[-1]), 3, len(events), "cloud", None))
     events.sort(key=lambda e: e[:3])
-    intrinsics = export.cameras.get("intrinsics") or {}
+    from agrisim.evaluation.views import load_view
+    from agrisim.files.rundir import camera_from_json
+
+    intrinsics = export.cameras["intrinsics"]
+    camera = camera_from_json(intrinsics) if export.rendered else None
     for stamp, _, _, kind, what in events:
         if kind == "state":
             transforms = []
@@ -431,14 +432,13 @@ def bag_messages(export: RosbagExport, msgs: BagMessages) -> Iterator[tuple[str,
         elif kind == "frame":
             arm = export.frames[what]["robot"]
             optical = f"{arm}/{export.kin[arm].arm.camera_frame}"
-            run_dir = export.run_dir
+            images = load_view(export.run_dir, what, camera, export.frames[what]["world_T_camera"]).images
             yield f"/{arm}/camera/camera_info", "sensor_msgs/msg/CameraInfo", stamp, msgs.camera_info(stamp, optical, intrinsics)
-            yield f"/{arm}/camera/image_raw", "sensor_msgs/msg/Image", stamp, msgs.image(stamp, optical, _png(layout.image(run_dir, "rgb", what)), "rgb8")
-            yield f"/{arm}/camera/depth", "sensor_msgs/msg/Image", stamp, msgs.image(stamp, optical, frame_depth(run_dir, what), "32FC1")
-            yield f"/{arm}/camera/labels", "sensor_msgs/msg/Image", stamp, msgs.image(stamp, optical, _png(layout.image(run_dir, "labels", what)), "mono8")
-            instances = layout.image(run_dir, "instances", what)
-            if instances.is_file():
-                yield f"/{arm}/camera/instances", "sensor_msgs/msg/Image", stamp, msgs.image(stamp, optical, _png(instances).astype(np.uint16), "mono16")
+            yield f"/{arm}/camera/image_raw", "sensor_msgs/msg/Image", stamp, msgs.image(stamp, optical, images.rgb, "rgb8")
+            yield f"/{arm}/camera/depth", "sensor_msgs/msg/Image", stamp, msgs.image(stamp, optical, rep118(images.depth), "32FC1")
+            yield f"/{arm}/camera/labels", "sensor_msgs/msg/Image", stamp, msgs.image(stamp, optical, images.labels, "mono8")
+            if images.instances is not None:
+                yield f"/{arm}/camera/instances", "sensor_msgs/msg/Image", stamp, msgs.image(stamp, optical, images.instances, "mono16")
         else:
             points, colors, labels = [np.zeros((0, 3))], [np.zeros((0, 3), np.uint8)], [np.zeros(0, np.uint8)]
             for row in export.labels:
