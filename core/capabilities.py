@@ -38,6 +38,9 @@ class RendererCapabilities:
     """More than one RGB ray per pixel."""
     rerender: bool = False
     """Draws RGB alone from a saved scene (:meth:`Renderer.render_rgb`, ``agrisim render``)."""
+    points: bool = False
+    """Draws a point plant (``Scene.points``): every point a sphere of its size, with exact
+    labels, depth and instances on the spheres."""
 
 
 @dataclass(frozen=True)
@@ -84,8 +87,11 @@ def describe(capabilities: object) -> str:
     return "; ".join(parts) or "none"
 
 
-def check_renderer(spec: BackendSpec, renderers: Mapping[str, BackendSpec], seg_modes: Iterable[str], labels: str) -> None:
-    """Refuse rendering with ``spec`` in ``seg_modes`` with ``labels`` if it cannot do them.
+def check_renderer(
+    spec: BackendSpec, renderers: Mapping[str, BackendSpec], seg_modes: Iterable[str], labels: str, points: bool = False
+) -> None:
+    """Refuse rendering with ``spec`` in ``seg_modes`` with ``labels`` (and a point plant, with
+    ``points``) if it cannot do them.
 
     ``renderers`` are all installed renderers, to name those that could.
     """
@@ -94,6 +100,8 @@ def check_renderer(spec: BackendSpec, renderers: Mapping[str, BackendSpec], seg_
         out = [f"segmentation mode {m!r}" for m in seg_modes if m not in caps.seg_modes]
         if labels == "organs" and not caps.organ_labels:
             out.append("organ labels")
+        if points and not getattr(caps, "points", False):
+            out.append("point plants")
         return out
 
     lacking = missing(spec.capabilities)

@@ -256,6 +256,20 @@ class PlantFileConfig(_Model):
     """Multiplies the coordinates (0.01 for an asset in centimetres)."""
     root: Path | None = None
     """Directory the asset and the files it names must lie in (no escaping it)."""
+    label_names: dict[str, str] | None = None
+    """Names of label ids (``{"1" = "leaf", "2" = "stem"}``): of a point cloud's ``label``
+    property, or of a label texture's ids (``label_texture``)."""
+
+
+class PointsConfig(_Model):
+    """Drawing the plant as points (the paper's Table 3): a point-cloud file always is."""
+
+    count: int | None = None
+    """``--as-points N``: draw the plant (a species, a crop, a mesh file) as N points sampled
+    on its opaque surface; None: as it is."""
+    size: float | None = None
+    """``--point-size S``: diameter of every point's sphere, m; None: twice the cloud's median
+    spacing."""
 
 
 class RunConfig(_Model):
@@ -267,6 +281,8 @@ class RunConfig(_Model):
     """Plant species (``agrisim plants``) or a glTF/GLB/OBJ file (``--plant``)."""
     plant_file: PlantFileConfig = PlantFileConfig()
     """Options for a plant read from a file."""
+    points: PointsConfig = PointsConfig()
+    """The plant as points (``--as-points``, ``--point-size``)."""
     plants: dict[str, dict[str, Any]] = {}
     """Options per plant species (``[plants.boxwood]``), validated by the species' own model."""
     pcg_seed: int = Field(42, ge=0, le=2**32 - 1)

@@ -48,7 +48,7 @@ from agrisim.capabilities import check_reconstructor, check_renderer
 from agrisim.records import Run, RunSummary, SetpointResult
 from agrisim.kinds import KINDS
 from agrisim.registry import BackendSpec, Registry, blame, loads_everything, make_plugin_manager
-from agrisim.scene.plant_choice import check_plant_name, resolve_plant
+from agrisim.scene.plant_choice import check_plant_name, draws_points, resolve_plant
 from agrisim.robot.setpoints import Setpoint, routine
 from agrisim.robot.trajectory import Limits, TimedPath, time_parametrize
 from agrisim.evaluation.views import View, load_view, view_from_capture
@@ -100,7 +100,11 @@ class Episode:
         else:
             self.renderer_spec, self.renderer_options = self._backend("renderer", config.renderer)
             check_renderer(
-                self.renderer_spec, self.registry.specs("renderer"), [config.render.seg_mode], config.render.labels
+                self.renderer_spec,
+                self.registry.specs("renderer"),
+                [config.render.seg_mode],
+                config.render.labels,
+                points=draws_points(config),
             )
             with _timed(self._prep_wall, "plant"):
                 self.plant = resolve_plant(self.registry, config)
@@ -199,7 +203,7 @@ class Episode:
             run.backends["recon"] = self.recon_spec.name
             run.backend_options["recon"] = self.recon_options.model_dump(mode="json")
             with _timed(run.wall_s, "truth"):
-                truth = GroundTruth.sample(self.scene.mesh(self.scene.plant), self.config.metrics.truth_samples)
+                truth = GroundTruth.of_scene(self.scene, self.config.metrics.truth_samples)
             self._session = ReconSession(
                 recon,
                 self.scene.labels,

@@ -47,8 +47,14 @@ def _parser() -> argparse.ArgumentParser:
 
     run = sub.add_parser("run", help="run one episode of the routine", description="Run one episode of the routine.")
     run.add_argument("--config", type=Path, metavar="TOML", help="configuration file; flags override it")
-    run.add_argument("--plant", metavar="NAME|PATH", help="species (agrisim plants) or a .glb/.gltf/.obj file")
+    run.add_argument("--plant", metavar="NAME|PATH", help="species (agrisim plants), a .glb/.gltf/.obj mesh or a .ply/.pcd point cloud")
     run.add_argument("--plant-age", type=float, metavar="DAYS", help="age of a growing plant (helios:*), days")
+    run.add_argument(
+        "--as-points", type=int, metavar="N", help="draw the plant as N points sampled on its opaque surface (the paper's Table 3)"
+    )
+    run.add_argument(
+        "--point-size", type=float, metavar="M", help="diameter of each point of a point plant, metres (default: one that covers its surface)"
+    )
     run.add_argument("--seg-mode", choices=["texture", "repopa"], help="segmentation mode (default: texture)")
     run.add_argument("--labels", choices=["plant", "organs"], help="one plant label, or one per organ (default: plant)")
     run.add_argument("--renderer", metavar="NAME", help="renderer (default: raycast; none: robots only)")
@@ -158,6 +164,14 @@ def _parser() -> argparse.ArgumentParser:
     )
     compare.add_argument("--plants", metavar="A,B,...", help="species or plant files (default: the ten species)")
     compare.add_argument("--seg-modes", metavar="M,...", help="segmentation modes (default: texture,repopa)")
+    compare.add_argument(
+        "--as-points", type=int, metavar="N", help="with --point-sizes: each plant as N points sampled on its surface"
+    )
+    compare.add_argument(
+        "--point-sizes",
+        metavar="M,...",
+        help="the paper's Table 3: the mesh, then its points at each size (diameters in metres, e.g. 0.001,0.002)",
+    )
     compare.add_argument("--workers", type=int, metavar="N", help="episodes at a time (default: one per CPU)")
     compare.add_argument(
         "--ray-address", metavar="ADDR", help="join this Ray cluster (HOST:PORT or auto; default: a local Ray)"
@@ -240,6 +254,8 @@ def overrides_from_args(args: argparse.Namespace) -> dict[str, Any]:
     flat = {
         "plant": args.plant,
         "plant_age": args.plant_age,
+        "points.count": args.as_points,
+        "points.size": args.point_size,
         "render.seg_mode": args.seg_mode,
         "render.labels": args.labels,
         "renderer.backend": args.renderer,
@@ -504,6 +520,8 @@ def _cmd_export(args: argparse.Namespace) -> int:
 
 def _cmd_compare(args: argparse.Namespace) -> int:
     from agrisim.app.compare import SEG_MODES, compare, default_out, markdown_table, parse_names, plan_compare
+    from agrisim.app.compare_plan import parse_sizes
+    from agrisim.app.point_table import point_markdown
     from agrisim.config import merge
     from agrisim.app.progress import EpisodeProgress
 
@@ -525,10 +543,12 @@ def _cmd_compare(args: argparse.Namespace) -> int:
         overwrite=args.overwrite,
         resume=args.resume,
         recordings=args.recordings,
+        as_points=args.as_points,
+        point_sizes=parse_sizes(args.point_sizes),
     )  # validates everything before Ray starts or anything is written
     with EpisodeProgress("episodes") as progress:
         result = compare(plan, workers=args.workers, ray_address=args.ray_address, progress=progress.update)
-    print(markdown_table(result.rows, plan.seg_modes), end="")
+    print(point_markdown(result.rows) if plan.point_sizes else markdown_table(result.rows, plan.seg_modes), end="")
     ran = [r for r in result.records if r.get("status") != "skipped"]
     kept = len(result.records) - len(ran)
     if ran:
@@ -546,7 +566,7 @@ def _cmd_compare(args: argparse.Namespace) -> int:
         print(f"all {kept} episodes were complete already: the table is rebuilt from their run directories")
     print(f"output: {result.paths['md']}  {result.paths['csv']}  {result.paths['png']}")
     for r in result.failed:
-        sys.stderr.write(f"{PROG}: {r['plant']} ({r['seg_mode']}) {r['status']}: {r.get('error', '')}\n")
+        sys.stderr.write(f"{PROG}: {r['plant']} ({r.get('variant') or r['seg_mode']}) {r['status']}: {r.get('error', '')}\n")
     if result.failed or result.missing:
         _fail(f"{len(result.failed)} of {len(result.records)} episodes did not complete; "
               f"the table lacks {', '.join(result.missing) or 'nothing'}; --resume continues", status=1)

@@ -56,6 +56,7 @@ from agrisim.app.table import (  # noqa: F401 - the table is part of compare's A
     csv_table,
     chart_png,
 )
+from agrisim.app.point_table import point_chart_png, point_csv, point_markdown, point_rows
 from agrisim.app.compare_plan import (  # noqa: F401 - planning is part of compare's API
     PAPER_PLANTS,
     ComparePlan,
@@ -230,13 +231,13 @@ def execute(
 
     def _collect() -> None:
         result.records = [
-            records.get(i, {"plant": e.plant, "seg_mode": e.seg_mode, "run_dir": str(e.run_dir), "status": "not run"})
+            records.get(i, {"plant": e.plant, "seg_mode": e.seg_mode, **_variant(e), "run_dir": str(e.run_dir), "status": "not run"})
             for i, e in enumerate(plan.episodes)
         ]
 
     for i, e in enumerate(plan.episodes):
         if e.action == "skip":
-            records[i] = {"plant": e.plant, "seg_mode": e.seg_mode, "run_dir": str(e.run_dir),
+            records[i] = {"plant": e.plant, "seg_mode": e.seg_mode, **_variant(e), "run_dir": str(e.run_dir),
                           "status": "skipped", "action": "skip"}
     queue = [(i, e) for i, e in enumerate(plan.episodes) if e.action != "skip"]
     total, done = len(plan.episodes), len(records)
@@ -265,7 +266,7 @@ def execute(
                     rec = ray.get(ref)
                 except ray.exceptions.RayError as exc:  # the worker died (OOM killer, segfault)
                     first = (str(exc).strip().splitlines() or [""])[0]
-                    rec = {"plant": e.plant, "seg_mode": e.seg_mode, "run_dir": str(e.run_dir),
+                    rec = {"plant": e.plant, "seg_mode": e.seg_mode, **_variant(e), "run_dir": str(e.run_dir),
                            "status": "failed", "error": f"{type(exc).__name__}: {first}"}
                 rec["action"] = e.action
                 rec["submitted_s"] = round(submitted, 3)
@@ -280,7 +281,7 @@ def execute(
         result.interrupted = True
         for ref, (i, e, _) in pending.items():
             ray.cancel(ref, force=True)
-            records[i] = {"plant": e.plant, "seg_mode": e.seg_mode, "run_dir": str(e.run_dir),
+            records[i] = {"plant": e.plant, "seg_mode": e.seg_mode, **_variant(e), "run_dir": str(e.run_dir),
                           "status": "cancelled", "action": e.action}
         raise
     finally:
@@ -299,10 +300,17 @@ def gather(plan: ComparePlan) -> tuple[list[dict[str, Any]], list[str]]:
     missing = []
     for e in plan.episodes:
         doc = read_metrics(e.run_dir)
-        metrics[(e.plant, e.seg_mode)] = doc
+        metrics[(e.plant, e.key)] = doc
         if doc is None:
-            missing.append(f"{e.plant} ({e.seg_mode})")
+            missing.append(f"{e.plant} ({e.key})")
+    if plan.point_sizes:
+        return point_rows(metrics, plan.plants, plan.variants, plan.as_points), missing
     return table_rows(metrics, plan.plants, plan.seg_modes, per_label=True), missing
+
+
+def _variant(e: EpisodePlan) -> dict[str, str]:
+    """A Table 3 episode's variant for its record (Table 2's records stay as they were)."""
+    return {"variant": e.variant} if e.variant else {}
 
 
 def write_outputs(
@@ -313,9 +321,14 @@ def write_outputs(
     out = plan.out
     names = {"md": "table.md", "csv": "table.csv", "png": "chart.png", "json": "compare.json"}
     paths = {k: out / n for k, n in names.items()}
-    write_bytes(paths["md"], markdown_table(rows, plan.seg_modes).encode())
-    write_bytes(paths["csv"], csv_table(rows, plan.seg_modes).encode())
-    write_bytes(paths["png"], chart_png(rows, plan.seg_modes, title="Ours (texture labels) vs RepOpa"))
+    if plan.point_sizes:
+        write_bytes(paths["md"], point_markdown(rows).encode())
+        write_bytes(paths["csv"], point_csv(rows).encode())
+        write_bytes(paths["png"], point_chart_png(rows))
+    else:
+        write_bytes(paths["md"], markdown_table(rows, plan.seg_modes).encode())
+        write_bytes(paths["csv"], csv_table(rows, plan.seg_modes).encode())
+        write_bytes(paths["png"], chart_png(rows, plan.seg_modes, title="Ours (texture labels) vs RepOpa"))
     write_json(paths["json"], {**report, "rows": list(rows)})
     return paths
 

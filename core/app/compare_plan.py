@@ -58,6 +58,14 @@ class EpisodePlan:
     run_dir: Path
     config: dict[str, Any]  # the RunConfig as JSON, what the Ray task receives
     action: str = "run"
+    variant: str = ""
+    """Table 3's episodes: ``mesh`` (the plant as it is) or the point size in metres (``%g``);
+    empty for Table 2's, which differ by ``seg_mode`` alone."""
+
+    @property
+    def key(self) -> str:
+        """What tells this episode from the plant's others: its variant, else its mode."""
+        return self.variant or self.seg_mode
 
 
 @dataclass(frozen=True)
@@ -71,6 +79,16 @@ class ComparePlan:
     base: dict[str, Any]  # the layered settings every episode shares (JSON)
     overwrite: bool = False
     resume: bool = False
+    as_points: int | None = None
+    point_sizes: tuple[float, ...] = ()
+    """Table 3 (``--point-sizes``): one episode per size after the mesh's own."""
+
+    @property
+    def variants(self) -> tuple[str, ...]:
+        """The row keys of a Table 3 compare (``mesh``, then each size), or the modes."""
+        if self.point_sizes:
+            return ("mesh", *(size_key(s) for s in self.point_sizes))
+        return self.seg_modes
 
     def to_json(self) -> dict[str, Any]:
         """The plan as ``compare.json`` records it."""
@@ -79,11 +97,38 @@ class ComparePlan:
             "plants": list(self.plants),
             "seg_modes": list(self.seg_modes),
             "base": self.base,
+            "as_points": self.as_points,
+            "point_sizes": list(self.point_sizes),
             "episodes": [
-                {"plant": e.plant, "seg_mode": e.seg_mode, "run_dir": str(e.run_dir), "action": e.action}
+                {"plant": e.plant, "seg_mode": e.seg_mode, "variant": e.variant, "run_dir": str(e.run_dir), "action": e.action}
                 for e in self.episodes
             ],
         }
+
+
+def size_key(size: float) -> str:
+    """A point size as Table 3's rows and run directories name it (metres, ``%g``)."""
+    return f"{size:g}"
+
+
+def parse_sizes(text: str | None) -> list[float] | None:
+    """``--point-sizes "0.001,0.002"`` -> sizes in metres, each checked (finite, > 0)."""
+    from agrisim.scene.points import check_size
+
+    if text is None:
+        return None
+    sizes = []
+    for item in text.split(","):
+        try:
+            value = float(item)
+        except ValueError:
+            raise UserError(f"--point-sizes expects comma-separated sizes in metres (e.g. 0.001,0.002), got {item.strip()!r}") from None
+        check_size(value, "--point-sizes")
+        sizes.append(value)
+    keys = [size_key(v) for v in sizes]
+    if len(set(keys)) != len(keys):
+        raise UserError(f"--point-sizes names a size more than once: {text}")
+    return sizes
 
 
 def parse_names(text: str | None, what: str, allowed: Iterable[str] | None = None) -> list[str] | None:
@@ -121,6 +166,8 @@ def plan_compare(
     resume: bool = False,
     recordings: bool = False,
     registry: Any = None,
+    as_points: int | None = None,
+    point_sizes: Sequence[float] | None = None,
 ) -> ComparePlan:
     """Validate a compare and plan its episodes; raises :class:`UserError` on bad input.
 
@@ -135,6 +182,18 @@ def plan_compare(
 
     if overwrite and resume:
         raise UserError("--overwrite and --resume exclude each other")
+    sizes = tuple(point_sizes or ())
+    if sizes:  # the paper's Table 3: the mesh, then its points at each size, in its own mode
+        if as_points is None:
+            raise UserError("--point-sizes draws the plants as points: give --as-points N too")
+        from agrisim.scene.points import check_count
+
+        check_count(as_points)
+        if seg_modes and tuple(seg_modes) != ("texture",):
+            raise UserError("--point-sizes compares point sizes in the paper's segmentation mode: leave out --seg-modes")
+        seg_modes = ("texture",)
+    elif as_points is not None:
+        raise UserError("--as-points in a compare needs --point-sizes (one episode per size)")
     seg_modes = tuple(seg_modes or SEG_MODES)
     bad = [m for m in seg_modes if m not in SEG_MODES]
     if bad:
@@ -180,21 +239,28 @@ def plan_compare(
         raise UserError(f"--plants: two plants would share the run directory {clash[0]!r}")
     _check_backends(registry, probe)
     renderer = registry.get("renderer", probe.renderer.backend)
-    check_renderer(renderer, registry.specs("renderer"), seg_modes, probe.render.labels)
+    check_renderer(renderer, registry.specs("renderer"), seg_modes, probe.render.labels, points=bool(sizes))
+    if sizes and "points" in base:
+        raise UserError("--point-sizes sets each episode's points: leave [points] out of the shared settings")
 
     out = Path(out).expanduser().absolute()  # absolute: Ray workers need not share our cwd
     _check_out(out, overwrite=overwrite, resume=resume)
     episodes = []
+    variants: list[tuple[str, str, dict[str, Any]]] = [(m, "", {}) for m in seg_modes]
+    if sizes:
+        variants = [("texture", "mesh", {})] + [
+            ("texture", size_key(s), {"points": {"count": as_points, "size": s}}) for s in sizes
+        ]
     for plant in plants:
-        for mode in seg_modes:
-            run_dir = out / plant_key(plant) / mode
+        for mode, variant, extra in variants:
+            run_dir = out / plant_key(plant) / (f"points-{variant}" if variant and variant != "mesh" else variant or mode)
             # a plant file by absolute path: a worker on another node need not share our cwd
             name = str(Path(plant).expanduser().absolute()) if is_file_plant(plant) else plant
-            layer = {"plant": name, "render": {"seg_mode": mode}, "output": {"out": str(run_dir)}}
+            layer = {"plant": name, "render": {"seg_mode": mode}, "output": {"out": str(run_dir)}, **extra}
             try:
                 config = build_config(shared, layer)
             except ConfigError as exc:
-                raise UserError(f"{plant} ({mode}): {exc}") from None
+                raise UserError(f"{plant} ({variant or mode}): {exc}") from None
             if plant in species:
                 spec = species[plant]
                 backend_options(spec.options_model, config.plants.get(plant, {}), f"plant {plant!r}")
@@ -204,7 +270,7 @@ def plan_compare(
             elif action == "run" and resume and run_dir.exists() and any(run_dir.iterdir()):
                 # leftovers without a run.json (killed before its first write): nothing finished
                 config = config.model_copy(update={"output": config.output.model_copy(update={"overwrite": True})})
-            episodes.append(EpisodePlan(plant, mode, run_dir, config.model_dump(mode="json"), action))
+            episodes.append(EpisodePlan(plant, mode, run_dir, config.model_dump(mode="json"), action, variant))
     return ComparePlan(
         out=out,
         plants=plants,
@@ -213,6 +279,8 @@ def plan_compare(
         base=json.loads(json.dumps(shared, default=str)),
         overwrite=overwrite,
         resume=resume,
+        as_points=as_points,
+        point_sizes=sizes,
     )
 
 

@@ -33,6 +33,7 @@ from agrisim.files.atomic import write_json
 from agrisim.files.dataset import write_png
 from agrisim.files.exr import write_exr
 from agrisim.files.rundir import camera_from_json, read_json, read_run
+from agrisim.files.point_cloud import load_point_plant
 from agrisim.files.scene_glb import read_scene
 
 RENDER_JSON = "render.json"
@@ -101,6 +102,16 @@ class RenderPlan:
                 "or without a renderer; run it again to re-render it"
             )
         self.scene_path = scene_path
+        self.points_path = self.run_dir / layout.PLANT_POINTS
+        if self.points_path.is_file() and not getattr(self.spec.capabilities, "points", False):
+            able = [
+                n for n, sp in registry.specs("renderer").items()
+                if getattr(sp.capabilities, "rerender", False) and getattr(sp.capabilities, "points", False)
+            ]
+            raise UserError(
+                f"the run in {self.run_dir} draws its plant as points, which renderer {renderer!r} cannot draw; "
+                f"renderers that can re-render point plants: {', '.join(able) or 'none installed'}"
+            )
         self.frames = [f for f in run.get("frames_complete") or [] if f in self.cameras["frames"]]
         if not self.frames:
             raise UserError(f"the run in {self.run_dir} has no rendered frames")
@@ -155,6 +166,8 @@ class RenderPlan:
         record = dict(self.record, status="running", frames_done=list(self.done))
         write_json(out / RENDER_JSON, record)
         scene = read_scene(self.scene_path)
+        if self.points_path.is_file():  # the plant as drawn: points, saved beside the scene
+            scene.points = load_point_plant(self.points_path, place=False, up="z").points
         settings = self.config.render
         renderer = self.spec.factory(scene, None, settings, self.options)
         camera = camera_from_json(self.cameras["intrinsics"])

@@ -12,6 +12,11 @@ the distance to the nearest ground-truth sample otherwise. Reported per label an
   inside the soil cannot be reconstructed by any method),
 * F-score@d (harmonic mean of the two) and the Chamfer distance (mean of the mean distances in
   both directions, mm).
+* thickness (``all`` only, with a true surface): twice the median distance of the points from
+  the surface along its normal, mm; a card reconstructed is about as thin as the depth's
+  rounding, a plant drawn as spheres about as thick as their diameter.
+
+A scanned point plant has no surface: its points are the truth (distances to the nearest).
 
 Per-view counts (labelled pixels, which samples were seen, leaf instances) accumulate in
 :class:`ViewStats` while views stream, so no image is kept.
@@ -26,7 +31,7 @@ import numpy as np
 
 from agrisim.files.encoding import depth_to_mm
 from agrisim.interfaces import ALL, Reconstruction
-from agrisim.scene.model import LabelTable, Mesh
+from agrisim.scene.model import LabelTable, Mesh, PointSet, Scene
 from agrisim.scene.texturing import labels_at_samples, opaque_samples, sample_surface, sample_triangles
 from agrisim.evaluation.views import View
 
@@ -37,12 +42,15 @@ MESH_SAMPLES_MAX = 3_000_000
 
 @dataclass
 class GroundTruth:
-    """Opaque samples of the true plant surface in world coordinates, with their labels."""
+    """Opaque samples of the true plant surface in world coordinates, with their labels.
 
-    mesh: Mesh
+    A scanned point plant has no surface: its points are the truth (``mesh`` is None and
+    distances go to the nearest point)."""
+
+    mesh: Mesh | None
     points: np.ndarray  # (K, 3)
     labels: np.ndarray  # (K,) uint8 label ids of the run's table
-    area_m2: float  # opaque area of the plant, estimated from the samples
+    area_m2: float | None  # opaque area of the plant, estimated from the samples (None: points only)
 
     @classmethod
     def sample(cls, mesh: Mesh, count: int, seed: int = 0) -> GroundTruth:
@@ -52,6 +60,24 @@ class GroundTruth:
         labels = labels_at_samples(mesh, faces[keep], bary[keep])
         area = float(mesh.areas.sum()) * float(keep.mean())
         return cls(mesh, points[keep], labels, area)
+
+    @classmethod
+    def of_points(cls, points: PointSet, count: int, seed: int = 0) -> GroundTruth:
+        """The truth of a plant that is only points: up to ``count`` of them (a seeded subset)."""
+        idx = np.arange(len(points))
+        if len(idx) > count:
+            idx = np.sort(np.random.default_rng(seed).choice(len(idx), count, replace=False))
+        return cls(None, points.positions[idx], points.labels[idx], None)
+
+    @classmethod
+    def of_scene(cls, scene: Scene, count: int, seed: int = 0) -> GroundTruth:
+        """The truth of a scene's plant: its surface (the drawn mesh, or the one its points were
+        sampled from), else its points."""
+        surface = scene.plant_surface()
+        if surface is not None:
+            return cls.sample(surface, count, seed)
+        assert scene.points is not None
+        return cls.of_points(scene.points, count, seed)
 
     def select(self, label_id: int | None) -> np.ndarray:
         """Mask of the samples of ``label_id`` (None: every plant label)."""
@@ -133,8 +159,10 @@ class SurfaceDistance:
         import open3d as o3d
 
         self.truth = truth
-        self.scene = o3d.t.geometry.RaycastingScene()
         mesh = truth.mesh
+        if mesh is None:
+            return
+        self.scene = o3d.t.geometry.RaycastingScene()
         self.scene.add_triangles(
             o3d.core.Tensor(mesh.vertices.astype(np.float32)), o3d.core.Tensor(mesh.faces.astype(np.uint32))
         )
@@ -144,6 +172,8 @@ class SurfaceDistance:
         if len(points) == 0:
             return np.zeros(0)
         mesh = self.truth.mesh
+        if mesh is None:  # points are the truth
+            return nearest_distances(points, self.truth.points[self.truth.select(label_id)])
         ans = self.scene.compute_closest_points(self._o3d.core.Tensor(points.astype(np.float32)))
         faces = ans["primitive_ids"].numpy().astype(np.int64)
         bary = ans["primitive_uvs"].numpy().astype(np.float64)
@@ -158,6 +188,31 @@ class SurfaceDistance:
             reference = self.truth.points[self.truth.select(label_id)]
             dist[~exact] = nearest_distances(points[~exact], reference)
         return dist
+
+
+    def normal_offsets(self, points: np.ndarray) -> np.ndarray | None:
+        """Signed distance of each point from the nearest point of the true surface along that
+        triangle's normal, m (None when the truth is only points): how far a reconstruction
+        stands off the surface on either side, the apparent thickness of its leaves."""
+        mesh = self.truth.mesh
+        if mesh is None or len(points) == 0:
+            return None
+        ans = self.scene.compute_closest_points(self._o3d.core.Tensor(points.astype(np.float32)))
+        faces = ans["primitive_ids"].numpy().astype(np.int64)
+        closest = ans["points"].numpy().astype(np.float64)
+        a, b, c = (mesh.vertices[mesh.faces[faces, i]] for i in range(3))
+        n = np.cross(b - a, c - a)
+        n /= np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-30)
+        return np.einsum("ij,ij->i", points - closest, n)
+
+
+def thickness_mm(offsets: np.ndarray | None) -> float | None:
+    """The apparent thickness of a reconstructed leaf: twice the median distance of its points
+    from the true surface along the surface normal, mm (a leaf seen from both sides shows up as
+    two sheets about that far apart; a single-sided card as thin as the depth's rounding)."""
+    if offsets is None or len(offsets) < 20:
+        return None
+    return float(2.0 * np.median(np.abs(offsets)) * 1e3)
 
 
 def _key(threshold_mm: float) -> str:
@@ -238,6 +293,8 @@ def evaluate(
             recall_d = nearest_distances(truth.points[select], points)
             seen = stats.seen[select] if stats.seen is not None else None
             row.update(accuracy(precision_d, recall_d, seen, thresholds_mm))
+            if name == ALL or len(names) == 1:
+                row["thickness_mm"] = thickness_mm(distance.normal_offsets(points))
             row["truth_samples"] = int(select.sum())
             row["truth_samples_seen"] = int(seen.sum()) if seen is not None else None
         out[name] = row

@@ -89,7 +89,11 @@ class ReconSession:
                 "thresholds_mm": self.thresholds_mm,
                 "truth": None
                 if truth is None
-                else {"samples": int(len(truth.points)), "opaque_area_m2": round(truth.area_m2, 6)},
+                else {
+                    "samples": int(len(truth.points)),
+                    "opaque_area_m2": None if truth.area_m2 is None else round(truth.area_m2, 6),
+                    "surface": truth.mesh is not None,
+                },
                 "labels": evaluate(result, self.labels, self.stats, self.thresholds_mm),
                 "leaf_instances_seen": self.stats.leaf_instances_seen,
             }
@@ -175,14 +179,20 @@ _EMPTY_PLY = (
 
 
 def truth_from_run(run_dir: Path, samples: int, seed: int = 0) -> GroundTruth | None:
-    """The ground truth of a saved run: its ``scene/plant.glb`` (world coordinates)."""
+    """The ground truth of a saved run: its ``scene/plant.glb`` (world coordinates), or for a
+    scanned point plant its ``scene/plant_points.ply``."""
     from agrisim.files.plant_asset import load_plant
+    from agrisim.files.point_cloud import load_point_plant
 
     path = run_dir / layout.PLANT_GLB
-    if not path.is_file():
-        return None
-    plant = load_plant(path, place=False)
-    return GroundTruth.sample(plant.mesh, samples, seed)
+    if path.is_file():
+        return GroundTruth.sample(load_plant(path, place=False).mesh, samples, seed)
+    points = run_dir / layout.PLANT_POINTS
+    if points.is_file():
+        cloud = load_point_plant(points, place=False, up="z").points
+        assert cloud is not None
+        return GroundTruth.of_points(cloud, samples, seed)
+    return None
 
 
 def rebuild(

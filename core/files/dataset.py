@@ -35,6 +35,7 @@ from agrisim.evaluation.session import write_reconstruction
 from agrisim.files.atomic import write_bytes, write_json
 from agrisim.files.exr import write_exr
 from agrisim.files.glb import export_glb
+from agrisim.files.point_cloud import write_points_ply
 from agrisim.files.scene_glb import write_scene
 from agrisim.files.nerfstudio import write_nerfstudio
 from agrisim.interfaces import CameraModel, Capture, Frame, JointTrajectory, Trajectory
@@ -170,8 +171,12 @@ class DatasetWriter:
     @hookimpl
     def agrisim_run_started(self, run: Run) -> None:
         if run.scene is not None and run.labels is not None:
-            # the ground truth: the plant as placed in the world, with albedo and labels
-            export_glb(run.scene.mesh(run.scene.plant), self.out / layout.PLANT_GLB, run.labels)
+            # the ground truth: the plant's surface as placed in the world, with albedo and labels
+            surface = run.scene.plant_surface()
+            if surface is not None:
+                export_glb(surface, self.out / layout.PLANT_GLB, run.labels)
+            if run.scene.points is not None:  # the plant as drawn: its points
+                write_points_ply(self.out / layout.PLANT_POINTS, run.scene.points, run.labels)
             # the whole scene as drawn, for agrisim render (arms shown at home in viewers):
             # encoding its textures takes most of a second, so the writer thread does it while
             # the robot starts moving

@@ -35,6 +35,8 @@ METRICS_JSON = "metrics.json"
 TRANSFORMS_JSON = "transforms.json"
 RECORDING = "recording.rrd"
 PLANT_GLB = Path("scene") / "plant.glb"
+#: a point plant as drawn (world coordinates, labels, instances, point size)
+PLANT_POINTS = Path("scene") / "plant_points.ply"
 SCENE_GLB = Path("scene") / "lab.glb"
 LINK_POSES = "link_poses"
 TRAJECTORIES = "trajectories"

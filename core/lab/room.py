@@ -33,7 +33,7 @@ from agrisim.lab.clutter import NOT_DRAWN, Item, Room, cell_keepouts, clutter_la
 from agrisim.lab.primitives import annulus, box, cylinder_side, disc, quad
 from agrisim.scene.cell import Box, Cell, Cylinder
 from agrisim.scene.mesh_builder import MeshBuilder
-from agrisim.scene.model import Label, LabelTable, Light, Material, Mesh, Plant, Scene
+from agrisim.scene.model import Label, LabelTable, Light, Material, Mesh, Plant, PointSet, Scene
 from agrisim.scene.transforms import translation, yaw_matrix
 
 SOIL_INSET = 0.015
@@ -208,6 +208,13 @@ def _plant_mesh(plant: Plant, world_T_plant: np.ndarray, labels: str) -> tuple[M
     return out, table
 
 
+def _plant_points(points: PointSet, world_T_plant: np.ndarray, labels: str) -> PointSet:
+    placed = points.transformed(world_T_plant)
+    if labels == "plant":
+        placed.labels = (placed.labels > 0).astype(np.uint8)
+    return placed
+
+
 def soil_pose(cell: Cell) -> np.ndarray:
     """``world_T_plant``: the plant frame on the soil surface (centre of the pot, z up)."""
     pot = next((ob for ob in cell.obstacles if ob.name == "pot"), None)
@@ -294,9 +301,16 @@ def build_scene(
         if ob.name not in NOT_DRAWN:
             meshes.extend(_obstacle_mesh(ob, mats))
     plant_mesh, table = _plant_mesh(plant, soil_pose(cell), labels)
-    meshes.append(plant_mesh)
-    if len(plant_mesh.vertices):
-        lo, hi = plant_mesh.vertices.min(axis=0), plant_mesh.vertices.max(axis=0)
+    points = source = None
+    if plant.points is not None:  # drawn as points; its mesh (if any) is the truth, not drawn
+        points = _plant_points(plant.points, soil_pose(cell), labels)
+        source = plant_mesh if len(plant_mesh.faces) else None
+        drawn = points.positions
+    else:
+        meshes.append(plant_mesh)
+        drawn = plant_mesh.vertices
+    if len(drawn):
+        lo, hi = drawn.min(axis=0), drawn.max(axis=0)
         target = (lo + hi) / 2
     else:
         target = soil_pose(cell)[:3, 3]
@@ -304,4 +318,4 @@ def build_scene(
     meshes.extend(lamps)
     for item in clutter_layout(room, pcg_seed, cell_keepouts(cell)):
         meshes.append(_CLUTTER_BUILDERS[item.kind](item, mats))
-    return Scene(meshes=meshes, lights=lights, labels=table, plant="plant")
+    return Scene(meshes=meshes, lights=lights, labels=table, plant="plant", points=points, source=source)

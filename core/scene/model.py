@@ -163,6 +163,51 @@ class Mesh:
         return 0.5 * np.linalg.norm(np.cross(b - a, c - a), axis=1)
 
 
+@dataclass
+class PointSet:
+    """A plant drawn as points: a scan (LiDAR, photogrammetry, a reconstruction) or samples of a
+    mesh's surface (``--as-points``). Each point is drawn as a sphere of diameter ``size``.
+
+    Coordinates in the frame the owner says (a :class:`Plant`'s: the plant frame; a
+    :class:`Scene`'s: world). Labels index the owner's label table (0: drawn, not plant).
+    """
+
+    positions: np.ndarray  # (N, 3) float64
+    colors: np.ndarray  # (N, 3) uint8 sRGB
+    labels: np.ndarray  # (N,) uint8 label ids
+    instances: np.ndarray | None = None  # (N,) uint16 leaf instance ids, 0 = none
+    size: float | None = None
+    """Diameter of every point's sphere, m (None: not chosen yet; a scene's is always set)."""
+
+    def __post_init__(self) -> None:
+        self.positions = np.ascontiguousarray(self.positions, dtype=np.float64)
+        n = len(self.positions)
+        if self.positions.ndim != 2 or self.positions.shape[1] != 3:
+            raise ValueError("points: positions must be N x 3")
+        if not np.all(np.isfinite(self.positions)):
+            raise ValueError("points: positions must be finite")
+        self.colors = np.ascontiguousarray(self.colors)
+        if self.colors.dtype != np.uint8 or self.colors.shape != (n, 3):
+            raise ValueError(f"points: colors must be N x 3 uint8, got {self.colors.dtype} {self.colors.shape}")
+        self.labels = np.ascontiguousarray(self.labels)
+        if self.labels.dtype != np.uint8 or self.labels.shape != (n,):
+            raise ValueError(f"points: labels must be N uint8, got {self.labels.dtype} {self.labels.shape}")
+        if self.instances is not None:
+            self.instances = np.ascontiguousarray(self.instances)
+            if self.instances.dtype != np.uint16 or self.instances.shape != (n,):
+                raise ValueError(f"points: instances must be N uint16, got {self.instances.dtype} {self.instances.shape}")
+        if self.size is not None and not (math.isfinite(self.size) and self.size > 0):
+            raise ValueError(f"points: size must be a finite number > 0, got {self.size}")
+
+    def __len__(self) -> int:
+        return len(self.positions)
+
+    def transformed(self, T: np.ndarray) -> PointSet:
+        """The same points mapped by the 4x4 pose ``T``."""
+        p = self.positions @ T[:3, :3].T + T[:3, 3]
+        return PointSet(p, self.colors, self.labels, self.instances, self.size)
+
+
 @dataclass(frozen=True)
 class Label:
     """One entry of the label table."""
@@ -232,6 +277,10 @@ PLANT_FIT_HEIGHT = 0.39
 class Plant:
     """A plant asset: its mesh in the plant frame and the label table its materials use.
 
+    ``points``, when set, is what is drawn: the plant as a point cloud. Its ``mesh`` is then the
+    surface the points were sampled from (``--as-points``; the ground truth of accuracy), or has
+    no faces when the points are all there is (a scan read from a file).
+
     ``organs`` is True when the label table names several organs (``--labels organs``);
     ``--labels plant`` maps every non-zero id to 1. ``notes`` say how the plant was made and
     anything the user should know (e.g. that it was scaled down to fit the routine).
@@ -243,6 +292,7 @@ class Plant:
     organs: bool = False
     seed: int = 0
     notes: list[str] = field(default_factory=list)
+    points: PointSet | None = None
 
 
 @dataclass
@@ -258,6 +308,18 @@ class Scene:
     """The arms' visual meshes as a renderer drew them: robot -> (link, mesh in the link's
     frame). A run fills it from its renderer and saves it with the scene; a renderer given a
     scene with arms draws these instead of loading the cell's URDFs (``agrisim render``)."""
+    points: PointSet | None = None
+    """The plant drawn as points (world, labels of ``labels``); then no mesh is named ``plant``."""
+    source: Mesh | None = None
+    """The surface a point plant was sampled from (world; ``--as-points``), not drawn: the
+    ground truth of accuracy. None for mesh plants and for scans."""
+
+    def plant_surface(self) -> Mesh | None:
+        """The plant's true surface in world coordinates: its drawn mesh, or the mesh its points
+        were sampled from; None for a scanned point plant (its points are all there is)."""
+        if self.points is not None:
+            return self.source
+        return self.mesh(self.plant)
 
     def mesh(self, name: str) -> Mesh:
         for m in self.meshes:

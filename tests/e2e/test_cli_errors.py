@@ -37,6 +37,11 @@ def workdir(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
     (tmp_path / "rrd_both.toml").write_text("[output]\nrrd = 'x.rrd'\nno_rrd = true\n")
     (tmp_path / "afile").write_text("a regular file\n")
     (tmp_path / "garbage.glb").write_bytes(b"this is not a glTF file at all")
+    head = "ply\nformat ascii 1.0\nelement vertex {n}\nproperty float x\nproperty float y\nproperty float z\n"
+    (tmp_path / "empty.ply").write_text(head.format(n=0) + "end_header\n")
+    (tmp_path / "nan.ply").write_text(head.format(n=2) + "end_header\n0 0 0\n0 nan 0.1\n")
+    (tmp_path / "good.ply").write_text(head.format(n=2) + "end_header\n0 0 0\n0 0 0.1\n")
+    (tmp_path / "label300.ply").write_text(head.format(n=2) + "property int label\nend_header\n0 0 0 1\n0 0 0.1 300\n")
     (tmp_path / "existing").mkdir()
     (tmp_path / "existing" / "keep.txt").write_text("precious results\n")
     (tmp_path / "cwd").mkdir()
@@ -168,6 +173,24 @@ CASES = [
         ["renderer backend 'pybullet'", "segmentation mode 'texture'", "renderers that can: mitsuba, raycast"],
         id="pybullet-renderer-ignores-opacity",
     ),
+    # point plants
+    pytest.param(["--as-points", "0"], ["--as-points", ">= 1", "0"], id="as-points-zero"),
+    pytest.param(["--as-points", "999999999"], ["--as-points", "at most 5,000,000"], id="as-points-absurd"),
+    pytest.param(["--as-points", "100", "--point-size", "0"], ["--point-size", "> 0"], id="point-size-zero"),
+    pytest.param(["--as-points", "100", "--point-size", "-0.002"], ["--point-size", "> 0"], id="point-size-negative"),
+    pytest.param(["--as-points", "100", "--point-size", "nan"], ["--point-size", "finite"], id="point-size-nan"),
+    pytest.param(["--as-points", "100", "--point-size", "inf"], ["--point-size", "finite"], id="point-size-inf"),
+    pytest.param(["--point-size", "0.002"], ["--point-size", "point plants"], id="point-size-of-a-mesh"),
+    pytest.param(
+        ["--renderer", "pybullet", "--seg-mode", "repopa", "--as-points", "100"],
+        ["renderer backend 'pybullet'", "point plants", "renderers that can: raycast"],
+        id="renderer-without-points",
+    ),
+    pytest.param(["--plant", "{tmp}/empty.ply"], ["empty.ply", "no points"], id="cloud-without-points"),
+    pytest.param(["--plant", "{tmp}/nan.ply"], ["nan.ply", "NaN or infinite"], id="cloud-with-nan"),
+    pytest.param(["--plant", "{tmp}/label300.ply"], ["label300.ply", "300", "outside 0..255"], id="cloud-label-300"),
+    pytest.param(["--plant", "{tmp}/missing.ply"], ["missing.ply"], id="missing-cloud"),
+    pytest.param(["--plant", "{tmp}/good.ply", "--as-points", "10"], ["already a point cloud"], id="as-points-of-a-cloud"),
 ]
 
 

@@ -244,6 +244,14 @@ def no_ray(monkeypatch: pytest.MonkeyPatch) -> None:
         (["--set", "output.rrd=x.rrd"], "--rrd ([sink.rerun] path) cannot be shared"),
         (["--overwrite", "--resume"], "exclude each other"),
         (["--ray-address", "127.0.0.1:1"], "--ray-address 127.0.0.1:1: cannot reach"),
+        (["--point-sizes", "0.002"], "give --as-points N too"),
+        (["--as-points", "100"], "needs --point-sizes"),
+        (["--as-points", "100", "--point-sizes", "0.002,0"], "--point-sizes must be a finite number"),
+        (["--as-points", "100", "--point-sizes", "0.002,big"], "comma-separated sizes in metres"),
+        (["--as-points", "100", "--point-sizes", "0.002,0.002"], "more than once"),
+        (["--as-points", "0", "--point-sizes", "0.002"], "--as-points must be a whole number"),
+        (["--as-points", "100", "--point-sizes", "0.002", "--seg-modes", "repopa"], "leave out --seg-modes"),
+        (["--as-points", "100", "--point-sizes", "0.002", "--renderer", "pybullet"], "cannot draw"),
     ],
 )
 def test_bad_input_exits_2_with_one_line(args, message, tmp_path, monkeypatch, cli) -> None:
@@ -339,3 +347,31 @@ def test_existing_out_is_refused_and_resume_skips_complete_runs(two_workers, no_
     for p, t in before.items():
         if p.parent != out:  # the run directories are untouched
             assert p.stat().st_mtime_ns == t, p
+
+
+# ------------------------------------------------------------------ the paper's Table 3
+
+
+def test_table_3_runs_the_mesh_then_each_point_size(tmp_path: Path) -> None:
+    """Coltsfoot as its mesh and as points of two sizes: the table's figures are the runs'
+    metrics, and bigger spheres label more pixels and stand further off the surface."""
+    out = tmp_path / "t3"
+    status = main(["compare", "--plants", "coltsfoot", "--as-points", "8000", "--point-sizes", "0.002,0.008",
+                   "--workers", "2", "--out", str(out), *TINY])
+    assert status == 0
+    assert sorted(p.name for p in (out / "coltsfoot").iterdir()) == ["mesh", "points-0.002", "points-0.008"]
+    rows = list(csv.DictReader(io.StringIO((out / "table.csv").read_text())))
+    assert [r["variant"] for r in rows] == ["mesh", "0.002", "0.008"]
+    for r in rows:
+        run = out / "coltsfoot" / (r["variant"] if r["variant"] == "mesh" else f"points-{r['variant']}")
+        doc = json.loads((run / "metrics.json").read_text())["labels"]["all"]
+        assert int(r["pixels"]) == doc["pixels"] and int(r["points"]) == doc["points"]
+        assert float(r["thickness_mm"]) == doc["thickness_mm"]
+        cfg = json.loads((run / "run.json").read_text())["config"]["points"]
+        assert cfg == ({"count": None, "size": None} if r["variant"] == "mesh" else {"count": 8000, "size": float(r["variant"])})
+    small, big = rows[1], rows[2]
+    assert int(big["pixels"]) > int(small["pixels"])
+    assert float(big["thickness_mm"]) > float(small["thickness_mm"]) > 0
+    md = (out / "table.md").read_text()
+    assert "| Coltsfoot | mesh |" in md and "| Coltsfoot | 2 mm (0.2) |" in md and "Thickness (mm)" in md
+    assert (out / "chart.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"

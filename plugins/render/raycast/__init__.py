@@ -28,6 +28,11 @@ byte-identical images; N = 0 is hard-lit without shadows. With ``supersample`` s
 mean of s x s rays per pixel (each with ``ceil(N / s^2)`` shadow rays); labels and depth stay
 exact at the pixel centres.
 
+Points. A point plant (``Scene.points``) is drawn as spheres of its point size, traced exactly
+by Mitsuba's ``ellipsoids`` shape (:mod:`.points`) beside Open3D's triangles; the nearer hit wins.
+A sphere's label, instance and colour are its point's; its depth is that of the sphere's
+surface; it is shaded with the sphere's normal and casts and receives shadows.
+
 Arms. Their visual meshes are loaded once (decimated to ``arm_triangles``) and placed per frame
 at ``link_poses``. Embree has no instancing here, so the posed arms are rebuilt whenever the poses
 change, together with the static scene when it is small (one cast per ray), else in a scene of
@@ -124,6 +129,7 @@ def agrisim_renderers() -> list[BackendSpec]:
                 leaf_instances=True,
                 soft_shadows=True,
                 supersampling=True,
+                points=True,
             ),
         )
     ]

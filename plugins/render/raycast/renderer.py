@@ -18,7 +18,7 @@ from agrisim.plugins.render.raycast.lights import LightTable, chunks
 from agrisim.plugins.render.raycast.tracing import Hits, SceneTracer, camera_rays, label_map, pixel_slopes
 from agrisim.scene.cell import Cell
 from agrisim.scene.camera import view_seed
-from agrisim.scene.colour import encode_srgb8
+from agrisim.scene.colour import encode_srgb8, srgb_to_linear
 from agrisim.scene.model import Mesh, Scene
 
 F32 = np.float32
@@ -37,17 +37,20 @@ class RaycastRenderer(Renderer):
         self.label_map = label_map(settings.labels)
         self.tracer = SceneTracer(scene, None if self.hide_robots else cell, options)
         self.lights = LightTable(scene.lights)
+        if self.tracer.points is not None:  # linear albedo of every point, for shading
+            self.point_albedo = srgb_to_linear(self.tracer.points.points.colors / 255.0).astype(F32)
 
     # -------------------------------------------------------------------------- shading
     def _shade(self, rays: np.ndarray, hits: Hits, rng: np.random.Generator, samples: int) -> np.ndarray:
         """Linear radiance (K x 3) of the kept surfaces (0 where nothing was hit)."""
         k = len(rays)
-        sel = np.flatnonzero(hits.face >= 0)
+        sel = np.flatnonzero(hits.hit)
         if not len(sel):
             return np.zeros((k, 3), F32)
         every = len(sel) == k
         pick = (lambda a: a) if every else (lambda a: np.take(a, sel, axis=0))  # noqa: E731 - no copy if all hit
         face, t, mat, uv, rays = pick(hits.face), pick(hits.t), pick(hits.mat), pick(hits.uv), pick(rays)
+        point = pick(hits.point) if hits.point is not None else None
         m = len(face)
         lights = self.lights
         bilinear = self.options.texture_filter == "bilinear"
@@ -61,6 +64,9 @@ class RaycastRenderer(Renderer):
         # slower.
         for c in chunks(m):
             self.tracer.mats.albedo(uv[c], mat[c], bilinear, out=albedo[c])
+            on_point = np.flatnonzero(point[c] >= 0) if point is not None else ()
+            if len(on_point):  # spheres: the point's own colour
+                albedo[c][on_point] = self.point_albedo[point[c][on_point]]
             if not lights.n:
                 continue
             r, tc = rays[c], t[c]
@@ -72,6 +78,8 @@ class RaycastRenderer(Renderer):
                 back += n[j] * r[:, 3 + j]
                 p[j] += r[:, j]
             np.negative(n, out=n, where=back > 0)  # the side the camera sees
+            if len(on_point):  # a sphere's normal at the hit (its outside: the side seen)
+                n[:, on_point] = self.tracer.points.normals(point[c][on_point], p[:, on_point])
             lights.weights(p, n, out=w[:, c])
             if origins is not None:  # off the surface, towards the side seen
                 np.multiply(n, eps, out=origins[:, c])
@@ -93,7 +101,7 @@ class RaycastRenderer(Renderer):
         """Render the pixels of columns ``x`` and rows ``y`` (camera-frame slopes) into ``out``."""
         rays = camera_rays(x, y, T, self.options.near)
         hits = self.tracer.trace(rays, raw=self.seg_mode == "repopa")
-        hit = hits.face >= 0
+        hit = hits.hit
         self.tracer.annotate(hits, self.seg_mode == "repopa", self.label_map, out)
         s, n = self.supersample, self.shadow_samples
         if s == 1:
@@ -108,7 +116,7 @@ class RaycastRenderer(Renderer):
                     sub = camera_rays(x + du, y + dv, T, self.options.near)
                     sub_hits = self.tracer.trace(sub, raw=False)
                     linear += self._shade(sub, sub_hits, rng, n_sub)
-                    count += sub_hits.face >= 0
+                    count += sub_hits.hit
             hit = count > 0
             linear *= F32(1.0 / (s * s))
         encode_srgb8(linear, out["rgb"], self.options.exposure, self.options.tonemap)

@@ -14,6 +14,7 @@ from agrisim.plugins.render.raycast import RaycastOptions
 from agrisim.plugins.render.raycast.arm_meshes import arm_link_meshes
 from agrisim.plugins.render.raycast.lights import SHADOW_TFAR, chunks
 from agrisim.plugins.render.raycast.materials import MaterialTable
+from agrisim.plugins.render.raycast.points import PointTracer
 from agrisim.scene.camera import CameraModel
 from agrisim.scene.cell import Cell
 from agrisim.scene.model import Material, Mesh, Scene
@@ -126,6 +127,18 @@ class Hits:
     uv: np.ndarray  # (K, 2) float32 texture coordinates
     raw_face: np.ndarray | None = None
     raw_bary: np.ndarray | None = None
+    point: np.ndarray | None = None
+    """(K,) int64 index of the point plant's sphere hit (``face`` is then -1), -1: none; None
+    when the scene has no point plant."""
+    raw_t: np.ndarray | None = None
+    """t of repopa's first surface (kept when a point plant's spheres may be nearer)."""
+    raw_point: np.ndarray | None = None
+    """repopa's first surface when it is a sphere (``raw_face`` is then -1)."""
+
+    @property
+    def hit(self) -> np.ndarray:
+        """Did each ray hit anything (a triangle or a sphere)?"""
+        return self.face >= 0 if self.point is None else (self.face >= 0) | (self.point >= 0)
 
 
 class SceneTracer:
@@ -208,6 +221,10 @@ class SceneTracer:
         self._static_scene = _Traceable(static, _offsets(geom_offset), mats.cutting) if self.n_static else None
         self._scenes: list[_Traceable] = [self._static_scene] if self._static_scene else []
         self._arm_key: bytes | None = None
+        self.points: PointTracer | None = None
+        if scene.points is not None and len(scene.points):
+            self.points = PointTracer(scene.points)
+            self.has_instances |= scene.points.instances is not None
 
     def place_arms(self, link_poses: Mapping[str, Mapping[str, np.ndarray]]) -> None:
         """Pose the arms named in ``link_poses`` (rebuilding only when the poses change)."""
@@ -324,15 +341,36 @@ class SceneTracer:
 
     def trace(self, rays: np.ndarray, raw: bool) -> Hits:
         """First surface along each ray (K x 6: origin, direction) that is neither a cut-out texel
-        nor a culled back face; with ``raw`` also the first of any opacity (repopa's labels)."""
+        nor a culled back face; with ``raw`` also the first of any opacity (repopa's labels).
+        A point plant's spheres (opaque) win where they are nearer."""
+        out = self._trace_triangles(rays, raw)
+        if self.points is None:
+            return out
+        raw_t = out.raw_t if raw else None
+        t, index = self.points.cast(rays)
+        out.point = np.full(len(rays), -1, np.int64)
+        nearer = np.flatnonzero(t < out.t)
+        out.t[nearer] = t[nearer]
+        out.face[nearer] = -1
+        out.point[nearer] = index[nearer]
+        if raw:
+            out.raw_point = np.full(len(rays), -1, np.int64)
+            first = np.flatnonzero(t < raw_t)
+            out.raw_face[first] = -1
+            out.raw_point[first] = index[first]
+        return out
+
+    def _trace_triangles(self, rays: np.ndarray, raw: bool) -> Hits:
         t, face, bary = self._cast_rays(rays)
         valid = face >= 0
         mat, uv = self.surface(face, bary)
         out = Hits(t, face, bary, mat, uv)
+        if raw and self.points is not None:
+            out.raw_t = t.copy()  # where repopa's first surface is (a sphere may be nearer)
         mats = self.mats
         if not (mats.cutting or mats.culling):
             if raw:
-                out.raw_face, out.raw_bary = face, bary
+                out.raw_face, out.raw_bary = face.copy(), bary
             return out
         passes, culled = self._passes(face, mat, uv, rays[:, 3:], valid)
         if raw:
@@ -367,6 +405,8 @@ class SceneTracer:
                     first &= ~culled
                 out.raw_face[idx[first]] = ff[first]
                 out.raw_bary[idx[first]] = bb[first]
+                if out.raw_t is not None:
+                    out.raw_t[idx[first]] = t_acc[first] + tt[first]
             stop = np.flatnonzero(~passes)
             j = idx[stop]
             out.t[j] = t_acc[stop] + tt[stop]
@@ -421,6 +461,9 @@ class SceneTracer:
                 sub[:, :3] += step[:, None] * seg
                 seg *= (F32(1.0) - step)[:, None]
             occ[idx] = True  # still among layers of cut-out cards after max_layers: shadowed
+        if self.points is not None:
+            open_ = np.flatnonzero(~occ)
+            occ[open_] = self.points.occluded(np.take(rays, open_, axis=0), SHADOW_TFAR)
         return occ
 
     def labels(self, hits: Hits, repopa: bool, label_map: np.ndarray, out: dict[str, np.ndarray]) -> None:
@@ -428,6 +471,15 @@ class SceneTracer:
         (``labels``, and ``instances`` when present): from the kept surfaces, or with ``repopa``
         from the first surface of any opacity (the trace must have been ``raw``)."""
         face = hits.raw_face if repopa else hits.face
+        point = hits.raw_point if repopa else hits.point
+        if point is not None and self.points is not None:
+            on = np.flatnonzero(point >= 0)
+            if len(on):
+                pts = self.points.points
+                lab = np.take(pts.labels, point[on])
+                out["labels"][on] = np.take(label_map, lab)
+                if "instances" in out and pts.instances is not None:
+                    out["instances"][on] = np.where(lab > 0, np.take(pts.instances, point[on]), 0)
         p0, p1 = self.plant_faces
         on_plant = np.flatnonzero((face >= p0) & (face < p1))
         if not len(on_plant):
@@ -451,7 +503,7 @@ class SceneTracer:
         """Depth (planar, m, from rays that start on the near plane; 0 where nothing is hit),
         labels and leaf instances of the rays' ``hits`` into ``out``."""
         np.add(hits.t, F32(self.options.near), out=out["depth"])
-        out["depth"][hits.face < 0] = 0.0
+        out["depth"][~hits.hit] = 0.0
         self.labels(hits, repopa, label_map, out)
 
     def exact(

@@ -68,6 +68,11 @@ class paths:  # noqa: N801 - a namespace of path builders, used like a module
         return f"world/scene/{name}/{material}"
 
     @staticmethod
+    def scene_points(name: str) -> str:
+        """A point plant as drawn: its spheres."""
+        return f"world/scene/{name}/points"
+
+    @staticmethod
     def light(name: str) -> str:
         return f"world/lights/{name}"
 

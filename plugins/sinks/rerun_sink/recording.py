@@ -221,6 +221,18 @@ class RerunSink:
                     ),
                     static=True,
                 )
+        if scene.points is not None and scene.points.size is not None:  # a point plant: its spheres
+            pts = scene.points
+            self.rec.log(
+                paths.scene_points(scene.plant),
+                rr.Points3D(
+                    pts.positions.astype(np.float32),
+                    colors=pts.colors,
+                    radii=np.full(len(pts), 0.5 * pts.size, np.float32),
+                    class_ids=pts.labels,
+                ),
+                static=True,
+            )
         for light in scene.lights:
             origin = np.asarray(light.position, float)
             self.rec.log(
