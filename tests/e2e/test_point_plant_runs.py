@@ -79,3 +79,32 @@ def test_a_point_cloud_file_runs_the_routine_and_is_its_own_truth(sampled_run, t
     drawn = load_point_plant(out / layout.PLANT_POINTS, place=False, up="z").points
     original = load_point_plant(sampled_run / layout.PLANT_POINTS, place=False, up="z").points
     assert drawn.size == original.size and np.array_equal(drawn.labels, original.labels)
+
+
+def test_the_recording_shows_the_point_plant_with_its_radii(tmp_path):
+    pytest.importorskip("rerun")
+    from rerun.chunk import RrdReader
+
+    from agrisim.config import build_config
+    from agrisim.episode import Episode
+
+    out = tmp_path / "run"
+    cfg = build_config({
+        "plant": "coltsfoot", "points": {"count": 2000, "size": 0.003},
+        "physics": {"backend": "kinematic"}, "routine": {"setpoints": "1x1"}, "camera": {"resolution": "160x90"},
+        "renderer": {"raycast": {"shadow_samples": 0}}, "recon": {"backend": "none"}, "output": {"out": str(out)},
+    })  # fmt: skip
+    _, summary = Episode(cfg).run()
+    assert summary.status == "complete"
+    drawn = load_point_plant(out / layout.PLANT_POINTS, place=False, up="z").points
+    found = {}
+    for chunk in RrdReader(out / layout.RECORDING).stream():
+        if chunk.entity_path.lstrip("/") == "world/scene/plant/points" and chunk.is_static:
+            rb = chunk.to_record_batch()
+            for name in ("Points3D:positions", "Points3D:radii", "Points3D:colors"):
+                if name in rb.schema.names:
+                    found[name] = rb.column(name).to_pylist()[-1]
+    positions = np.asarray(found["Points3D:positions"], np.float64)
+    assert np.allclose(positions, drawn.positions, atol=1e-6)
+    assert np.allclose(found["Points3D:radii"], 0.0015)
+    assert len(found["Points3D:colors"]) == 2000

@@ -70,11 +70,12 @@ class PointTracer:
         direction, inf for a miss; point index, -1 for a miss)."""
         if not len(rays):
             return np.zeros(0, F32), np.zeros(0, np.int64)
-        with self._lock:
+        with self._lock:  # every Dr.Jit array made and freed under the lock (a free racing a launch crashed)
             ray, length = self._rays(rays, None)
             hit = self.scene.ray_intersect_preliminary(ray)
-            t = np.asarray(hit.t.numpy(), np.float64)
-            index = np.asarray(hit.prim_index.numpy(), np.int64)
+            t = np.array(hit.t.numpy(), np.float64)
+            index = np.array(hit.prim_index.numpy(), np.int64)
+            del hit, ray
         found = np.isfinite(t)
         t = np.where(found, t * self.radius / np.where(length > 0, length, 1.0), np.inf).astype(F32)
         return t, np.where(found, index, -1)
@@ -85,7 +86,10 @@ class PointTracer:
             return np.zeros(0, bool)
         with self._lock:
             ray, _ = self._rays(rays, tfar)
-            return np.asarray(self.scene.ray_test(ray).numpy(), bool)
+            hit = self.scene.ray_test(ray)
+            blocked = np.array(hit.numpy(), bool)
+            del hit, ray
+        return blocked
 
     def normals(self, index: np.ndarray, at: np.ndarray) -> np.ndarray:
         """Unit normals (3 x K, float32) of the spheres ``index`` at points ``at`` (3 x K)."""
