@@ -246,14 +246,15 @@ def plan_compare(
     out = Path(out).expanduser().absolute()  # absolute: Ray workers need not share our cwd
     _check_out(out, overwrite=overwrite, resume=resume)
     episodes = []
-    variants: list[tuple[str, str, dict[str, Any]]] = [(m, "", {}) for m in seg_modes]
+    # (mode, variant, run-directory name, settings of its own) of each plant's episodes
+    variants: list[tuple[str, str, str, dict[str, Any]]] = [(m, "", m, {}) for m in seg_modes]
     if sizes:
-        variants = [("texture", "mesh", {})] + [
-            ("texture", size_key(s), {"points": {"count": as_points, "size": s}}) for s in sizes
+        variants = [("texture", "mesh", "mesh", {})] + [
+            ("texture", size_key(s), f"points-{size_key(s)}", {"points": {"count": as_points, "size": s}}) for s in sizes
         ]
     for plant in plants:
-        for mode, variant, extra in variants:
-            run_dir = out / plant_key(plant) / (f"points-{variant}" if variant and variant != "mesh" else variant or mode)
+        for mode, variant, folder, extra in variants:
+            run_dir = out / plant_key(plant) / folder
             # a plant file by absolute path: a worker on another node need not share our cwd
             name = str(Path(plant).expanduser().absolute()) if is_file_plant(plant) else plant
             layer = {"plant": name, "render": {"seg_mode": mode}, "output": {"out": str(run_dir)}, **extra}

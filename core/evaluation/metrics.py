@@ -168,18 +168,35 @@ class SurfaceDistance:
         )
         self._o3d = o3d
 
-    def __call__(self, points: np.ndarray, label_id: int | None) -> np.ndarray:
-        if len(points) == 0:
-            return np.zeros(0)
+    def _closest(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(face, barycentrics, closest point) on the true surface for each point; the point in
+        double precision from its barycentrics (the query runs in float32)."""
         mesh = self.truth.mesh
-        if mesh is None:  # points are the truth
-            return nearest_distances(points, self.truth.points[self.truth.select(label_id)])
+        assert mesh is not None
         ans = self.scene.compute_closest_points(self._o3d.core.Tensor(points.astype(np.float32)))
         faces = ans["primitive_ids"].numpy().astype(np.int64)
         bary = ans["primitive_uvs"].numpy().astype(np.float64)
-        # the closest point in double precision from its barycentrics (the query ran in float32)
         tri = mesh.vertices[mesh.faces[faces]]
         closest = (1 - bary[:, :1] - bary[:, 1:]) * tri[:, 0] + bary[:, :1] * tri[:, 1] + bary[:, 1:] * tri[:, 2]
+        return faces, bary, closest
+
+    def _offsets(self, points: np.ndarray, faces: np.ndarray, closest: np.ndarray) -> np.ndarray:
+        mesh = self.truth.mesh
+        assert mesh is not None
+        a, b, c = (mesh.vertices[mesh.faces[faces, i]] for i in range(3))
+        n = np.cross(b - a, c - a)
+        n /= np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-30)
+        return np.einsum("ij,ij->i", points - closest, n)
+
+    def measure(self, points: np.ndarray, label_id: int | None) -> tuple[np.ndarray, np.ndarray | None]:
+        """Distances to the surface (as calling this does) and :meth:`normal_offsets`, from one
+        closest-point query."""
+        if len(points) == 0:
+            return np.zeros(0), None
+        mesh = self.truth.mesh
+        if mesh is None:  # points are the truth
+            return nearest_distances(points, self.truth.points[self.truth.select(label_id)]), None
+        faces, bary, closest = self._closest(points)
         dist = np.linalg.norm(points - closest, axis=1)
         exact = opaque_samples(mesh, faces, bary)
         labels = labels_at_samples(mesh, faces, bary)
@@ -187,23 +204,19 @@ class SurfaceDistance:
         if not exact.all():
             reference = self.truth.points[self.truth.select(label_id)]
             dist[~exact] = nearest_distances(points[~exact], reference)
-        return dist
+        return dist, self._offsets(points, faces, closest)
 
+    def __call__(self, points: np.ndarray, label_id: int | None) -> np.ndarray:
+        return self.measure(points, label_id)[0]
 
     def normal_offsets(self, points: np.ndarray) -> np.ndarray | None:
         """Signed distance of each point from the nearest point of the true surface along that
         triangle's normal, m (None when the truth is only points): how far a reconstruction
         stands off the surface on either side, the apparent thickness of its leaves."""
-        mesh = self.truth.mesh
-        if mesh is None or len(points) == 0:
+        if self.truth.mesh is None or len(points) == 0:
             return None
-        ans = self.scene.compute_closest_points(self._o3d.core.Tensor(points.astype(np.float32)))
-        faces = ans["primitive_ids"].numpy().astype(np.int64)
-        closest = ans["points"].numpy().astype(np.float64)
-        a, b, c = (mesh.vertices[mesh.faces[faces, i]] for i in range(3))
-        n = np.cross(b - a, c - a)
-        n /= np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-30)
-        return np.einsum("ij,ij->i", points - closest, n)
+        faces, _, closest = self._closest(points)
+        return self._offsets(points, faces, closest)
 
 
 def thickness_mm(offsets: np.ndarray | None) -> float | None:
@@ -289,12 +302,12 @@ def evaluate(
             row["points"] = 0
         if truth is not None and distance is not None:
             select = truth.select(label_id)
-            precision_d = distance(points, label_id)
+            precision_d, offsets = distance.measure(points, label_id)
             recall_d = nearest_distances(truth.points[select], points)
             seen = stats.seen[select] if stats.seen is not None else None
             row.update(accuracy(precision_d, recall_d, seen, thresholds_mm))
             if name == ALL or len(names) == 1:
-                row["thickness_mm"] = thickness_mm(distance.normal_offsets(points))
+                row["thickness_mm"] = thickness_mm(offsets)
             row["truth_samples"] = int(select.sum())
             row["truth_samples_seen"] = int(seen.sum()) if seen is not None else None
         out[name] = row

@@ -110,3 +110,24 @@ def label_ids_plain(img: Image.Image, shown: str) -> np.ndarray:
     if img.mode == "LA":
         return np.asarray(img.getchannel("L")).copy()
     return np.asarray(img).astype(np.uint8, copy=True)  # L, P (palette indices are the ids)
+
+
+def y_up_to_z_up(v: np.ndarray) -> np.ndarray:
+    """Points of a y-up asset (glTF's convention) in agrisim's z-up frame: ``(x, y, z)`` ->
+    ``(x, -z, y)``, a +90 deg rotation about x as Blender's importer does (exact: only swaps and
+    a sign; ``+ 0.0`` keeps negative zeros out)."""
+    return np.column_stack([v[:, 0], -v[:, 2], v[:, 1]]) + 0.0
+
+
+def plant_frame_offset(lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+    """What to subtract from an asset's points (bounding box ``lo``..``hi``) to put it in the
+    plant frame: lowest point at z = 0, the bounding box centred on x = y = 0."""
+    return np.array([(lo[0] + hi[0]) / 2, (lo[1] + hi[1]) / 2, lo[2]])
+
+
+def unit_hint(size: float, max_size: float) -> str:
+    """A hint that a plant ``size`` m across (more than ``max_size``) is in other units."""
+    for factor, unit in ((0.01, "centimetres"), (0.001, "millimetres"), (0.0254, "inches")):
+        if 0.02 <= size * factor <= max_size:
+            return f" (is it in {unit}? then load it with scale={factor:g})"
+    return " (check its units; scale= rescales it)"

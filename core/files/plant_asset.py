@@ -77,7 +77,18 @@ from typing import Literal
 import numpy as np
 from PIL import Image
 
-from agrisim.files.asset_reading import AssetError, label_ids_plain, RawMesh, decode_image, locate, read_bytes_of, resolve_root
+from agrisim.files.asset_reading import (
+    AssetError,
+    RawMesh,
+    decode_image,
+    label_ids_plain,
+    locate,
+    plant_frame_offset,
+    read_bytes_of,
+    resolve_root,
+    unit_hint,
+    y_up_to_z_up,
+)
 from agrisim.files.gltf import read_gltf
 from agrisim.files.obj import read_obj
 from agrisim.scene.palette import BACKGROUND, PALETTE, PAPER
@@ -161,7 +172,7 @@ def load_plant(
     # Frame: asset -> z-up, metres.
     v = raw.positions
     if (up or "y") == "y":
-        v = np.column_stack([v[:, 0], -v[:, 2], v[:, 1]]) + 0.0  # + 0.0: no negative zeros
+        v = y_up_to_z_up(v)
     if scale != 1.0:
         v = v * float(scale)
     _check_geometry(shown, v, raw.faces)
@@ -188,9 +199,9 @@ def load_plant(
     lo, hi = used.min(axis=0), used.max(axis=0)
     size = float((hi - lo).max())
     if size > max_size:
-        raise AssetError(f"{shown}: the plant is {size:.4g} m across, more than {max_size:g} m{_unit_hint(size, max_size)}")
+        raise AssetError(f"{shown}: the plant is {size:.4g} m across, more than {max_size:g} m{unit_hint(size, max_size)}")
     if place:
-        v = v - np.array([(lo[0] + hi[0]) / 2, (lo[1] + hi[1]) / 2, lo[2]])
+        v = v - plant_frame_offset(lo, hi)
 
     plant_name = name or Path(path).stem
     try:
@@ -356,10 +367,3 @@ def _check_uvs(shown: str, raw: RawMesh, materials: list[Material]) -> None:
                 f"{shown}: material '{mat.name}' uses {what} but {int(missing.sum())} of its "
                 f"{len(corners)} triangles have no UVs (texture coordinates)"
             )
-
-
-def _unit_hint(size: float, max_size: float) -> str:
-    for factor, unit in ((0.01, "centimetres"), (0.001, "millimetres"), (0.0254, "inches")):
-        if 0.02 <= size * factor <= max_size:
-            return f" (is it in {unit}? then load it with scale={factor:g})"
-    return " (check its units; scale= rescales it)"

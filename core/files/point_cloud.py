@@ -33,7 +33,7 @@ from typing import Literal
 import numpy as np
 
 from agrisim.files.atomic import write_bytes
-from agrisim.files.asset_reading import AssetError, locate, resolve_root
+from agrisim.files.asset_reading import AssetError, locate, plant_frame_offset, resolve_root, unit_hint, y_up_to_z_up
 from agrisim.scene.model import Label, LabelTable, Mesh, Plant, PointSet
 from agrisim.scene.palette import BACKGROUND, PALETTE
 
@@ -130,7 +130,7 @@ def _colors(props: Mapping[str, np.ndarray], shown: str, n: int) -> np.ndarray:
     return np.round(rgb * 255.0).astype(np.uint8)
 
 
-def _ids(props: Mapping[str, np.ndarray], key: str, shown: str, n: int, top: int, dtype: type) -> np.ndarray | None:
+def _ids(props: Mapping[str, np.ndarray], key: str, shown: str, top: int, dtype: type) -> np.ndarray | None:
     if key not in props:
         return None
     v = props[key]
@@ -234,18 +234,18 @@ def load_point_plant(
             f"{shown}: {int(bad.sum()):,} of its {n:,} points have NaN or infinite coordinates (the first is point {int(np.argmax(bad))})"
         )
     if (up or "z") == "y":
-        v = np.column_stack([v[:, 0], -v[:, 2], v[:, 1]]) + 0.0
+        v = y_up_to_z_up(v)
     v = v * float(scale)
     lo, hi = v.min(axis=0), v.max(axis=0)
     size = float((hi - lo).max())
     if size > max_size:
-        raise AssetError(f"{shown}: the cloud is {size:.4g} m across, more than {max_size:g} m (check its units; scale= rescales it)")
+        raise AssetError(f"{shown}: the cloud is {size:.4g} m across, more than {max_size:g} m{unit_hint(size, max_size)}")
     if place:
-        v = v - np.array([(lo[0] + hi[0]) / 2, (lo[1] + hi[1]) / 2, lo[2]])
-    labels = _ids(props, "label", shown, n, 255, np.uint8)
+        v = v - plant_frame_offset(lo, hi)
+    labels = _ids(props, "label", shown, 255, np.uint8)
     if labels is None:
         labels = np.ones(n, np.uint8)
-    instances = _ids(props, "instance", shown, n, 65535, np.uint16)
+    instances = _ids(props, "instance", shown, 65535, np.uint16)
     header = _header_comment(real) if suffix == ".ply" else None
     table = _table(np.unique(labels), label_names, header.get("labels") if header else None, shown)
     drawn = header.get("size") if header else None
