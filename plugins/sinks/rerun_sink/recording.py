@@ -6,6 +6,7 @@ import importlib.util
 import json
 import logging
 import socket
+from datetime import timedelta
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -58,11 +59,18 @@ EYE_OFFSET = np.array([0.4, -2.2, 1.1])
 SPAWN_PORT = 9876
 #: seconds to wait for the sinks (file, viewer) to take the last data at the end of the run
 FLUSH_TIMEOUT = 20.0
+#: a recording written only to a file is batched into large chunks (what ``rerun rrd optimize``
+#: would make of it afterwards): small rows wait up to this long before they are written (a
+#: run killed outright loses at most this much of them; Ctrl-C and errors flush everything)
+FILE_FLUSH_TICK_S = 60.0
+#: ...and a chunk is cut at this size (the 2 MiB that ``rerun rrd stats`` takes as its target)
+FILE_CHUNK_BYTES = 2 << 20
+#: arm transform rows held back per link before they are sent as one column chunk (file only)
+ARM_ROWS_PER_CHUNK = 4096
 
 
-def _time_columns(setpoint: int | np.ndarray, sim_time: np.ndarray) -> list[Any]:
-    n = len(sim_time)
-    seq = np.broadcast_to(np.asarray(setpoint, np.int64), (n,))
+def _time_columns(setpoint: np.ndarray, sim_time: np.ndarray) -> list[Any]:
+    seq = np.asarray(setpoint, np.int64)
     return [rr.TimeColumn(TIMELINE_SETPOINT, sequence=seq), rr.TimeColumn(TIMELINE_SIM_TIME, duration=np.asarray(sim_time, float))]
 
 
@@ -97,6 +105,10 @@ class RerunSink:
         self.visuals = {arm.name: robot_meshes.link_visuals(arm.urdf) for arm in run.cell.arms}
         self._status: dict[str, list[str]] = {}
         self._now = (0, 0.0)  # (setpoint, sim_time) of the latest event, for events without a time
+        #: a viewer streams the run live (else only a file is written, and rows can wait)
+        self.live = self.spawn or self.connect is not None
+        #: arm transforms not sent yet: entity path -> [(setpoints, times, translations, quaternions)]
+        self._arm_rows: dict[str, list[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]]] = {}
 
     # ------------------------------------------------------------------ stream
     def blueprint(self) -> rrb.Blueprint:
@@ -128,7 +140,10 @@ class RerunSink:
         """Create the run's recording stream and attach its sinks (file and/or viewer); None
         when there is nowhere to send it (a stream without sinks would buffer the whole run in
         memory)."""
-        rec = rr.RecordingStream(APPLICATION_ID, recording_id=recording_id(self.run))
+        batcher = None
+        if not self.live:  # nobody watches live: favour few, large chunks over latency
+            batcher = rr.ChunkBatcherConfig(flush_tick=timedelta(seconds=FILE_FLUSH_TICK_S), flush_num_bytes=FILE_CHUNK_BYTES)
+        rec = rr.RecordingStream(APPLICATION_ID, recording_id=recording_id(self.run), batcher_config=batcher)
         sinks: list[Any] = []
         if self.save:
             self.path.parent.mkdir(parents=True, exist_ok=True)
@@ -164,9 +179,10 @@ class RerunSink:
         A viewer that went away (closed by the user, or one that could not start) makes Rerun's
         flush raise or wait forever; the file sink is complete by then, so that only warns.
         """
-        rec, self.rec = self.rec, None
-        if rec is None:
+        if self.rec is None:
             return
+        self._send_arm_rows()
+        rec, self.rec = self.rec, None
         try:
             rec.flush(timeout_sec=FLUSH_TIMEOUT)
         except Exception as exc:
@@ -323,11 +339,26 @@ class RerunSink:
         return out
 
     def _log_arm(self, robot: str, setpoint: int | np.ndarray, t: np.ndarray, qs: np.ndarray) -> None:
+        """The arm's link and camera transforms at times ``t``: sent at once to a live viewer,
+        else held back and sent in chunks of ``ARM_ROWS_PER_CHUNK`` rows per link (one
+        ``send_columns`` call is one chunk: per move, that made most of a recording's chunks)."""
         assert self.rec is not None
+        t = np.asarray(t, float)
+        seq = np.broadcast_to(np.asarray(setpoint, np.int64), t.shape)
         for path, (translation, quaternion) in self._link_columns(robot, qs).items():
+            self._arm_rows.setdefault(path, []).append((seq, t, translation, quaternion))
+        if self.live or sum(len(r[1]) for r in next(iter(self._arm_rows.values()), [])) >= ARM_ROWS_PER_CHUNK:
+            self._send_arm_rows()
+
+    def _send_arm_rows(self) -> None:
+        """Send the held-back arm transforms, one column chunk per link."""
+        assert self.rec is not None
+        rows, self._arm_rows = self._arm_rows, {}
+        for path, parts in rows.items():
+            seq, t, translation, quaternion = (np.concatenate([p[i] for p in parts]) for i in range(4))
             self.rec.send_columns(
                 path,
-                indexes=_time_columns(setpoint, t),
+                indexes=_time_columns(seq, t),
                 columns=rr.Transform3D.columns(translation=translation, quaternion=quaternion),
             )
 
