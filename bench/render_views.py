@@ -46,7 +46,8 @@ def main() -> None:
     per_view = {}
     for name in ("raycast", "pybullet"):
         spec = registry.get("renderer", name)
-        renderer = spec.factory(scene, cell, settings, spec.options_model(shadow_samples=args.shadow_samples))
+        options = {"shadow_samples": args.shadow_samples} if name == "raycast" else {}
+        renderer = spec.factory(scene, cell, settings, spec.options_model(**options))
         renderer.render(camera, views[0], poses)  # warm-up: scene building, caches
         t0 = time.perf_counter()
         for T in views:

@@ -30,8 +30,9 @@ _CHUNK = 1 << 15
 def encode_srgb8(linear: np.ndarray, out: np.ndarray, exposure: float = 1.0, tonemap: str = "clip") -> None:
     """Linear RGB radiance (K x 3 float32) to 8-bit sRGB in ``out`` (K x 3 uint8): times
     ``exposure``, then ``clip`` (albedos stay exact up to white) or ``reinhard`` (x / (1 + x)),
-    then a fine lookup table. ``linear`` is overwritten. Every renderer encodes through this, so
-    the same radiance gives the same bytes whichever drew it."""
+    then a fine lookup table. ``linear`` is overwritten. Every renderer encodes through this (the
+    raycast renderer through a compiled copy that tests hold to it byte for byte), so the same
+    radiance gives the same bytes whichever drew it."""
     f32 = np.float32
     for start in range(0, len(linear), _CHUNK):
         c = slice(start, start + _CHUNK)

@@ -38,17 +38,15 @@ at ``link_poses``. Embree has no instancing here, so the posed arms are rebuilt 
 change, together with the static scene when it is small (one cast per ray), else in a scene of
 their own (the nearer hit of the two wins).
 
-Performance: Open3D casts on all cores but holds the GIL; everything between the casts is
-vectorised float32 numpy on tiles of whole image rows (``tile_pixels``), run by ``workers``
-threads (numpy releases the GIL). Every ray cast is batched (a tile's rays, then the ever fewer
-rays going on past cut-out texels), so Python never loops over pixels. With more than
-``adaptive_after`` shadow samples, only penumbra pixels get them all. Since casting and numpy
-take turns (the GIL), a view costs about the casts' time plus half the numpy time, so the
-per-pixel numpy is kept lean: shading runs in chunks of ``lights.CHUNK`` pixels (their
-temporaries stay in cache), points and normals are stored as rows (3 x K: numpy loops over
-K x 3 arrays three elements at a time), and textures are pre-converted to linear float32 and
-padded for bilinear lookups (:mod:`agrisim.plugins.render.raycast.materials`). On the lab at 1080p a
-view's ~2M primary and ~2M shadow rays take about half of its time in Embree.
+Performance: Open3D casts on all cores but holds the GIL; everything between the casts runs on
+tiles of whole image rows (``tile_pixels``), in ``workers`` threads. Every ray cast is batched (a
+tile's rays, then the ever fewer rays going on past cut-out texels), so Python never loops over
+pixels. The per-pixel arithmetic (texture coordinates, bilinear albedo, hit points and normals,
+the lights' unshadowed irradiance, 8-bit encoding) runs in compiled loops that release the GIL
+(:mod:`.kernels`, Numba), so one tile shades while another's rays are cast; the rest is float32
+numpy in chunks of ``lights.CHUNK`` pixels. With more than ``adaptive_after`` shadow samples,
+only penumbra pixels get them all. On the lab at 1080p a view's ~2M primary and ~2M shadow rays
+take about two thirds of its time in Embree (``bench/accounting.py`` splits it).
 """
 
 from __future__ import annotations

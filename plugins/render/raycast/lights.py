@@ -21,6 +21,7 @@ from collections.abc import Callable, Iterator
 
 import numpy as np
 
+from agrisim.plugins.render.raycast.kernels import AREA, POINT, SPOT, light_weights
 from agrisim.scene.model import Light
 
 F32 = np.float32
@@ -57,6 +58,9 @@ class LightTable:
         cone = np.radians([min(max(li.cone_deg, 0.0), 180.0) for li in lights])
         self.cos_outer = np.cos(cone).astype(F32)
         self.cos_inner = np.cos(0.9 * cone).astype(F32)
+        # for the compiled weights (kernels.light_weights): kinds as numbers, spot cone widths
+        self.kind_code = np.array([{"area": AREA, "spot": SPOT}.get(k, POINT) for k in self.kind], np.int8)
+        self.width = np.array([max(self.cos_inner[i] - self.cos_outer[i], 1e-6) for i in range(self.n)], F32)
         # An orthonormal basis of each disc, for points on area lights.
         e1 = np.cross(d, np.array([0.0, 0.0, 1.0]))
         small = np.linalg.norm(e1, axis=1) < 1e-6
@@ -74,43 +78,18 @@ class LightTable:
         ]
         self.targets = (np.concatenate(pts) if pts else np.zeros((0, 3))).astype(F32)
 
-    def weights(self, p: np.ndarray, n: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
+    def weights(self, p: np.ndarray, n: np.ndarray, out: np.ndarray | None = None, origins: np.ndarray | None = None, eps: float = 0.0) -> np.ndarray:
         """Unshadowed scalar irradiance (L x K) of each light at points ``p`` (3 x K, one row per
         coordinate) with unit normals ``n`` (3 x K) (from the centre of area lights; the mean of
-        each light's colour).
-
-        Coordinates come as rows, not as K x 3, and every step writes into a scratch buffer:
-        each is then one pass of a vector loop over K floats, which for the few thousand points
-        of a renderer's chunk stay in cache (this is the renderer's busiest numpy code)."""
+        each light's colour); with ``origins`` (3 x K) also the shadow rays' origins ``p + eps n``
+        there. Compiled: :func:`~agrisim.plugins.render.raycast.kernels.light_weights`."""
         k = p.shape[1]
         w = np.empty((self.n, k), F32) if out is None else out
-        lv = np.empty((3, k), F32)  # point -> light (centre)
-        prod = np.empty((3, k), F32)
-        r2, cos_s, cos_e = np.empty(k, F32), np.empty(k, F32), np.empty(k, F32)
-        for i in range(self.n):
-            np.subtract(self.position[i][:, None], p, out=lv)
-            np.multiply(lv, lv, out=prod)
-            np.sum(prod, axis=0, out=r2)
-            np.maximum(r2, F32(1e-12), out=r2)
-            np.multiply(n, lv, out=prod)
-            np.sum(prod, axis=0, out=cos_s)  # x r
-            np.maximum(cos_s, F32(0.0), out=cos_s)
-            np.multiply(lv, -self.direction[i][:, None], out=prod)
-            np.sum(prod, axis=0, out=cos_e)  # x r
-            if self.kind[i] == "area":
-                np.maximum(cos_e, F32(0.0), out=cos_e)
-                cos_s *= cos_e
-                r2 *= r2
-            else:
-                inv_r = 1.0 / np.sqrt(r2)
-                cos_s *= inv_r
-                if self.kind[i] == "spot":
-                    cos_e *= inv_r
-                    width = max(self.cos_inner[i] - self.cos_outer[i], 1e-6)
-                    x = np.clip((cos_e - self.cos_outer[i]) / width, 0.0, 1.0)
-                    cos_s *= x * x * (3.0 - 2.0 * x)
-            np.divide(cos_s, r2, out=w[i])
-            w[i] *= self.power[i]
+        none = np.empty((3, 0), F32)
+        light_weights(
+            p, n, self.position, self.direction, self.kind_code, self.power, self.cos_inner, self.cos_outer,
+            self.width, F32(eps), w, none if origins is None else origins,
+        )
         return w
 
     # The shadow-sampling kernel: chunked, vectorised and adaptive in one loop so that its scratch arrays stay in cache.

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from agrisim.plugins.render.raycast import kernels
 from agrisim.scene.colour import srgb_to_linear
 from agrisim.scene.model import Material
 from agrisim.scene.texturing import alpha_threshold
@@ -27,24 +28,6 @@ F32 = np.float32
 #: uint8 sRGB -> linear float32
 SRGB_TO_LINEAR = srgb_to_linear(np.arange(256) / 255.0).astype(F32)
 
-
-
-def _corner(u: np.ndarray, size: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Bilinear lookup along one axis: (first texel, as float32 in [0, size), weight of the next).
-
-    The texel is ``floor(u * size - 0.5)`` wrapped; the wrap is float arithmetic (``x - floor(x
-    / size) * size`` is exact for texel numbers below 2**24: the quotient of an exact multiple is
-    exact, any other is at least 1 / size from an integer) because integer ``%`` costs several
-    times more."""
-    f = u * size
-    f -= F32(0.5)
-    x = np.floor(f)
-    f -= x  # weight of the next texel
-    q = x / size
-    np.floor(q, out=q)
-    q *= size
-    x -= q
-    return x, f
 
 
 class MaterialTable:
@@ -164,48 +147,10 @@ class MaterialTable:
         ``uv`` may be anything on untextured materials."""
         if not bilinear:
             return np.take(self.alb_rgb, self.albedo_index(uv, mat), axis=0, out=out)
-        x0, ax = _corner(uv[:, 0], np.take(self.alb_wf, mat))
-        y0, ay = _corner(uv[:, 1], np.take(self.alb_hf, mat))
-        stride = np.take(self.alb_stride, mat)
-        i00 = y0.astype(np.int64)
-        i00 *= stride
-        i00 += x0.astype(np.int64)
-        i00 += np.take(self.alb_off, mat)
-        i01 = i00 + stride
-        # mode="clip": absurd UVs (beyond 2**24 texels) read some texel instead of raising
-        c00, c10, c01, c11 = (np.take(self.alb_rgb, i, axis=0, mode="clip") for i in (i00, i00 + 1, i01, i01 + 1))
-        # Lerp in x along both rows, then in y (exact on constant textures: untextured materials).
-        # The weights repeated to K x 3: products with a K x 1 column loop over threes (slow).
-        wx = np.repeat(ax, 3).reshape(-1, 3)
-        c10 -= c00
-        c10 *= wx
-        c10 += c00
-        c11 -= c01
-        c11 *= wx
-        c11 += c01
-        c11 -= c10
-        c11 *= np.repeat(ay, 3).reshape(-1, 3)
-        out = np.add(c10, c11, out=out)
-        cut = np.flatnonzero(np.take(self.cuts, mat))
-        if len(cut):
-            out[cut] = self._alpha_weighted(uv[cut], mat[cut], i00[cut], stride[cut], ax[cut, None], ay[cut, None])
+        if out is None:
+            out = np.empty((len(mat), 3), F32)
+        kernels.albedo_bilinear(
+            uv, mat, self.alb_wf, self.alb_hf, self.alb_w, self.alb_h, self.alb_stride, self.alb_off,
+            self.alb_rgb, self.alb_alpha, self.threshold, self.cuts, out,
+        )
         return out
-
-    def _alpha_weighted(self, uv, mat, i00, stride, ax, ay) -> np.ndarray:  # noqa: ANN001
-        """Bilinear albedo on cut-out cards: only texels that opacity keeps give their colour
-        (weights renormalised); where none of the four does, the hit's own (nearest) texel."""
-        threshold = np.take(self.threshold, mat)
-        corners = ((i00, (1 - ax) * (1 - ay)), (i00 + 1, ax * (1 - ay)), (i00 + stride, (1 - ax) * ay))
-        corners += ((i00 + stride + 1, ax * ay),)
-        weights = []
-        for index, weight in corners:
-            weights.append(weight * (np.take(self.alb_alpha, index, mode="clip") >= threshold)[:, None])
-        total = sum(weights)
-        empty = total[:, 0] <= 0  # (no kept corner: the hit's own texel decides)
-        total[empty] = 1.0
-        color = np.zeros((len(mat), 3), F32)
-        for (index, _), weight in zip(corners, weights):
-            color += np.take(self.alb_rgb, index, axis=0, mode="clip") * (weight / total)
-        if empty.any():
-            color[empty] = np.take(self.alb_rgb, self.albedo_index(uv[empty], mat[empty]), axis=0)
-        return color

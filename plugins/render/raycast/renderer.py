@@ -12,13 +12,13 @@ import numpy as np
 
 from agrisim.config import RenderConfig
 from agrisim.interfaces import CameraModel, Frame, Renderer
-from agrisim.plugins.render.raycast import RaycastOptions
+from agrisim.plugins.render.raycast import RaycastOptions, kernels
 from agrisim.plugins.render.raycast.arm_meshes import arm_link_meshes
 from agrisim.plugins.render.raycast.lights import LightTable, chunks
 from agrisim.plugins.render.raycast.tracing import Hits, SceneTracer, camera_rays, label_map, pixel_slopes
 from agrisim.scene.cell import Cell
 from agrisim.scene.camera import view_seed
-from agrisim.scene.colour import encode_srgb8, srgb_to_linear
+from agrisim.scene.colour import ENCODE_STEPS, LINEAR_TO_SRGB8, srgb_to_linear
 from agrisim.scene.model import Mesh, Scene
 
 F32 = np.float32
@@ -59,9 +59,7 @@ class RaycastRenderer(Renderer):
         w = np.empty((lights.n, m), F32)  # unshadowed irradiance of each light
         origins = np.empty((3, m), F32) if samples > 0 and lights.n else None  # of shadow rays
         # Per-point work in chunks of some thousand points, whose scratch arrays stay in cache.
-        # Points and normals as rows (3 x chunk), filled column by column of the rays: numpy
-        # ops over arrays laid out differently (or over K x 3) loop over threes, several times
-        # slower.
+        # Points and normals as rows (3 x chunk): the layout LightTable works in.
         for c in chunks(m):
             self.tracer.mats.albedo(uv[c], mat[c], bilinear, out=albedo[c])
             on_point = np.flatnonzero(point[c] >= 0) if point is not None else ()
@@ -69,21 +67,12 @@ class RaycastRenderer(Renderer):
                 albedo[c][on_point] = self.point_albedo[point[c][on_point]]
             if not lights.n:
                 continue
-            r, tc = rays[c], t[c]
-            p = np.empty((3, len(tc)), F32)
-            back = np.zeros(len(tc), F32)  # n . d > 0: the camera sees the back
-            n = np.take(self.tracer.face_normal, face[c], axis=1)
-            for j in range(3):
-                np.multiply(r[:, 3 + j], tc, out=p[j])
-                back += n[j] * r[:, 3 + j]
-                p[j] += r[:, j]
-            np.negative(n, out=n, where=back > 0)  # the side the camera sees
+            p, n = np.empty((3, c.stop - c.start), F32), np.empty((3, c.stop - c.start), F32)
+            kernels.surface_frames(rays[c], t[c], face[c], self.tracer.face_normal, p, n)  # n: the side seen
             if len(on_point):  # a sphere's normal at the hit (its outside: the side seen)
                 n[:, on_point] = self.tracer.points.normals(point[c][on_point], p[:, on_point])
-            lights.weights(p, n, out=w[:, c])
-            if origins is not None:  # off the surface, towards the side seen
-                np.multiply(n, eps, out=origins[:, c])
-                origins[:, c] += p
+            # shadow rays start off the surface, towards the side seen
+            lights.weights(p, n, out=w[:, c], origins=origins[:, c] if origins is not None else None, eps=eps)
         irradiance = lights.irradiance(w, origins, samples, rng, self.tracer.occluded, self.options.adaptive_after)
         irradiance += F32(self.options.ambient)
         for c in range(3):  # channel by channel: irradiance comes as rows
@@ -119,7 +108,9 @@ class RaycastRenderer(Renderer):
                     count += sub_hits.hit
             hit = count > 0
             linear *= F32(1.0 / (s * s))
-        encode_srgb8(linear, out["rgb"], self.options.exposure, self.options.tonemap)
+        kernels.encode_srgb8(
+            linear, out["rgb"], F32(self.options.exposure), self.options.tonemap == "reinhard", F32(ENCODE_STEPS), LINEAR_TO_SRGB8
+        )
         if not hit.all():
             out["rgb"][~hit] = np.asarray(self.options.background, np.uint8)
 

@@ -11,6 +11,7 @@ from functools import lru_cache
 import numpy as np
 
 from agrisim.plugins.render.raycast import RaycastOptions
+from agrisim.plugins.render.raycast import kernels
 from agrisim.plugins.render.raycast.arm_meshes import arm_link_meshes
 from agrisim.plugins.render.raycast.lights import SHADOW_TFAR, chunks
 from agrisim.plugins.render.raycast.materials import MaterialTable
@@ -295,19 +296,9 @@ class SceneTracer:
 
     def _uv(self, face: np.ndarray, bary: np.ndarray) -> np.ndarray:
         """UVs at hits: the arithmetic of agrisim.scene.texturing.interpolate_uv, operation for
-        operation in float32 (so the same texels), on pre-gathered corner UVs, chunk by chunk."""
+        operation in float32 (so the same texels), on pre-gathered corner UVs."""
         uv = np.empty((len(face), 2), F32)
-        for c in chunks(len(face)):
-            tri = np.take(self.face_uv, face[c], axis=0)  # (chunk, 6): u0 v0 u1 v1 u2 v2
-            w1, w2 = bary[c, 0], bary[c, 1]
-            w0 = F32(1.0) - w1
-            w0 -= w2
-            term = np.empty_like(w0)
-            for j in range(2):
-                out = uv[c, j]
-                np.multiply(w0, tri[:, j], out=out)
-                out += np.multiply(w1, tri[:, 2 + j], out=term)
-                out += np.multiply(w2, tri[:, 4 + j], out=term)
+        kernels.interpolate_uv(face, bary, self.face_uv, uv)
         return uv
 
     def surface(self, face: np.ndarray, bary: np.ndarray):  # noqa: ANN202
