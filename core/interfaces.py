@@ -78,10 +78,15 @@ class Frame:
     #: float32 H x W x 3 linear RGB radiance before exposure and tone mapping, from renderers
     #: asked to keep it (the dataset writes it as ``radiance/<frame>.exr``)
     radiance: np.ndarray | None = None
+    # depth_mm's answer, kept: the dataset writer, the recording and the reconstruction all ask
+    _depth_mm: np.ndarray | None = field(default=None, init=False, repr=False, compare=False)
 
     def depth_mm(self) -> np.ndarray:
-        """Depth as the dataset's PNGs store it: uint16 whole millimetres, 0 = no hit."""
-        return depth_to_mm(self.depth)
+        """Depth as the dataset's PNGs store it: uint16 whole millimetres, 0 = no hit (computed
+        once; do not write into the answer)."""
+        if self._depth_mm is None or self._depth_mm.shape != np.shape(self.depth):
+            self._depth_mm = depth_to_mm(self.depth)
+        return self._depth_mm
 
     def stored(self, exact_depth: bool = False) -> Frame:
         """These images as they read back from the run directory: depth rounded to whole

@@ -8,8 +8,10 @@ import numpy as np
 def depth_to_mm(depth: np.ndarray) -> np.ndarray:
     """Planar depth in metres (0 = no hit) to uint16 millimetres, rounded; beyond 65.535 m
     saturates. The dataset's depth PNGs and the recording's ``DepthImage`` both use this."""
-    mm = np.rint(np.asarray(depth, np.float64) * 1000.0)
-    return np.clip(mm, 0, 65535).astype(np.uint16)
+    mm = np.multiply(depth, 1000.0, dtype=np.float64)  # in float64, as before rounding
+    np.rint(mm, out=mm)
+    np.clip(mm, 0, 65535, out=mm)
+    return mm.astype(np.uint16)
 
 
 def mm_to_depth(mm: np.ndarray) -> np.ndarray:

@@ -8,6 +8,7 @@ do not swing through half a turn to reach a neighbouring setpoint.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
@@ -15,6 +16,17 @@ import numpy as np
 import pinocchio as pin
 
 from agrisim.scene.cell import Arm
+
+
+#: damped least squares: J J^T + this (6 x 6) is never singular
+_DAMPING = 1e-6 * np.eye(6)
+#: numpy.linalg.solve's own kernel for one right-hand side (LAPACK gesv), without its checks
+_solve6 = np.linalg._umath_linalg.solve1
+
+
+def _norm3(v: np.ndarray) -> float:
+    """Euclidean norm as numpy.linalg.norm computes it for a float vector: sqrt(v . v)."""
+    return math.sqrt(v.dot(v))
 
 
 @dataclass
@@ -73,22 +85,25 @@ class ArmKinematics:
 
     # ------------------------------------------------------------------ inverse
     def _solve(self, target: pin.SE3, q0: np.ndarray, iterations: int, tol: float) -> tuple[np.ndarray, float, float]:
-        model, data = self.model, self.data
+        # Tens of thousands of iterations per run, each a few microseconds of arithmetic: numpy's
+        # wrappers (norm, solve, eye, clip) cost more than their work, so the loop calls what
+        # they call (the same float operations: the same answers, bit for bit).
+        model, data, tip = self.model, self.data, self.tip
+        lower, upper = self.lower, self.upper
         q = q0.copy()
-        damping = 1e-6
         for _ in range(iterations):
             pin.framesForwardKinematics(model, data, q)
-            current_T_target = data.oMf[self.tip].actInv(target)
+            current_T_target = data.oMf[tip].actInv(target)
             err = pin.log6(current_T_target).vector
-            if np.linalg.norm(err[:3]) < tol and np.linalg.norm(err[3:]) < tol:
+            if _norm3(err[:3]) < tol and _norm3(err[3:]) < tol:
                 break
-            J = pin.computeFrameJacobian(model, data, q, self.tip, pin.ReferenceFrame.LOCAL)
+            J = pin.computeFrameJacobian(model, data, q, tip, pin.ReferenceFrame.LOCAL)
             J = pin.Jlog6(current_T_target) @ J
-            dq = J.T @ np.linalg.solve(J @ J.T + damping * np.eye(6), err)
-            q = np.clip(q + dq, self.lower, self.upper)
+            dq = J.T @ _solve6(J @ J.T + _DAMPING, err)
+            q = np.minimum(np.maximum(q + dq, lower), upper)
         pin.framesForwardKinematics(model, data, q)
-        err = pin.log6(data.oMf[self.tip].actInv(target)).vector
-        return q, float(np.linalg.norm(err[:3])), float(np.linalg.norm(err[3:]))
+        err = pin.log6(data.oMf[tip].actInv(target)).vector
+        return q, _norm3(err[:3]), _norm3(err[3:])
 
     def nearest_equivalent(self, q: np.ndarray, reference: np.ndarray) -> np.ndarray:
         """Shift joints by whole turns towards ``reference``, staying within limits."""

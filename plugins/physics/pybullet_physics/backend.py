@@ -5,6 +5,7 @@ from __future__ import annotations
 import tempfile
 from collections.abc import Callable, Mapping
 from pathlib import Path
+from xml.etree import ElementTree
 
 import numpy as np
 
@@ -17,6 +18,17 @@ from agrisim.util.native_output import native_output_silenced
 with native_output_silenced():  # pybullet prints its build time on import
     import pybullet as pb
     from pybullet_utils.bullet_client import BulletClient
+
+
+def _without_visuals(urdf: str) -> str:
+    """The URDF without its ``<visual>`` elements: the worlds here only simulate and test
+    collisions (inertia comes from the file, bounds from the collision shapes), and pybullet
+    spends a third of a second per arm reading the UR10's visual meshes."""
+    root = ElementTree.fromstring(urdf)
+    for link in root.iter("link"):
+        for visual in link.findall("visual"):
+            link.remove(visual)
+    return ElementTree.tostring(root, encoding="unicode")
 
 
 class _World:
@@ -70,7 +82,7 @@ class _World:
         for arm in cell.arms:
             urdf = urdf_dir / f"{arm.name}.urdf"
             if not urdf.exists():
-                urdf.write_text(arm.urdf)
+                urdf.write_text(_without_visuals(arm.urdf))
             with native_output_silenced():  # the URDF importer warns on stdout
                 body = c.loadURDF(
                     str(urdf),
