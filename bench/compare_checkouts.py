@@ -1,0 +1,135 @@
+"""Two checkouts of agrisim side by side on one machine: the default run, the robot-only run
+and the recording, timed alternately (before, after, before, after...), and the outputs compared
+(images by pixel, clouds, metrics and trajectories by value). Prints figures and ratios; asserts
+nothing. Each checkout needs its own environment (``make setup`` in it).
+
+    git worktree add ../before <commit> && make -C ../before setup
+    python bench/compare_checkouts.py ../before .              # both runs, twice each
+    python bench/compare_checkouts.py ../before . --only robot --repeat 3
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import re
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+from PIL import Image
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from machine import cpu_model  # noqa: E402
+
+#: run.json / metrics.json keys that hold clocks, paths or versions, not results
+VOLATILE = re.compile(r"(_s|started_at|command|versions|out_dir|^out)$")
+
+
+def timed(cmd: list[str], cwd: Path) -> tuple[float, float]:
+    """Run ``cmd``; (wall s, peak RSS MB of the process)."""
+    t0 = time.perf_counter()
+    proc = subprocess.Popen(cmd, cwd=cwd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    _, status, usage = os.wait4(proc.pid, 0)
+    wall = time.perf_counter() - t0
+    proc.returncode = os.waitstatus_to_exitcode(status)
+    if proc.returncode:
+        raise SystemExit(f"{' '.join(cmd)} failed ({proc.returncode}): {proc.stderr.read().decode()[-2000:]}")
+    return wall, usage.ru_maxrss / 1024
+
+
+def python_of(checkout: Path) -> str:
+    exe = checkout / ".venv" / "bin" / "python"
+    if not exe.exists():
+        raise SystemExit(f"{checkout} has no .venv: run `make setup` there first")
+    return str(exe)
+
+
+def _strip(doc: object) -> object:
+    if isinstance(doc, dict):
+        return {k: _strip(v) for k, v in doc.items() if not VOLATILE.search(k)}
+    if isinstance(doc, list):
+        return [_strip(v) for v in doc]
+    return doc
+
+
+def same_outputs(a: Path, b: Path) -> list[str]:
+    """What differs between two run directories (empty: images equal pixel for pixel, every
+    other file equal byte for byte, run.json and metrics.json equal but for clocks)."""
+    problems = []
+    files_a = {p.relative_to(a) for p in a.rglob("*") if p.is_file()}
+    files_b = {p.relative_to(b) for p in b.rglob("*") if p.is_file()}
+    for missing in sorted(files_a ^ files_b):
+        problems.append(f"only in one run: {missing}")
+    for rel in sorted(files_a & files_b):
+        pa, pb = a / rel, b / rel
+        if rel.suffix == ".png":
+            if not np.array_equal(np.asarray(Image.open(pa)), np.asarray(Image.open(pb))):
+                problems.append(f"pixels differ: {rel}")
+        elif rel.name in ("run.json", "metrics.json"):
+            if _strip(json.loads(pa.read_text())) != _strip(json.loads(pb.read_text())):
+                problems.append(f"values differ: {rel}")
+        elif rel.suffix in (".rrd", ".glb") or rel.name == "transforms.json":
+            continue  # the recording's chunking changes on purpose; scene.glb embeds PNG bytes
+        elif pa.read_bytes() != pb.read_bytes():
+            problems.append(f"bytes differ: {rel}")
+    return problems
+
+
+def rrd_chunks(python: str, rrd: Path) -> tuple[int, int]:
+    """(chunks, theoretical lower bound) that ``rerun rrd stats`` reports (-1: not said)."""
+    rerun = Path(python).with_name("rerun")
+    out = subprocess.run([str(rerun), "rrd", "stats", str(rrd)], capture_output=True, text=True).stdout
+    number = r"(\d[\d\s\u202f\u00a0]*)"
+    chunks = re.search(r"num_chunks = " + number, out)
+    bound = re.search(r"lower bound:\s+" + number + " chunks", out)
+    as_int = lambda m: int(re.sub(r"\D", "", m.group(1))) if m else -1  # noqa: E731
+    return as_int(chunks), as_int(bound)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("before", type=Path)
+    parser.add_argument("after", type=Path)
+    parser.add_argument("--repeat", type=int, default=2)
+    parser.add_argument("--only", choices=("default", "robot"), default=None)
+    parser.add_argument("--setpoints", default=None, help="LxC for the default run (default 5x10)")
+    args = parser.parse_args()
+    sides = {"before": args.before.resolve(), "after": args.after.resolve()}
+    pythons = {k: python_of(v) for k, v in sides.items()}
+    commits = {k: subprocess.run(["git", "-C", str(v), "rev-parse", "--short", "HEAD"], capture_output=True, text=True).stdout.strip() for k, v in sides.items()}
+    print(f"{cpu_model()}; before {commits['before']} ({sides['before']}), after {commits['after']} ({sides['after']})")
+    runs = {"default": [], "robot": ["--renderer", "none"]}
+    if args.setpoints:
+        runs["default"] += ["--setpoints", args.setpoints]
+    with tempfile.TemporaryDirectory() as tmp:
+        for name, extra in runs.items():
+            if args.only and name != args.only:
+                continue
+            walls: dict[str, list[float]] = {"before": [], "after": []}
+            peaks: dict[str, list[float]] = {"before": [], "after": []}
+            for i in range(args.repeat):
+                for side in ("before", "after"):
+                    out = Path(tmp) / f"{name}-{side}-{i}"
+                    wall, peak = timed([pythons[side], "-m", "agrisim", "run", "--out", str(out), *extra], sides[side])
+                    walls[side].append(wall)
+                    peaks[side].append(peak)
+                    print(f"  {name} run, {side}: {wall:.1f} s, peak RSS {peak:.0f} MB", flush=True)
+            problems = same_outputs(Path(tmp) / f"{name}-before-0", Path(tmp) / f"{name}-after-0")
+            b, a = min(walls["before"]), min(walls["after"])
+            print(f"{name} run: before {b:.1f} s, after {a:.1f} s (best of {args.repeat}): {a / b:.2f}x; "
+                  f"peak RSS {max(peaks['before']):.0f} -> {max(peaks['after']):.0f} MB; "
+                  f"outputs {'identical' if not problems else 'DIFFER: ' + '; '.join(problems[:8])}")
+            rrd = {s: Path(tmp) / f"{name}-{s}-0" / "recording.rrd" for s in sides}
+            if all(p.exists() for p in rrd.values()):
+                for s in sides:
+                    chunks, bound = rrd_chunks(pythons["after"], rrd[s])
+                    print(f"  recording {s}: {rrd[s].stat().st_size / 1e6:.0f} MB, {chunks} chunks (lower bound {bound})")
+
+
+if __name__ == "__main__":
+    main()
