@@ -347,7 +347,8 @@ class RerunSink:
         seq = np.broadcast_to(np.asarray(setpoint, np.int64), t.shape)
         for path, (translation, quaternion) in self._link_columns(robot, qs).items():
             self._arm_rows.setdefault(path, []).append((seq, t, translation, quaternion))
-        if self.live or sum(len(r[1]) for r in next(iter(self._arm_rows.values()), [])) >= ARM_ROWS_PER_CHUNK:
+        held = max((sum(len(part[1]) for part in parts) for parts in self._arm_rows.values()), default=0)
+        if self.live or held >= ARM_ROWS_PER_CHUNK:
             self._send_arm_rows()
 
     def _send_arm_rows(self) -> None:
