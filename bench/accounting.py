@@ -155,7 +155,7 @@ def main() -> None:
         print(f"    {name:40s} {n / rate:7.1f} s  ({kinds})")
     print(f"    {'native threads (TBB, Rerun), unsampled':40s} {max(cpu - sampled_cpu, 0.0):7.1f} s  (process CPU less sampled CPU)")
     if args.top:
-        print(f"  busiest Python lines (innermost, s):")
+        print("  busiest Python lines (innermost, s):")
         for frame, n in lines.most_common(args.top):
             m = re.search(r"\((.+):(\d+)\)$", frame)
             src = linecache.getline(m.group(1), int(m.group(2))).strip()[:70] if m else ""

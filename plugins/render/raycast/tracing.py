@@ -13,7 +13,7 @@ import numpy as np
 from agrisim.plugins.render.raycast import RaycastOptions
 from agrisim.plugins.render.raycast import kernels
 from agrisim.plugins.render.raycast.arm_meshes import arm_link_meshes
-from agrisim.plugins.render.raycast.lights import SHADOW_TFAR, chunks
+from agrisim.plugins.render.raycast.lights import SHADOW_TFAR
 from agrisim.plugins.render.raycast.materials import MaterialTable
 from agrisim.plugins.render.raycast.points import PointTracer
 from agrisim.scene.camera import CameraModel
