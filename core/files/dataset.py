@@ -18,7 +18,6 @@ says ``complete``.
 
 from __future__ import annotations
 
-import io
 import platform
 import sys
 from concurrent.futures import Future, ThreadPoolExecutor
@@ -28,7 +27,6 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from PIL import Image
 
 from agrisim.files import layout
 from agrisim.evaluation.session import write_reconstruction
@@ -38,6 +36,7 @@ from agrisim.files.glb import export_glb
 from agrisim.files.point_cloud import write_points_ply
 from agrisim.files.scene_glb import write_scene
 from agrisim.files.nerfstudio import write_nerfstudio
+from agrisim.files.png import encode_png
 from agrisim.interfaces import CameraModel, Capture, Frame, JointTrajectory, Trajectory
 from agrisim.records import Run, RunSummary, SetpointResult
 from agrisim.registry import hookimpl
@@ -75,14 +74,7 @@ def package_versions() -> dict[str, str]:
 def write_png(path: Path, image: np.ndarray, palette: np.ndarray | None = None) -> None:
     """A PNG of a uint8 (grey or RGB) or uint16 (grey) image, written atomically; with a
     ``palette`` (256 x 3 uint8) a uint8 image is written as an indexed-colour PNG."""
-    buffer = io.BytesIO()
-    if palette is not None:
-        im = Image.fromarray(np.ascontiguousarray(image, dtype=np.uint8), mode="P")
-        im.putpalette(np.asarray(palette, np.uint8).ravel().tolist())
-    else:
-        im = Image.fromarray(np.ascontiguousarray(image))
-    im.save(buffer, format="PNG", compress_level=1)
-    write_bytes(path, buffer.getvalue())
+    write_bytes(path, encode_png(image, palette))
 
 
 def _result_row(r: SetpointResult) -> dict[str, Any]:

@@ -19,6 +19,7 @@ import os
 import tempfile
 import threading
 import xml.etree.ElementTree as ET
+from importlib import metadata
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Literal
@@ -151,10 +152,10 @@ def cache_dir() -> Path:
 
 
 def _cache_key(path: Path) -> str:
-    import trimesh
-
     st = path.stat()
-    ident = f"{path.resolve()}|{st.st_size}|{st.st_mtime_ns}|v{CONVERTER_VERSION}|trimesh {trimesh.__version__}"
+    # the installed trimesh's version, without importing it (a second of start-up when the
+    # cache already holds every mesh)
+    ident = f"{path.resolve()}|{st.st_size}|{st.st_mtime_ns}|v{CONVERTER_VERSION}|trimesh {metadata.version('trimesh')}"
     return hashlib.sha256(ident.encode()).hexdigest()[:20]
 
 

@@ -76,6 +76,8 @@ class _World:
         self._box_cache: dict[int, np.ndarray] = {}  # bounds, dropped when a body moves
         self.arms: dict[str, int] = {}
         self.self_pairs: dict[str, list[tuple[int, int]]] = {}
+        self._self_index: dict[str, tuple[np.ndarray, np.ndarray]] = {}  # self_pairs as rows of bounds
+        self._others_cache: dict[tuple[str, str | None], tuple[list[tuple[int, list[int]]], np.ndarray, np.ndarray]] = {}
         self.joints: dict[str, list[int]] = {}
         self.links: dict[str, dict[int, str]] = {}
         flags = pb.URDF_USE_SELF_COLLISION | pb.URDF_USE_SELF_COLLISION_EXCLUDE_PARENT | pb.URDF_USE_INERTIA_FROM_FILE
@@ -127,6 +129,8 @@ class _World:
                     else:
                         pairs.append((a, b))
             self.self_pairs[arm.name] = pairs
+            index = {j: i for i, j in enumerate(shaped)}  # link -> row of its bounds
+            self._self_index[arm.name] = (np.array([index[a] for a, _ in pairs], np.intp), np.array([index[b] for _, b in pairs], np.intp))
             self.shaped[arm.name] = shaped
             self.shaped_by_body[body] = shaped
             stand = self.bodies[arm.stand]
@@ -149,6 +153,18 @@ class _World:
             self._box_cache[body] = np.array([self.client.getAABB(body, j) for j in links])
         return self._box_cache[body]
 
+    def _others(self, robot: str, only: str | None) -> tuple[list[tuple[int, list[int]]], np.ndarray, np.ndarray]:
+        """The bodies ``near`` checks ``robot`` against, with their shaped links, and for each
+        row of their stacked bounds its body (position in that list) and its link's position."""
+        key = (robot, only)
+        if key not in self._others_cache:
+            body = self.arms[robot]
+            others = [(o, ol) for o, ol in self.shaped_by_body.items() if o != body] if only is None else [(self.arms[only], self.shaped[only])]
+            owner = np.repeat(np.arange(len(others)), [len(ol) for _, ol in others])
+            column = np.concatenate([np.arange(len(ol)) for _, ol in others])
+            self._others_cache[key] = (others, owner, column)
+        return self._others_cache[key]
+
     def near(self, robot: str, only: str | None = None) -> list[str]:
         """The first pair involving ``robot`` closer than ``margin`` (empty when clear);
         ``only`` restricts the search to that other arm.
@@ -160,21 +176,23 @@ class _World:
         links = self.shaped[robot]
         mine = self._boxes(body, links)
         lo, hi = mine[:, 0] - m, mine[:, 1] + m
+        # All other links' bounds at once (one numpy pass, not one per body: this runs for every
+        # collision check of IK, planning and execution); candidates in the order a loop over
+        # bodies, my links, their links would give them, so the first pair found is the same.
+        others, owner, column = self._others(robot, only)
+        theirs = np.concatenate([self._boxes(o, ol) for o, ol in others])
+        overlap = ((lo[:, None] <= theirs[None, :, 1]) & (hi[:, None] >= theirs[None, :, 0])).all(axis=2)
+        ii, kk = np.nonzero(overlap)
         candidates: list[tuple[int, int, int]] = []  # (other body, my link, its link)
-        others = self.shaped_by_body if only is None else {self.arms[only]: self.shaped[only]}
-        for other, olinks in others.items():
-            if other == body:
-                continue
-            theirs = self._boxes(other, olinks)
-            overlap = np.all((lo[:, None] <= theirs[None, :, 1]) & (hi[:, None] >= theirs[None, :, 0]), axis=2)
-            for i, k in zip(*np.nonzero(overlap), strict=True):
-                if (body, links[i], other, olinks[k]) not in self.ignored:
-                    candidates.append((other, links[i], olinks[k]))
-        index = {j: i for i, j in enumerate(links)}
-        for a, b in self.self_pairs[robot] if only is None else ():
-            i, k = index[a], index[b]
-            if np.all((lo[i] <= mine[k, 1]) & (hi[i] >= mine[k, 0])):
-                candidates.append((body, a, b))
+        for n in np.lexsort((kk, ii, owner[kk])).tolist():
+            other, olinks = others[owner[kk[n]]]
+            a, b = links[ii[n]], olinks[column[kk[n]]]
+            if (body, a, other, b) not in self.ignored:
+                candidates.append((other, a, b))
+        if only is None and self.self_pairs[robot]:
+            ia, ib = self._self_index[robot]
+            close = ((lo[ia] <= mine[ib, 1]) & (hi[ia] >= mine[ib, 0])).all(axis=1)
+            candidates += [(body, *self.self_pairs[robot][n]) for n in np.flatnonzero(close).tolist()]
         for other, a, b in candidates:
             for cp in c.getClosestPoints(body, other, m, linkIndexA=a, linkIndexB=b):
                 if cp[8] <= m:
