@@ -24,7 +24,6 @@ marked ``running``) raises :class:`ExportError` before anything is written.
 
 from __future__ import annotations
 
-import io
 from pathlib import Path
 from typing import Any
 
@@ -34,6 +33,7 @@ from PIL import Image
 from agrisim.files import layout
 from agrisim.interfaces import ALL
 from agrisim.files.atomic import write_bytes, write_json
+from agrisim.files.png import encode_png
 from agrisim.errors import UserError
 from agrisim.files.rundir import read_json
 
@@ -110,9 +110,7 @@ def _mask_png(path: Path, width: int, height: int) -> bytes:
         raise ExportError(f"cannot read {path}: {exc}") from None
     if labels.shape != (height, width):
         raise ExportError(f"{path} is {labels.shape[::-1]} pixels, expected a {width}x{height} label image")
-    buffer = io.BytesIO()
-    Image.fromarray(np.where(labels != 0, 255, 0).astype(np.uint8), mode="L").save(buffer, format="PNG")
-    return buffer.getvalue()
+    return encode_png(np.where(labels != 0, 255, 0).astype(np.uint8))
 
 
 def write_nerfstudio(run_dir: Path) -> Path:
