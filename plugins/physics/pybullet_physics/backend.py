@@ -298,6 +298,17 @@ class BulletPhysics(PhysicsBackend):
         states = self.sim.client.getJointStates(self.sim.arms[robot], self.sim.joints[robot])
         return np.array([s[0] for s in states])
 
+    def _commands(self, plan: JointTrajectory, end: float) -> tuple[np.ndarray, np.ndarray]:
+        """Joint positions and velocities (steps x joints) of ``plan`` at the simulation's
+        steps ``step * dt`` up to ``end``."""
+        n = int(end / self.dt) + 2
+        t = np.arange(n) * self.dt  # step * dt, as the loop computes it
+        t = t[t <= end]
+        q = np.column_stack([np.interp(t, plan.t, plan.q[:, j]) for j in range(plan.q.shape[1])])
+        if plan.qd is None:
+            return q, np.zeros_like(q)
+        return q, np.column_stack([np.interp(t, plan.t, plan.qd[:, j]) for j in range(plan.qd.shape[1])])
+
     def execute(
         self,
         plans: Mapping[str, JointTrajectory],
@@ -313,21 +324,19 @@ class BulletPhysics(PhysicsBackend):
         t0 = self._time
         step = 0
         horizon = max(ends.values()) + timeout
+        # The commanded joints at every step of each plan, interpolated up front: one np.interp
+        # per joint over all steps instead of one per joint and step (the same values).
+        commands = {r: self._commands(plans[r], ends[r]) for r in robots}
         while len(done) < len(robots):
             t = step * self.dt
             for r in robots:
                 if r in done:
                     continue
-                plan = plans[r]
-                if t <= ends[r]:
-                    q = np.array([np.interp(t, plan.t, plan.q[:, j]) for j in range(plan.q.shape[1])])
-                    qd = (
-                        np.array([np.interp(t, plan.t, plan.qd[:, j]) for j in range(plan.qd.shape[1])])
-                        if plan.qd is not None
-                        else np.zeros_like(q)
-                    )
+                qs, qds = commands[r]
+                if step < len(qs):
+                    q, qd = qs[step], qds[step]
                 else:
-                    q, qd = plan.q[-1], np.zeros(plan.q.shape[1])
+                    q, qd = plans[r].q[-1], np.zeros(plans[r].q.shape[1])
                 self._command(r, q, qd)
             self.sim.client.stepSimulation()
             step += 1
