@@ -6,6 +6,7 @@ nothing. Each checkout needs its own environment (``make setup`` in it).
     git worktree add ../before <commit> && make -C ../before setup
     python bench/compare_checkouts.py ../before .              # both runs, twice each
     python bench/compare_checkouts.py ../before . --only robot --repeat 3
+    python bench/compare_checkouts.py ../before . --only recording   # with and without --no-rrd
 """
 
 from __future__ import annotations
@@ -30,8 +31,8 @@ from machine import cpu_model  # noqa: E402
 VOLATILE = re.compile(r"(_s|started_at|command|versions|out_dir|^out)$")
 
 
-def timed(cmd: list[str], cwd: Path) -> tuple[float, float]:
-    """Run ``cmd``; (wall s, peak RSS MB of the process)."""
+def timed(cmd: list[str], cwd: Path) -> tuple[float, float, float]:
+    """Run ``cmd``; (wall s, peak RSS MB, CPU s of the process)."""
     t0 = time.perf_counter()
     proc = subprocess.Popen(cmd, cwd=cwd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
     _, status, usage = os.wait4(proc.pid, 0)
@@ -39,7 +40,7 @@ def timed(cmd: list[str], cwd: Path) -> tuple[float, float]:
     proc.returncode = os.waitstatus_to_exitcode(status)
     if proc.returncode:
         raise SystemExit(f"{' '.join(cmd)} failed ({proc.returncode}): {proc.stderr.read().decode()[-2000:]}")
-    return wall, usage.ru_maxrss / 1024
+    return wall, usage.ru_maxrss / 1024, usage.ru_utime + usage.ru_stime
 
 
 def python_of(checkout: Path) -> str:
@@ -96,7 +97,7 @@ def main() -> None:
     parser.add_argument("before", type=Path)
     parser.add_argument("after", type=Path)
     parser.add_argument("--repeat", type=int, default=2)
-    parser.add_argument("--only", choices=("default", "robot"), default=None)
+    parser.add_argument("--only", choices=("default", "robot", "recording"), default=None)
     parser.add_argument("--setpoints", default=None, help="LxC for the default run (default 5x10)")
     args = parser.parse_args()
     sides = {"before": args.before.resolve(), "after": args.after.resolve()}
@@ -107,6 +108,9 @@ def main() -> None:
     if args.setpoints:
         runs["default"] += ["--setpoints", args.setpoints]
     with tempfile.TemporaryDirectory() as tmp:
+        if args.only == "recording":
+            recording_cost(pythons, sides, runs["default"], args.repeat, Path(tmp))
+            return
         for name, extra in runs.items():
             if args.only and name != args.only:
                 continue
@@ -115,7 +119,7 @@ def main() -> None:
             for i in range(args.repeat):
                 for side in ("before", "after"):
                     out = Path(tmp) / f"{name}-{side}-{i}"
-                    wall, peak = timed([pythons[side], "-m", "agrisim", "run", "--out", str(out), *extra], sides[side])
+                    wall, peak, _ = timed([pythons[side], "-m", "agrisim", "run", "--out", str(out), *extra], sides[side])
                     walls[side].append(wall)
                     peaks[side].append(peak)
                     print(f"  {name} run, {side}: {wall:.1f} s, peak RSS {peak:.0f} MB", flush=True)
@@ -129,6 +133,26 @@ def main() -> None:
                 for s in sides:
                     chunks, bound = rrd_chunks(pythons["after"], rrd[s])
                     print(f"  recording {s}: {rrd[s].stat().st_size / 1e6:.0f} MB, {chunks} chunks (lower bound {bound})")
+
+
+def recording_cost(pythons: dict[str, str], sides: dict[str, Path], extra: list[str], repeat: int, tmp: Path) -> None:
+    """What writing the recording costs each side: the default run with it against the same run
+    with ``--no-rrd``, alternating; wall and CPU time (Rerun encodes and writes in threads of
+    its own, so CPU shows the work even where wall time hides it)."""
+    figures: dict[tuple[str, bool], list[tuple[float, float]]] = {}
+    for i in range(repeat):
+        for side in ("before", "after"):
+            for rrd in (True, False):
+                out = tmp / f"rec-{side}-{rrd}-{i}"
+                wall, _, cpu = timed([pythons[side], "-m", "agrisim", "run", "--out", str(out), *extra, *([] if rrd else ["--no-rrd"])], sides[side])
+                figures.setdefault((side, rrd), []).append((wall, cpu))
+                size = (out / "recording.rrd").stat().st_size / 1e6 if rrd else 0.0
+                print(f"  {side}, {'with the recording' if rrd else '--no-rrd'}: {wall:.1f} s wall, {cpu:.1f} s CPU"
+                      + (f", recording {size:.0f} MB" if rrd else ""), flush=True)
+    for side in ("before", "after"):
+        with_, without = (min(figures[(side, r)]) for r in (True, False))
+        cpu_with, cpu_without = (min(c for _, c in figures[(side, r)]) for r in (True, False))
+        print(f"recording cost, {side}: {with_[0] - without[0]:+.1f} s wall, {cpu_with - cpu_without:+.1f} s CPU (best of {repeat})")
 
 
 if __name__ == "__main__":
