@@ -4,6 +4,7 @@ paths confined to a root directory, bytes read with errors that name the file, i
 from __future__ import annotations
 
 import io
+import math
 import os
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -62,6 +63,27 @@ def locate(path: Path, root: Path | None, shown: str, base: Path | None, must_ex
         if real.is_dir():
             raise AssetError(f"{shown}: is a directory, not a file")
     return real
+
+
+def open_asset(
+    path: str | os.PathLike[str], root: str | os.PathLike[str] | None, formats: tuple[str, ...], what: str
+) -> tuple[str, Path | None, Path, str]:
+    """A plant asset's name as given (for messages), the resolved asset root (None: none), its
+    real path (inside that root if one is given) and its lower-case suffix; refuses a suffix outside ``formats`` (``what``: the kind of
+    file, for the message)."""
+    shown = str(path)
+    root_dir = resolve_root(root)
+    real = locate(Path(path), root_dir, shown, base=root_dir)
+    suffix = Path(path).suffix.lower() or real.suffix.lower()
+    if suffix not in formats:
+        raise AssetError(f"{shown}: not a {what} format agrisim reads (use {', '.join(formats)})")
+    return shown, root_dir, real, suffix
+
+
+def check_scale(scale: object, shown: str) -> None:
+    """Refuse an asset ``scale`` that is not a positive, finite number."""
+    if not (isinstance(scale, (int, float)) and math.isfinite(scale) and scale > 0):
+        raise AssetError(f"{shown}: scale must be a positive number, got {scale!r}")
 
 
 def read_bytes_of(path: Path, shown: str) -> bytes:

@@ -68,7 +68,6 @@ from __future__ import annotations
 
 import dataclasses
 import fnmatch
-import math
 import os
 from collections.abc import Mapping
 from pathlib import Path
@@ -80,12 +79,13 @@ from PIL import Image
 from agrisim.files.asset_reading import (
     AssetError,
     RawMesh,
+    check_scale,
     decode_image,
     label_ids_plain,
     locate,
+    open_asset,
     plant_frame_offset,
     read_bytes_of,
-    resolve_root,
     unit_hint,
     y_up_to_z_up,
 )
@@ -147,16 +147,10 @@ def load_plant(
     Raises:
         AssetError: (a :class:`UserError`) naming the file and the problem.
     """
-    shown = str(path)
-    root_dir = resolve_root(root)
-    real = locate(Path(path), root_dir, shown, base=root_dir)
-    suffix = Path(path).suffix.lower() or real.suffix.lower()
-    if suffix not in FORMATS:
-        raise AssetError(f"{shown}: not a plant mesh format agrisim reads (use {', '.join(FORMATS)})")
+    shown, root_dir, real, suffix = open_asset(path, root, FORMATS, "plant mesh")
     if alpha_cutoff is not None and not (isinstance(alpha_cutoff, (int, float)) and 0.0 <= alpha_cutoff <= 1.0):
         raise AssetError(f"{shown}: alpha_cutoff must be within 0..1, got {alpha_cutoff!r}")
-    if not (isinstance(scale, (int, float)) and math.isfinite(scale) and scale > 0):
-        raise AssetError(f"{shown}: scale must be a positive number, got {scale!r}")
+    check_scale(scale, shown)
     if up not in (None, "y", "z"):
         raise AssetError(f"{shown}: up must be 'y' or 'z', got {up!r}")
     if label_names is not None and label_texture is None:

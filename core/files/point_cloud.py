@@ -33,7 +33,7 @@ from typing import Literal
 import numpy as np
 
 from agrisim.files.atomic import write_bytes
-from agrisim.files.asset_reading import AssetError, locate, plant_frame_offset, resolve_root, unit_hint, y_up_to_z_up
+from agrisim.files.asset_reading import AssetError, check_scale, open_asset, plant_frame_offset, unit_hint, y_up_to_z_up
 from agrisim.scene.model import Label, LabelTable, Mesh, Plant, PointSet
 from agrisim.scene.palette import BACKGROUND, PALETTE
 
@@ -213,14 +213,8 @@ def load_point_plant(
     ``scale``) instead of moving the cloud into the plant frame. Raises :class:`AssetError` (one line) for anything unreadable:
     no points, NaN or infinite coordinates, labels outside 0..255 or not in the table.
     """
-    shown = str(path)
-    root_dir = resolve_root(root)
-    real = locate(Path(path), root_dir, shown, base=root_dir)
-    suffix = Path(path).suffix.lower() or real.suffix.lower()
-    if suffix not in POINT_FORMATS:
-        raise AssetError(f"{shown}: not a point-cloud format agrisim reads (use {', '.join(POINT_FORMATS)})")
-    if not (isinstance(scale, (int, float)) and math.isfinite(scale) and scale > 0):
-        raise AssetError(f"{shown}: scale must be a positive number, got {scale!r}")
+    shown, _, real, suffix = open_asset(path, root, POINT_FORMATS, "point-cloud")
+    check_scale(scale, shown)
     props = _read_ply(real, shown) if suffix == ".ply" else _read_pcd(real, shown)
     if not all(k in props for k in "xyz"):
         raise AssetError(f"{shown}: points need x, y and z properties; found {sorted(props)}")
