@@ -76,12 +76,12 @@ def remove_partial(root: Path) -> int:
 def write_json(path: Path, obj: Any, compact: bool = False) -> None:
     """Pretty JSON (``compact``: without spaces or line breaks, for long number arrays),
     written atomically."""
-    text = json.dumps(obj, separators=(",", ":"), default=_default) if compact else json.dumps(obj, indent=2, default=_default)
+    text = json.dumps(obj, separators=(",", ":"), default=to_json) if compact else json.dumps(obj, indent=2, default=to_json)
     write_bytes(path, (text + "\n").encode())
 
 
-def _default(obj: Any) -> Any:
-    # numpy scalars and arrays, paths
+def to_json(obj: Any) -> Any:
+    """What JSON holds for numpy scalars and arrays and for paths (``json.dumps``' ``default``)."""
     if hasattr(obj, "tolist"):
         return obj.tolist()
     if isinstance(obj, Path):

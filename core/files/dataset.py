@@ -21,16 +21,16 @@ from __future__ import annotations
 import platform
 import sys
 from concurrent.futures import Future, ThreadPoolExecutor
-from dataclasses import asdict
+from dataclasses import fields
 from importlib import metadata
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from agrisim.files import layout
+from agrisim.files import json_text, layout
 from agrisim.evaluation.session import write_reconstruction
-from agrisim.files.atomic import write_bytes, write_json
+from agrisim.files.atomic import to_json, write_bytes, write_json
 from agrisim.files.exr import write_exr
 from agrisim.files.glb import export_glb
 from agrisim.files.point_cloud import write_points_ply
@@ -77,8 +77,16 @@ def write_png(path: Path, image: np.ndarray, palette: np.ndarray | None = None) 
     write_bytes(path, encode_png(image, palette))
 
 
+def _write_pretty(path: Path, doc: dict[str, Any]) -> None:
+    """``doc`` as pretty JSON (the bytes :func:`~agrisim.files.atomic.write_json` writes),
+    atomically, its :class:`~agrisim.files.json_text.Spliced` members spliced in."""
+    write_bytes(path, (json_text.dumps(doc, default=to_json) + "\n").encode())
+
+
 def _result_row(r: SetpointResult) -> dict[str, Any]:
-    row = asdict(r)
+    # asdict's deep copy, for this flat record (it is built for every row at every setpoint)
+    row = {f.name: getattr(r, f.name) for f in fields(r)}
+    row["contacts"] = list(r.contacts)
     for key in ("ee_error_mm", "rot_error_rad", "ik_s", "plan_s", "motion_s", "sim_time"):
         if row[key] is not None:
             row[key] = round(float(row[key]), 9 if key in ("ee_error_mm", "rot_error_rad") else 6)
@@ -104,6 +112,10 @@ class DatasetWriter:
         self._pending: list[tuple[Future[None], str, dict[str, Any]]] = []
         self._moves: list[Future[None]] = []  # trajectory files being written
         self._scene_written: Future[None] | None = None
+        # run.json's results and cameras.json's frames grow with every setpoint and are
+        # rewritten each time: their members' text is encoded once (json_text)
+        self._result_texts = json_text.MemberCache(to_json)
+        self._frame_texts = json_text.MemberCache(to_json)
 
     def _run_json(self, run: Run) -> dict[str, Any]:
         return {
@@ -120,7 +132,7 @@ class DatasetWriter:
             "labels": run.labels.to_json() if run.labels is not None else None,
             "setpoints_planned": {robot: len(sps) for robot, sps in run.setpoints.items()},
             "frames_complete": sorted(self.frames),
-            "results": [_result_row(r) for r in run.results],
+            "results": self._result_texts.array([_result_row(r) for r in run.results]),
             "summary": self.summary,
         }
 
@@ -147,18 +159,18 @@ class DatasetWriter:
         cam = self.camera
         if cam is None:
             return
-        write_json(
+        _write_pretty(
             self.out / layout.CAMERAS_JSON,
             {
                 "convention": "OpenCV (x right, y down, z forward); pixel centres at integer coordinates",
                 "intrinsics": {"width": cam.width, "height": cam.height, "K": cam.K.tolist(), "hfov_deg": cam.hfov_deg},
-                "frames": dict(sorted(self.frames.items())),
+                "frames": self._frame_texts.object(dict(sorted(self.frames.items()))),
             },
         )
 
     def _write(self, run: Run) -> None:
         self._collect()
-        write_json(self.out / layout.RUN_JSON, self._run_json(run))
+        _write_pretty(self.out / layout.RUN_JSON, self._run_json(run))
 
     @hookimpl
     def agrisim_run_started(self, run: Run) -> None:
@@ -219,7 +231,7 @@ class DatasetWriter:
             self._writer.shutdown(wait=True)
             self.status = summary.status
             self.summary = summary.to_dict()
-            write_json(self.out / layout.RUN_JSON, self._run_json(run))
+            _write_pretty(self.out / layout.RUN_JSON, self._run_json(run))
         if self.frames and run.labels is not None:
             # after run.json: the export reads the frames it lists as complete
             write_nerfstudio(self.out)

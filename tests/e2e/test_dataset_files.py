@@ -31,6 +31,11 @@ def test_files_match_the_rendered_frames(tmp_path, frames):
     run, summary = episode.run()
     out = run.out_dir
     doc = json.loads((out / "run.json").read_text())
+    # rewritten at every setpoint from cached pieces (files.json_text): still exactly what the
+    # standard library's encoder writes
+    for name in ("run.json", "cameras.json"):
+        text = (out / name).read_text()
+        assert text == json.dumps(json.loads(text), indent=2) + "\n", name
     assert sorted(doc["frames_complete"]) == sorted(frames.images) and len(frames.images) == summary.reached
     table = {lab["id"]: tuple(lab["color"]) for lab in doc["labels"]}
     assert {"leaf", "stem", "flower_white", "flower_purple"} <= {lab["name"] for lab in doc["labels"]}
