@@ -37,7 +37,7 @@ from machine import cpu_model  # noqa: E402
 #: first frame that matches any rule decides. Native frames come before Python ones.
 RULES: list[tuple[str, re.Pattern[str]]] = [
     ("render: ray casting (Embree)", re.compile(r"libOpen3D|RaycastingScene|embree", re.I)),
-    ("PNG encoding", re.compile(r"ImagingZip|PngImagePlugin|ZipEncode|write_png")),
+    ("PNG encoding", re.compile(r"ImagingZip|PngImagePlugin|ZipEncode|write_png|encode_png|isal")),
     ("render: posing the arms (BVH build)", re.compile(r"SceneTracer\.place_arms")),
     ("render: texture lookups", re.compile(r"MaterialTable\.|SceneTracer\._uv |SceneTracer\.surface")),
     ("render: labels, depth, instances", re.compile(r"SceneTracer\.(labels|annotate) ")),
@@ -47,7 +47,7 @@ RULES: list[tuple[str, re.Pattern[str]]] = [
     ("render: hit bookkeeping", re.compile(r"SceneTracer\.|RaycastRenderer\.")),
     ("depth to millimetres", re.compile(r"depth_to_mm")),
     ("Rerun logging (Python side)", re.compile(r"rerun_sink|/rerun/|rerun_bindings")),
-    ("run.json, cameras.json, trajectories", re.compile(r"write_json|_run_json|json/encoder")),
+    ("run.json, cameras.json, trajectories", re.compile(r"write_json|_write_pretty|json_text|_run_json|json/encoder")),
     ("IK", re.compile(r"ArmKinematics\.(ik|_solve|nearest_equivalent)")),
     ("collision queries", re.compile(r"arms_in_collision|in_collision|_World\.near|segment_is_valid|Episode\._valid")),
     ("planning (OMPL)", re.compile(r"Planner\.plan|ompl", re.I)),
