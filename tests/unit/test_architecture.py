@@ -152,3 +152,35 @@ def test_the_readme_architecture_matches_the_tree() -> None:
         for pkg in kind.iterdir() if kind.is_dir() else ():
             if (pkg / "__init__.py").exists():
                 assert f"{pkg.name}/" in block, f"plugins/{kind.name}/{pkg.name}/ is missing from the README's map"
+
+
+def test_no_renderer_imports_open3d() -> None:
+    """Renderers trace with Dr.Jit: no module under plugins/render imports Open3D (it stays for
+    reconstruction and accuracy), and rendering a view with raycast and with mitsuba loads it
+    nowhere."""
+    for name, path in modules().items():
+        if name.startswith("agrisim.plugins.render"):
+            for node in ast.walk(ast.parse(path.read_text())):
+                names = [a.name for a in node.names] if isinstance(node, ast.Import) else []
+                if isinstance(node, ast.ImportFrom):
+                    names = [node.module or ""]
+                assert not [n for n in names if n.split(".")[0] == "open3d"], name
+    code = (
+        "import numpy as np\n"
+        "from agrisim.config import RenderConfig\n"
+        "from agrisim.scene.camera import from_fov\n"
+        "from agrisim.scene.model import LabelTable, Light, Material, Mesh, Scene\n"
+        "from agrisim.plugins.render.raycast import RaycastOptions\n"
+        "from agrisim.plugins.render.raycast.renderer import RaycastRenderer\n"
+        "from agrisim.plugins.render.mitsuba.options import MitsubaOptions\n"
+        "from agrisim.plugins.render.mitsuba.renderer import MitsubaRenderer\n"
+        "quad = Mesh('floor', np.array([[-1, -1, 0], [1, -1, 0], [1, 1, 0], [-1, 1, 0]], float),"
+        " np.array([[0, 1, 2], [0, 2, 3]]), [Material('m')], np.zeros(2, np.int32))\n"
+        "scene = Scene([quad], [Light('l', 'point', np.array([0.0, 0, 2]), np.array([0.0, 0, -1]))], LabelTable())\n"
+        "T = np.diag([1.0, -1.0, -1.0, 1.0]); T[2, 3] = 2.0\n"
+        "cam = from_fov(60.0, 32, 24)\n"
+        "for r in (RaycastRenderer(scene, None, RenderConfig(hide_robots=True), RaycastOptions()),"
+        " MitsubaRenderer(scene, None, RenderConfig(hide_robots=True), MitsubaOptions(spp=1, denoise='off'))):\n"
+        "    assert (r.render(cam, T, {}).depth > 0).mean() > 0.5\n"
+    )
+    assert "open3d" not in {m.split(".")[0] for m in _loaded_after(code)}

@@ -13,7 +13,7 @@ from agrisim.files.glb import export_glb
 from agrisim.files.scene_glb import read_scene, write_scene
 from agrisim.lab.room import build_scene
 from agrisim.plugins.plants.procedural import grow
-from agrisim.plugins.render.raycast.arm_meshes import arm_link_meshes
+from agrisim.robot.visuals import arm_link_meshes
 
 
 @pytest.fixture(scope="module")

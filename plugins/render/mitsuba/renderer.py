@@ -1,9 +1,8 @@
 """The mitsuba renderer: path-traced RGB, exact labels and depth (see the package).
 
-Re-rendering a saved run (``agrisim render``) needs only :meth:`MitsubaRenderer.render_rgb`,
-which touches Mitsuba alone: the exact pass (Open3D's Embree, through the raycast renderer's
-:class:`SceneTracer`) is built on the first full :meth:`render`, so a machine with a minimal
-install (no Open3D) can re-render.
+Re-rendering a saved run (``agrisim render``) needs only :meth:`MitsubaRenderer.render_rgb`:
+the exact pass (the raycast renderer's :class:`SceneTracer`, on the same Dr.Jit variant) is
+built on the first full :meth:`render`.
 """
 
 from __future__ import annotations
@@ -68,18 +67,18 @@ class MitsubaRenderer(Renderer):
             return scene.arms
         if cell is None:
             return {}
-        from agrisim.plugins.render.raycast.arm_meshes import arm_link_meshes
+        from agrisim.robot.visuals import arm_link_meshes
 
         return {a.name: [(lm.link, lm.mesh) for lm in arm_link_meshes(a.urdf, options.arm_triangles)] for a in cell.arms}
 
     @property
     def tracer(self) -> SceneTracer:
-        """The exact pass (Open3D's Embree), built when first needed."""
+        """The exact pass (on this renderer's Dr.Jit variant), built when first needed."""
         if self._tracer is None:
             from agrisim.plugins.render.raycast import RaycastOptions
             from agrisim.plugins.render.raycast.tracing import SceneTracer
 
-            options = RaycastOptions(near=self.options.near, arm_triangles=self.options.arm_triangles)
+            options = RaycastOptions(near=self.options.near, arm_triangles=self.options.arm_triangles, variant=self.options.variant)
             self._tracer = SceneTracer(self.scene, None, options, arms=self._unrounded_arms)
         return self._tracer
 

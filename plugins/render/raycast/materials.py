@@ -1,4 +1,5 @@
-"""Materials packed for vectorised lookups at ray hits.
+"""Materials packed for vectorised lookups at ray hits (the lookups themselves are Dr.Jit code:
+:class:`~agrisim.plugins.render.raycast.engine.Engine` and :mod:`.shading`).
 
 Every material's albedo and label textures go into flat buffers, so that the texels of hits on
 any mix of materials are one gather: ``index = offset[m] + row * stride[m] + col``. The texel
@@ -16,9 +17,11 @@ an unlabelled material gets its constant label as a 1 x 1 texture).
 
 from __future__ import annotations
 
+from typing import Any
+
+import drjit as dr
 import numpy as np
 
-from agrisim.plugins.render.raycast import kernels
 from agrisim.scene.colour import srgb_to_linear
 from agrisim.scene.model import Material
 from agrisim.scene.texturing import alpha_threshold
@@ -111,46 +114,95 @@ class MaterialTable:
         self.culling = bool((~self.double_sided).any())
         del self._alb, self._lab
 
+
+class MaterialArrays:
+    """A finished :class:`MaterialTable` as Dr.Jit arrays of Mitsuba ``mi``'s variant, and the
+    lookups at hits: nearest texels, opacity, labels, albedo."""
+
+    def __init__(self, mi: Any, table: MaterialTable) -> None:
+        self.mi = mi
+        self.table = table
+        self.threshold = mi.Int32(table.threshold.astype(np.int32))
+        self.special = mi.Bool(table.special)
+        self.double_sided = mi.Bool(table.double_sided)
+        self.cuts = mi.Bool(table.cuts)
+        self.fallback = mi.UInt32(table.fallback.astype(np.uint32))
+        self.alb_alpha = mi.UInt32(table.alb_alpha.astype(np.uint32))
+        self.alb_rgb = mi.Float(table.alb_rgb.reshape(-1))
+        self.alb_size = (mi.Float(table.alb_wf), mi.Float(table.alb_hf))
+        self.lab_flat = mi.UInt32(table.lab_flat.astype(np.uint32))
+        self.alb = tuple(mi.UInt32(a.astype(np.uint32)) for a in (table.alb_off, table.alb_h, table.alb_w, table.alb_stride))
+        self.lab = tuple(mi.UInt32(a.astype(np.uint32)) for a in (table.lab_off, table.lab_h, table.lab_w, table.lab_w))
+
+    def texel(self, uv: Any, mat: Any, packed: tuple, size: int, active: Any = True) -> Any:
+        """UInt32 flat index of the nearest texel of ``uv`` in a packed texture buffer
+        (``packed``: offset, height, width, row stride per material): float64 product, floor,
+        wrap, as the core's texel_index."""
+        mi = self.mi
+        off, h, w, stride = (dr.gather(mi.UInt32, a, mat, active) for a in packed)
+        h, w = dr.maximum(h, 1), dr.maximum(w, 1)  # inactive lanes read 0s, and x % 0 traps
+        wi, hi = mi.Int64(w), mi.Int64(h)
+        col = mi.Int64(dr.floor(mi.Float64(uv.x) * mi.Float64(w))) % wi
+        row = mi.Int64(dr.floor(mi.Float64(uv.y) * mi.Float64(h))) % hi
+        col = dr.select(col < 0, col + wi, col)
+        row = dr.select(row < 0, row + hi, row)
+        index = mi.UInt32(row) * stride + mi.UInt32(col) + off
+        return dr.minimum(index, size - 1)  # NaN UVs: any texel, never out of the buffer
+
+    def opaque(self, uv: Any, mat: Any, active: Any = True) -> Any:
+        """Bool: is each hit on a texel that opacity keeps? (materials that do not cut: always)"""
+        mi = self.mi
+        if not self.table.cutting:
+            return mi.Bool(True)
+        i = self.texel(uv, mat, self.alb, len(self.table.alb_alpha), active)
+        alpha = mi.Int32(dr.gather(mi.UInt32, self.alb_alpha, i, active))
+        return alpha >= dr.gather(mi.Int32, self.threshold, mat, active)
+
+    def label(self, uv: Any, mat: Any, active: Any = True) -> Any:
+        """UInt32 label texel (nearest) of each hit."""
+        i = self.texel(uv, mat, self.lab, len(self.table.lab_flat), active)
+        return dr.gather(self.mi.UInt32, self.lab_flat, i, active)
+
+    def _rgb(self, i: Any, active: Any) -> Any:
+        i3 = i * 3
+        return self.mi.Color3f(*(dr.gather(self.mi.Float, self.alb_rgb, i3 + c, active) for c in range(3)))
+
     @staticmethod
-    def _index(uv, off, h, w, stride, mat) -> np.ndarray:  # noqa: ANN001
-        """Flat index of the nearest texel of each hit in a buffer of textures at ``off`` with
-        ``stride`` texels per row. Same arithmetic as agrisim.scene.texturing.texel_index (float64
-        product, floor, wrap)."""
-        wm, hm = np.take(w, mat), np.take(h, mat)
-        cols = np.floor(uv[:, 0].astype(np.float64) * wm).astype(np.int64) % wm
-        rows = np.floor(uv[:, 1].astype(np.float64) * hm).astype(np.int64) % hm
-        rows *= np.take(stride, mat)
-        rows += cols
-        rows += np.take(off, mat)
-        return rows
+    def _corner(u: Any, size: Any) -> tuple[Any, Any]:
+        # first texel (wrapped into [0, size) by float arithmetic) and the weight of the next
+        f = u * size - 0.5
+        x = dr.floor(f)
+        f = f - x
+        q = dr.floor(x / size) * size
+        return x - q, f
 
-    def albedo_index(self, uv: np.ndarray, mat: np.ndarray) -> np.ndarray:
-        """Index in :attr:`alb_rgb` / :attr:`alb_alpha` of the nearest texel of each hit."""
-        return self._index(uv, self.alb_off, self.alb_h, self.alb_w, self.alb_stride, mat)
-
-    def opaque(self, uv: np.ndarray, mat: np.ndarray) -> np.ndarray:
-        """Is each hit on a texel that opacity keeps? (materials that do not cut: always)"""
-        if not self.cutting:
-            return np.ones(len(mat), bool)
-        return np.take(self.alb_alpha, self.albedo_index(uv, mat)) >= np.take(self.threshold, mat)
-
-    def label(self, uv: np.ndarray, mat: np.ndarray) -> np.ndarray:
-        """Label texel (nearest) of each hit."""
-        return np.take(self.lab_flat, self._index(uv, self.lab_off, self.lab_h, self.lab_w, self.lab_w, mat))
-
-    def albedo(
-        self, uv: np.ndarray, mat: np.ndarray, bilinear: bool = True, out: np.ndarray | None = None
-    ) -> np.ndarray:
-        """Linear RGB albedo (K x 3 float32, into ``out`` if given): colour factor times the sRGB
-        texture, if any, sampled nearest or bilinearly (in linear light; on cut-out cards
-        weighted by alpha, so the colour of cut-away texels never bleeds into a leaf's edge).
-        ``uv`` may be anything on untextured materials."""
+    def albedo(self, uv: Any, mat: Any, bilinear: bool = True, active: Any = True) -> Any:
+        """Color3f linear albedo: colour factor times the sRGB texture, if any, sampled nearest
+        or bilinearly (in linear light; on cut-out cards only the corners opacity keeps, weights
+        renormalised, and where none does the hit's own texel, so the colour of cut-away texels
+        never bleeds into a leaf's edge). ``uv`` may be anything on untextured materials."""
+        mi = self.mi
+        n = len(self.table.alb_alpha)
+        nearest = self._rgb(self.texel(uv, mat, self.alb, n, active), active)
         if not bilinear:
-            return np.take(self.alb_rgb, self.albedo_index(uv, mat), axis=0, out=out)
-        if out is None:
-            out = np.empty((len(mat), 3), F32)
-        kernels.albedo_bilinear(
-            uv, mat, self.alb_wf, self.alb_hf, self.alb_w, self.alb_h, self.alb_stride, self.alb_off,
-            self.alb_rgb, self.alb_alpha, self.threshold, self.cuts, out,
-        )
-        return out
+            return nearest
+        x0, ax = self._corner(uv.x, dr.gather(mi.Float, self.alb_size[0], mat, active))
+        y0, ay = self._corner(uv.y, dr.gather(mi.Float, self.alb_size[1], mat, active))
+        s = mi.Int64(dr.gather(mi.UInt32, self.alb[3], mat, active))
+        i00 = mi.Int64(y0) * s + mi.Int64(x0) + mi.Int64(dr.gather(mi.UInt32, self.alb[0], mat, active))
+        corners = [mi.UInt32(dr.clip(i, 0, n - 1)) for i in (i00, i00 + 1, i00 + s, i00 + s + 1)]
+        c00, c10, c01, c11 = (self._rgb(c, active) for c in corners)
+        top = (c10 - c00) * ax + c00
+        bottom = (c11 - c01) * ax + c01
+        plain = top + (bottom - top) * ay
+        if not self.table.cutting:
+            return plain
+        cuts = active & dr.gather(mi.Bool, self.cuts, mat, active)
+        t = dr.gather(mi.Int32, self.threshold, mat, cuts)
+        keep = [dr.select(mi.Int32(dr.gather(mi.UInt32, self.alb_alpha, c, cuts)) >= t, 1.0, 0.0) for c in corners]
+        bx, by = 1.0 - ax, 1.0 - ay
+        q = [(bx * by) * keep[0], (ax * by) * keep[1], (bx * ay) * keep[2], (ax * ay) * keep[3]]
+        total = ((q[0] + q[1]) + q[2]) + q[3]
+        q = [w / dr.select(total > 0, total, 1.0) for w in q]
+        masked = ((c00 * q[0] + c10 * q[1]) + c01 * q[2]) + c11 * q[3]
+        return dr.select(cuts, dr.select(total > 0, masked, nearest), plain)

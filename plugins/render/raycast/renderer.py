@@ -1,118 +1,80 @@
-"""The raycast renderer: pixel rays, shading of the traced surfaces with soft shadows, tone
-mapping, tiles on threads (tracing is :mod:`.tracing`; see the package)."""
+"""The raycast renderer: a view is the exact pass (:mod:`.tracing`) and its shading
+(:mod:`.shading`) on the same Dr.Jit arrays, evaluated together: a few kernels, on the CPU or
+the GPU (see the package)."""
 
 from __future__ import annotations
 
 import math
-import os
 from collections.abc import Mapping
-from concurrent.futures import ThreadPoolExecutor
 
+import drjit as dr
 import numpy as np
 
 from agrisim.config import RenderConfig
 from agrisim.interfaces import CameraModel, Frame, Renderer
-from agrisim.plugins.render.raycast import RaycastOptions, kernels
-from agrisim.plugins.render.raycast.arm_meshes import arm_link_meshes
-from agrisim.plugins.render.raycast.lights import LightTable, chunks
-from agrisim.plugins.render.raycast.tracing import Hits, SceneTracer, camera_rays, label_map, pixel_slopes
-from agrisim.scene.cell import Cell
+from agrisim.plugins.render.raycast import RaycastOptions
+from agrisim.plugins.render.raycast.lights import LightTable
+from agrisim.plugins.render.raycast.shading import Shader
+from agrisim.plugins.render.raycast.tracing import SceneTracer, label_map
+from agrisim.robot.visuals import arm_link_meshes
 from agrisim.scene.camera import view_seed
-from agrisim.scene.colour import ENCODE_STEPS, LINEAR_TO_SRGB8, srgb_to_linear
+from agrisim.scene.cell import Cell
 from agrisim.scene.model import Mesh, Scene
 
 F32 = np.float32
 
 
-
 class RaycastRenderer(Renderer):
-    """Embree ray casting through Open3D: exact depth and labels, alpha-tested cards, soft shadows."""
+    """Exact ray tracing on Dr.Jit (Embree on the CPU, OptiX on NVIDIA GPUs): exact depth and
+    labels, alpha-tested cards, soft shadows."""
 
     def __init__(self, scene: Scene, cell: Cell, settings: RenderConfig, options: RaycastOptions) -> None:
         super().__init__(scene, cell, settings, options)
         self.seg_mode = settings.seg_mode
-        self.shadow_samples = self.options.shadow_samples
-        self.supersample = self.options.supersample
         self.hide_robots = settings.hide_robots
         self.label_map = label_map(settings.labels)
-        self.tracer = SceneTracer(scene, None if self.hide_robots else cell, options)
+        # The arms: none with --hide-robots; a saved run's own (agrisim render); else the cell's.
+        arms = None if self.hide_robots or not scene.arms else scene.arms
+        self.tracer = SceneTracer(scene, None if self.hide_robots else cell, options, arms=arms)
         self.lights = LightTable(scene.lights)
-        if self.tracer.points is not None:  # linear albedo of every point, for shading
-            self.point_albedo = srgb_to_linear(self.tracer.points.points.colors / 255.0).astype(F32)
+        o = self.options
+        self.shader = Shader(self.tracer, self.lights, ambient=o.ambient, bilinear=o.texture_filter == "bilinear", epsilon=o.epsilon)
+        r, g, b = (int(c) for c in o.background)
+        self.background = r | g << 8 | b << 16
 
-    # -------------------------------------------------------------------------- shading
-    def _shade(self, rays: np.ndarray, hits: Hits, rng: np.random.Generator, samples: int) -> np.ndarray:
-        """Linear radiance (K x 3) of the kept surfaces (0 where nothing was hit)."""
-        k = len(rays)
-        sel = np.flatnonzero(hits.hit)
-        if not len(sel):
-            return np.zeros((k, 3), F32)
-        every = len(sel) == k
-        pick = (lambda a: a) if every else (lambda a: np.take(a, sel, axis=0))  # noqa: E731 - no copy if all hit
-        face, t, mat, uv, rays = pick(hits.face), pick(hits.t), pick(hits.mat), pick(hits.uv), pick(rays)
-        point = pick(hits.point) if hits.point is not None else None
-        m = len(face)
-        lights = self.lights
-        bilinear = self.options.texture_filter == "bilinear"
-        eps = F32(self.options.epsilon)
-        albedo = np.empty((m, 3), F32)
-        w = np.empty((lights.n, m), F32)  # unshadowed irradiance of each light
-        origins = np.empty((3, m), F32) if samples > 0 and lights.n else None  # of shadow rays
-        # Per-point work in chunks of some thousand points, whose scratch arrays stay in cache.
-        # Points and normals as rows (3 x chunk): the layout LightTable works in.
-        for c in chunks(m):
-            self.tracer.mats.albedo(uv[c], mat[c], bilinear, out=albedo[c])
-            on_point = np.flatnonzero(point[c] >= 0) if point is not None else ()
-            if len(on_point):  # spheres: the point's own colour
-                albedo[c][on_point] = self.point_albedo[point[c][on_point]]
-            if not lights.n:
-                continue
-            p, n = np.empty((3, c.stop - c.start), F32), np.empty((3, c.stop - c.start), F32)
-            kernels.surface_frames(rays[c], t[c], face[c], self.tracer.face_normal, p, n)  # n: the side seen
-            if len(on_point):  # a sphere's normal at the hit (its outside: the side seen)
-                n[:, on_point] = self.tracer.points.normals(point[c][on_point], p[:, on_point])
-            # shadow rays start off the surface, towards the side seen
-            lights.weights(p, n, out=w[:, c], origins=origins[:, c] if origins is not None else None, eps=eps)
-        irradiance = lights.irradiance(w, origins, samples, rng, self.tracer.occluded, self.options.adaptive_after)
-        irradiance += F32(self.options.ambient)
-        for c in range(3):  # channel by channel: irradiance comes as rows
-            albedo[:, c] *= irradiance[c]
-        if every:
-            return albedo
-        out = np.zeros((k, 3), F32)
-        out[sel] = albedo
-        return out
+    def _rgb(self, camera: CameraModel, T: np.ndarray, rows: tuple[int, int], o, d, s, seed: int):  # noqa: ANN001, ANN202
+        """UInt32 packed 8-bit sRGB of the pixels of ``rows``, whose centre rays (``o``, ``d``)
+        kept the surfaces ``s``."""
+        mi, opts = self.tracer.mi, self.options
+        n_pix = camera.width * (rows[1] - rows[0])
+        pixel = dr.arange(mi.UInt32, n_pix) + dr.opaque(mi.UInt32, rows[0] * camera.width)
+        state = dr.opaque(mi.UInt64, seed)
+        ss, n = opts.supersample, opts.shadow_samples
+        def stream(sequence):  # noqa: ANN001, ANN202 - seeded by the pixel's index in the image, not in the batch
+            rng = mi.PCG32(n_pix)
+            rng.seed(state + sequence, sequence)
+            return rng
 
-    # --------------------------------------------------------------------------- render
-    def _tile(
-        self, T: np.ndarray, x: np.ndarray, y: np.ndarray, camera: CameraModel, rng: np.random.Generator, out: dict
-    ) -> None:
-        """Render the pixels of columns ``x`` and rows ``y`` (camera-frame slopes) into ``out``."""
-        rays = camera_rays(x, y, T, self.options.near)
-        hits = self.tracer.trace(rays, raw=self.seg_mode == "repopa")
-        hit = hits.hit
-        self.tracer.annotate(hits, self.seg_mode == "repopa", self.label_map, out)
-        s, n = self.supersample, self.shadow_samples
-        if s == 1:
-            linear = self._shade(rays, hits, rng, n)
-        else:
-            linear = np.zeros((len(rays), 3), F32)
-            count = np.zeros(len(rays), np.int32)
-            n_sub = math.ceil(n / (s * s)) if n > 0 else 0
-            for i in range(s):
-                for j in range(s):
-                    du, dv = ((j + 0.5) / s - 0.5) / camera.fx, ((i + 0.5) / s - 0.5) / camera.fy
-                    sub = camera_rays(x + du, y + dv, T, self.options.near)
-                    sub_hits = self.tracer.trace(sub, raw=False)
-                    linear += self._shade(sub, sub_hits, rng, n_sub)
-                    count += sub_hits.hit
-            hit = count > 0
-            linear *= F32(1.0 / (s * s))
-        kernels.encode_srgb8(
-            linear, out["rgb"], F32(self.options.exposure), self.options.tonemap == "reinhard", F32(ENCODE_STEPS), LINEAR_TO_SRGB8
-        )
-        if not hit.all():
-            out["rgb"][~hit] = np.asarray(self.options.background, np.uint8)
+        if ss == 1:
+            rng = stream(mi.UInt64(pixel))
+            linear = self.shader.radiance(o, d, s, n, rng, opts.adaptive_after)
+            hit = s.hit
+        else:  # the mean of ss x ss rays per pixel, each with its own random stream
+            linear = mi.Color3f(0.0)
+            hit = mi.Bool(False)
+            n_sub = math.ceil(n / (ss * ss)) if n > 0 else 0
+            stride = camera.width * camera.height
+            for i in range(ss):
+                for j in range(ss):
+                    offset = ((j + 0.5) / ss - 0.5, (i + 0.5) / ss - 0.5)
+                    so, sd = self.tracer.camera_rays(camera, T, rows, offset)
+                    sub = self.tracer.trace(so, sd)
+                    rng = stream(mi.UInt64(pixel) + mi.UInt64(stride * (i * ss + j + 1)))
+                    linear += self.shader.radiance(so, sd, sub, n_sub, rng, opts.adaptive_after)
+                    hit |= sub.hit
+            linear *= 1.0 / (ss * ss)
+        rgb = self.shader.encode(linear, float(opts.exposure), opts.tonemap == "reinhard")
+        return dr.select(hit, rgb, self.background)
 
     def render(
         self,
@@ -121,46 +83,36 @@ class RaycastRenderer(Renderer):
         link_poses: Mapping[str, Mapping[str, np.ndarray]],
     ) -> Frame:
         H, W = camera.height, camera.width
-        if self.tracer.arms:
-            self.tracer.place_arms(link_poses)
+        tracer = self.tracer
+        if tracer.arms:
+            tracer.place_arms(link_poses)
         T = np.asarray(world_T_camera, np.float64)
-        x, y = pixel_slopes(camera)
-        n_pix = H * W
-        images = {
-            "rgb": np.empty((n_pix, 3), np.uint8),
-            "labels": np.zeros(n_pix, np.uint8),
-            "depth": np.empty(n_pix, F32),
-        }
-        if self.tracer.has_instances:
-            images["instances"] = np.zeros(n_pix, np.uint16)
-        # Tiles of whole rows; each has its own random stream spawned from the view's seed, so
-        # results do not depend on the order (or thread) tiles run in.
-        rows = max(1, self.options.tile_pixels // W)
-        starts = list(range(0, H, rows))
-        streams = np.random.SeedSequence(view_seed(camera, T, self.options.seed)).spawn(len(starts))
-
-        def run(i: int) -> None:
-            r0, r1 = starts[i], min(starts[i] + rows, H)
-            views = {k: v[r0 * W : r1 * W] for k, v in images.items()}
-            self._tile(T, x, y[r0:r1], camera, np.random.default_rng(streams[i]), views)
-
-        workers = self.options.workers or (os.cpu_count() or 1)
-        if workers > 1 and len(starts) > 1:
-            with ThreadPoolExecutor(min(workers, len(starts))) as pool:
-                list(pool.map(run, range(len(starts))))
-        else:
-            for i in range(len(starts)):
-                run(i)
-        return Frame(
-            rgb=images["rgb"].reshape(H, W, 3),
-            labels=images["labels"].reshape(H, W),
-            depth=images["depth"].reshape(H, W),
-            instances=images["instances"].reshape(H, W) if "instances" in images else None,
-        )
+        seed = view_seed(camera, T, self.options.seed)
+        repopa = self.seg_mode == "repopa"
+        rgb = np.empty((H, W, 4), np.uint8)
+        labels = np.empty((H, W), np.uint8)
+        depth = np.empty((H, W), F32)
+        instances = np.empty((H, W), np.uint16) if tracer.has_instances else None
+        step = max(1, self.options.batch_pixels // W)
+        for r0 in range(0, H, step):  # bounded memory at any resolution; results do not depend on it
+            rows = (r0, min(r0 + step, H))
+            o, d = tracer.camera_rays(camera, T, rows)
+            s = tracer.trace(o, d, raw=repopa)
+            lab, dep, inst = tracer.annotate(s, repopa, self.label_map)
+            packed = self._rgb(camera, T, rows, o, d, s, seed)
+            dr.eval(packed, lab, dep, inst)
+            rgb[rows[0] : rows[1]] = np.asarray(packed, np.uint32).view(np.uint8).reshape(-1, W, 4)
+            labels[rows[0] : rows[1]] = np.asarray(lab).reshape(-1, W)
+            depth[rows[0] : rows[1]] = np.asarray(dep).reshape(-1, W)
+            if instances is not None:
+                instances[rows[0] : rows[1]] = np.asarray(inst).reshape(-1, W)
+        return Frame(rgb=np.ascontiguousarray(rgb[..., :3]), labels=labels, depth=depth, instances=instances)
 
     def arm_meshes(self) -> dict[str, list[tuple[str, Mesh]]]:
         if self.hide_robots:
             return {}
+        if self.scene.arms:
+            return self.scene.arms
         return {arm.name: [(lm.link, lm.mesh) for lm in arm_link_meshes(arm.urdf, self.options.arm_triangles)] for arm in self.cell.arms}
 
     def close(self) -> None:
