@@ -6,15 +6,18 @@ as the ray casts: which surface a ray keeps (cut-out texels and culled back face
 in a Dr.Jit loop, up to ``max_layers`` surfaces), its material, texture coordinates and normal,
 and whether a shadow ray is blocked (light falls through cut-out texels).
 
-Geometry. The static scene (room, table, plant) is one triangle mesh in a shape group of its
-own, placed once by an identity instance; each arm link is a shape group placed by an instance
-whose transform is the link's pose. Posing the arms per frame sets those transforms, so only
-the top level of the acceleration structure (a few dozen instances) is rebuilt, never the
-static scene's. Faces are numbered globally: the static mesh's first, then each link's; a hit's
-face is its instance's first face plus the primitive index.
+Geometry. The static scene (room, table, plant) is one triangle mesh; each arm link is a shape
+group placed by an instance whose transform is the link's pose. Posing the arms per frame sets
+those transforms and never touches the static mesh's acceleration structure: on the CPU the
+static mesh and the arms are two Mitsuba scenes (Mitsuba's Embree rebuilds every shape group of
+a scene whose instances move, so the arms' scene is rebuilt and the static one never); OptiX
+traces one scene per kernel, so on the GPU the static mesh is a shape group of its own placed
+once, beside the arms (only groups whose shapes change are rebuilt there). Faces are numbered
+globally: the static mesh's first, then each link's; a hit's face is its instance's first face
+plus the primitive index.
 
-A point plant's spheres are a second Mitsuba scene (``ellipsoids``, in a frame whose unit is
-their radius: :mod:`.points`), traced in the same kernels; the nearer hit wins.
+A point plant's spheres are another Mitsuba scene (``ellipsoids``, in a frame whose unit is
+their radius: :mod:`.points`), traced in the same kernels on the CPU; the nearer hit wins.
 """
 
 from __future__ import annotations
@@ -128,12 +131,8 @@ class Engine:
             n_verts += len(mesh.vertices)
         self.n_static = n_faces
 
-        shapes: dict[str, Any] = {"type": "scene"}
-        first_face: dict[str, int] = {}  # instance id -> its first global face
-        if n_faces:
-            shapes["static_group"] = {"type": "shapegroup", "mesh": self._mesh("static", np.concatenate(verts), np.concatenate(faces))}
-            shapes["static"] = {"type": "instance", "shapegroup": {"type": "ref", "id": "static_group"}}
-            first_face["static"] = 0
+        arm_shapes: dict[str, Any] = {}
+        first_face: dict[str, int] = {"static": 0}  # instance id -> its first global face
         self.links: list[_Link] = []
         for a, (arm_name, link_meshes) in enumerate(arms.items()):
             for j, (link_name, mesh) in enumerate(link_meshes):
@@ -141,8 +140,8 @@ class Engine:
                     continue
                 index = np.array([mats.add(m) for m in mesh.materials], np.int32)
                 name = f"arm{a}_{j:02d}"
-                shapes[name + "_group"] = {"type": "shapegroup", "mesh": self._mesh(name, mesh.vertices.astype(F32), mesh.faces)}
-                shapes[name] = {"type": "instance", "shapegroup": {"type": "ref", "id": name + "_group"}, "to_world": mi.ScalarTransform4f(_PARKED)}
+                arm_shapes[name + "_group"] = {"type": "shapegroup", "mesh": self._mesh(name, mesh.vertices.astype(F32), mesh.faces)}
+                arm_shapes[name] = {"type": "instance", "shapegroup": {"type": "ref", "id": name + "_group"}, "to_world": mi.ScalarTransform4f(_PARKED)}
                 first_face[name] = n_faces
                 self.links.append(_Link(arm_name, link_name, name, len(self.links) + 1))
                 face_mat.append(index[mesh.face_material])
@@ -154,13 +153,38 @@ class Engine:
         mats.finish()
         self.mats = mats
         self.n_faces = n_faces
-        self.scene = mi.load_dict(shapes)
-        self.params = mi.traverse(self.scene) if self.links else None
 
-        # Instances are told apart by their Mitsuba registry ids (what a hit's ``instance`` holds).
-        ids = {s.id(): int(dr.reinterpret_array(mi.UInt32, mi.ShapePtr(s))[0]) for s in self.scene.shapes()}
-        size = max(ids.values(), default=0) + 1
-        face0 = np.zeros(size, np.uint32)
+        # Embree (llvm): the static mesh is a scene of its own, built once, and the arms another,
+        # rebuilt when they move (Mitsuba's Embree rebuilds every shape group of a scene whose
+        # instances move). OptiX (cuda) traces one scene per kernel: the static mesh is a shape
+        # group placed once, beside the arms' instances (only the top level is rebuilt).
+        self.combined = mi.variant().startswith("cuda")
+        static = self._mesh("static", np.concatenate(verts), np.concatenate(faces)) if self.n_static else None
+        self.layers: list[Any] = []
+        arm_layer = None
+        if self.combined:
+            shapes = {"type": "scene", **arm_shapes}
+            if static is not None:
+                shapes["static_group"] = {"type": "shapegroup", "mesh": static}
+                shapes["static"] = {"type": "instance", "shapegroup": {"type": "ref", "id": "static_group"}}
+            if len(shapes) > 1:
+                self.layers.append(mi.load_dict(shapes))
+                arm_layer = self.layers[0]
+        else:
+            if static is not None:
+                self.layers.append(mi.load_dict({"type": "scene", "static": static}))
+            if arm_shapes:
+                arm_layer = mi.load_dict({"type": "scene", **arm_shapes})
+                self.layers.append(arm_layer)
+        self.params = None
+        if self.links:  # only the instances' transforms: the shape groups' own parameters never change
+            self.params = mi.traverse(arm_layer)
+            self.params.keep([f"{link.instance}.to_world" for link in self.links])
+        # Instances are told apart by their Mitsuba registry ids (what a hit's ``instance``
+        # holds; 0 for a hit on a shape placed directly: the static mesh's first face is 0).
+        ids = {sh.id(): int(dr.reinterpret_array(mi.UInt32, mi.ShapePtr(sh))[0]) for layer in self.layers for sh in layer.shapes()}
+        ids = {name: i for name, i in ids.items() if name in first_face}
+        face0 = np.zeros(max(ids.values(), default=0) + 1, np.uint32)
         for name, registry_id in ids.items():
             face0[registry_id] = first_face[name]
         self._inst_face0 = mi.UInt32(face0)
@@ -213,12 +237,20 @@ class Engine:
         self._pose_key = key
 
     # ------------------------------------------------------------ per-hit tables
-    def face_of(self, pi: Any, valid: Any) -> Any:
-        """Int32 global face of preliminary intersections (``valid`` where they hit)."""
+    def intersect(self, ray: Any, active: Any, coherent: bool = False) -> tuple[Any, Any, Any]:
+        """Nearest triangle along each ray, of the static scene and the arms: (Float t, inf for
+        none; Int32 global face, -1 for none; Vector2f barycentrics)."""
         mi = self.mi
-        inst = dr.reinterpret_array(mi.UInt32, pi.instance)
-        face0 = dr.gather(mi.UInt32, self._inst_face0, inst, valid)
-        return dr.select(valid, mi.Int32(face0 + pi.prim_index), NO_FACE)
+        n = dr.width(ray.o)
+        t, face, b = dr.full(mi.Float, dr.inf, n), dr.full(mi.Int32, NO_FACE, n), dr.zeros(mi.Vector2f, n)
+        for layer in self.layers:
+            pi = layer.ray_intersect_preliminary(ray, coherent=coherent, active=active)
+            hit = active & pi.is_valid() & (pi.t < t)
+            face0 = dr.gather(mi.UInt32, self._inst_face0, dr.reinterpret_array(mi.UInt32, pi.instance), hit)
+            t = dr.select(hit, pi.t, t)
+            face = dr.select(hit, mi.Int32(face0 + pi.prim_index), face)
+            b = dr.select(hit, pi.prim_uv, b)
+        return t, face, b
 
     def uv(self, face: Any, b: Any, active: Any = True) -> Any:
         """Vector2f texture coordinates at barycentrics ``b`` of ``face``: ``w0 uv0 + w1 uv1 +
@@ -247,13 +279,13 @@ class Engine:
             (r[6] * n[0] + r[7] * n[1]) + r[8] * n[2],
         )
 
-    def _passes(self, pi: Any, valid: Any, face: Any, d: Any) -> tuple[Any, Any, Any]:
+    def _passes(self, valid: Any, face: Any, b: Any, d: Any) -> tuple[Any, Any, Any]:
         """(passes, culled, uv) of hits: does the ray go on past its hit (a cut-out texel or a
         culled back face)? ``culled`` is None when no material is single-sided."""
         mi, mats = self.mi, self.mats
         mat = self.material(face, valid)
         special = valid & dr.gather(mi.Bool, self.m.special, mat, valid)
-        uv = self.uv(face, pi.prim_uv, valid)
+        uv = self.uv(face, b, valid)
         passes = special & ~self.m.opaque(uv, mat, special)
         culled = None
         if mats.culling:
@@ -276,11 +308,10 @@ class Engine:
 
         def body(layer, active, t_acc, t, face, b, raw_face, raw_b, raw_t):
             ray = mi.Ray3f((d * t_acc + o) if walk else o, d)
-            pi = self.scene.ray_intersect_preliminary(ray, coherent=True, active=active)
-            valid = active & pi.is_valid()
-            f = self.face_of(pi, valid)
+            th, f, bh = self.intersect(ray, active, coherent=True)
+            valid = f >= 0
             if walk:
-                passes, culled, _ = self._passes(pi, valid, f, d)
+                passes, culled, _ = self._passes(valid, f, bh, d)
             else:
                 passes, culled = mi.Bool(False), None
             if raw:
@@ -288,14 +319,14 @@ class Engine:
                 if culled is not None:
                     first &= ~culled
                 raw_face = dr.select(first, f, raw_face)
-                raw_b = dr.select(first, pi.prim_uv, raw_b)
-                raw_t = dr.select(first, t_acc + pi.t, raw_t)
+                raw_b = dr.select(first, bh, raw_b)
+                raw_t = dr.select(first, t_acc + th, raw_t)
             stop = valid & ~passes
-            t = dr.select(stop, t_acc + pi.t, t)
+            t = dr.select(stop, t_acc + th, t)
             face = dr.select(stop, f, face)
-            b = dr.select(stop, pi.prim_uv, b)
+            b = dr.select(stop, bh, b)
             go = valid & passes
-            t_acc = dr.select(go, (t_acc + pi.t) + eps, t_acc)
+            t_acc = dr.select(go, (t_acc + th) + eps, t_acc)
             layer += 1
             return layer, go & (layer < self.max_layers), t_acc, t, face, b, raw_face, raw_b, raw_t
 
@@ -322,21 +353,22 @@ class Engine:
             ray.maxt = mi.Float(SHADOW_TFAR)  # (Ray3f's third argument is the time, not maxt)
             return ray
 
-        blocked = self.scene.ray_test(segment(o, seg), active)
+        blocked = mi.Bool(False)
+        for layer in self.layers:
+            blocked |= layer.ray_test(segment(o, seg), active & ~blocked)
         if not self.mats.cutting:
             return blocked
 
         # Blocked, perhaps only by cut-out texels: walk along the segment surface by surface,
         # from just past each hit, still aiming at the same point of the light.
         def body(layer, active, o, seg, blocked):
-            pi = self.scene.ray_intersect_preliminary(segment(o, seg), coherent=False, active=active)
-            valid = active & pi.is_valid()
-            f = self.face_of(pi, valid)
+            th, f, bh = self.intersect(segment(o, seg), active)
+            valid = f >= 0
             mat = self.material(f, valid)
             cut = valid & dr.gather(mi.Bool, self.m.cuts, mat, valid)
-            cut &= ~self.m.opaque(self.uv(f, pi.prim_uv, cut), mat, cut)
+            cut &= ~self.m.opaque(self.uv(f, bh, cut), mat, cut)
             blocked = dr.select(active, valid & ~cut, blocked)
-            step = dr.minimum(pi.t + mi.Float(self.epsilon) / dr.norm(seg), 1.0)
+            step = dr.minimum(th + mi.Float(self.epsilon) / dr.norm(seg), 1.0)
             o = dr.select(cut, seg * step + o, o)
             seg = dr.select(cut, seg * (1.0 - step), seg)
             layer += 1

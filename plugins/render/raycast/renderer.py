@@ -39,12 +39,11 @@ class RaycastRenderer(Renderer):
         self.lights = LightTable(scene.lights)
         o = self.options
         self.shader = Shader(self.tracer, self.lights, ambient=o.ambient, bilinear=o.texture_filter == "bilinear", epsilon=o.epsilon)
-        r, g, b = (int(c) for c in o.background)
-        self.background = r | g << 8 | b << 16
+        self.background = [int(c) for c in o.background]
 
     def _rgb(self, camera: CameraModel, T: np.ndarray, rows: tuple[int, int], o, d, s, seed: int):  # noqa: ANN001, ANN202
-        """UInt32 packed 8-bit sRGB of the pixels of ``rows``, whose centre rays (``o``, ``d``)
-        kept the surfaces ``s``."""
+        """UInt32 8-bit sRGB of the pixels of ``rows`` (r | g << 8 | b << 16), whose centre rays
+        (``o``, ``d``) kept the surfaces ``s``."""
         mi, opts = self.tracer.mi, self.options
         n_pix = camera.width * (rows[1] - rows[0])
         pixel = dr.arange(mi.UInt32, n_pix) + dr.opaque(mi.UInt32, rows[0] * camera.width)
@@ -73,8 +72,9 @@ class RaycastRenderer(Renderer):
                     linear += self.shader.radiance(so, sd, sub, n_sub, rng, opts.adaptive_after)
                     hit |= sub.hit
             linear *= 1.0 / (ss * ss)
-        rgb = self.shader.encode(linear, float(opts.exposure), opts.tonemap == "reinhard")
-        return dr.select(hit, rgb, self.background)
+        levels = self.shader.encode(linear, float(opts.exposure), opts.tonemap == "reinhard")
+        r, g, b = (dr.select(hit, levels[c], self.background[c]) for c in range(3))
+        return r | (g << 8) | (b << 16)
 
     def render(
         self,
@@ -89,24 +89,34 @@ class RaycastRenderer(Renderer):
         T = np.asarray(world_T_camera, np.float64)
         seed = view_seed(camera, T, self.options.seed)
         repopa = self.seg_mode == "repopa"
-        rgb = np.empty((H, W, 4), np.uint8)
-        labels = np.empty((H, W), np.uint8)
-        depth = np.empty((H, W), F32)
-        instances = np.empty((H, W), np.uint16) if tracer.has_instances else None
+        parts: dict[str, list[np.ndarray]] = {"rgb": [], "labels": [], "depth": [], "instances": []}
         step = max(1, self.options.batch_pixels // W)
+        UInt8 = dr.uint8_array_t(tracer.mi.Float)
         for r0 in range(0, H, step):  # bounded memory at any resolution; results do not depend on it
             rows = (r0, min(r0 + step, H))
             o, d = tracer.camera_rays(camera, T, rows)
             s = tracer.trace(o, d, raw=repopa)
-            lab, dep, inst = tracer.annotate(s, repopa, self.label_map)
+            labels, depth, instances = tracer.annotate(s, repopa, self.label_map)
             packed = self._rgb(camera, T, rows, o, d, s, seed)
-            dr.eval(packed, lab, dep, inst)
-            rgb[rows[0] : rows[1]] = np.asarray(packed, np.uint32).view(np.uint8).reshape(-1, W, 4)
-            labels[rows[0] : rows[1]] = np.asarray(lab).reshape(-1, W)
-            depth[rows[0] : rows[1]] = np.asarray(dep).reshape(-1, W)
+            labels = UInt8(labels)
+            dr.eval(packed, labels, depth, instances)
+            # RGB as bytes by a second, small kernel (scattered from the big one, the shading ran
+            # once per channel)
+            n = dr.width(packed)
+            rgb = dr.zeros(UInt8, 3 * n)
+            k = dr.arange(tracer.mi.UInt32, n) * 3
+            for c in range(3):
+                dr.scatter(rgb, UInt8((packed >> (8 * c)) & 255), k + c)
+            dr.eval(rgb)
+            # every image in its final type on the device: the host only copies
+            h = rows[1] - rows[0]
+            parts["rgb"].append(np.asarray(rgb).reshape(h, W, 3))
+            parts["labels"].append(np.asarray(labels).reshape(h, W))
+            parts["depth"].append(np.asarray(depth).reshape(h, W))
             if instances is not None:
-                instances[rows[0] : rows[1]] = np.asarray(inst).reshape(-1, W)
-        return Frame(rgb=np.ascontiguousarray(rgb[..., :3]), labels=labels, depth=depth, instances=instances)
+                parts["instances"].append(np.asarray(instances).astype(np.uint16).reshape(h, W))
+        images = {k: (v[0] if len(v) == 1 else np.concatenate(v)) if v else None for k, v in parts.items()}
+        return Frame(**images)
 
     def arm_meshes(self) -> dict[str, list[tuple[str, Mesh]]]:
         if self.hide_robots:

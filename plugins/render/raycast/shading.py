@@ -193,12 +193,12 @@ class Shader:
         irradiance = self.irradiance(p, n, samples, rng, adaptive_after, hit) + self.ambient
         return dr.select(hit, albedo * irradiance, 0.0)
 
-    def encode(self, linear: Any, exposure: float, reinhard: bool) -> Any:
-        """UInt32 8-bit sRGB (r | g << 8 | b << 16) of linear RGB: times ``exposure``,
-        optionally ``x / (1 + x)``, quantised to ENCODE_STEPS + 1 levels (clipped, rounded half
-        up) and looked up; NaN reads level 0."""
+    def encode(self, linear: Any, exposure: float, reinhard: bool) -> list[Any]:
+        """UInt32 8-bit sRGB levels (r, g, b) of linear RGB: times ``exposure``, optionally
+        ``x / (1 + x)``, quantised to ENCODE_STEPS + 1 levels (clipped, rounded half up) and
+        looked up; NaN reads level 0."""
         mi = self.mi
-        out = mi.UInt32(0)
+        out = []
         for c in range(3):
             x = linear[c]
             if exposure != 1.0:
@@ -207,5 +207,5 @@ class Shader:
                 x = x / (1.0 + x)
             x = dr.clip(x * float(ENCODE_STEPS), 0.0, float(ENCODE_STEPS)) + 0.5
             i = dr.select(dr.isnan(x), 0, dr.minimum(mi.UInt32(x), ENCODE_STEPS))
-            out |= dr.gather(mi.UInt32, self.encode_table, i) << (8 * c)
+            out.append(dr.gather(mi.UInt32, self.encode_table, i))
         return out

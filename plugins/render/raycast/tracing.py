@@ -11,6 +11,7 @@ from typing import Any
 import drjit as dr
 import numpy as np
 
+from agrisim.errors import ConfigError
 from agrisim.plugins.render.raycast import RaycastOptions
 from agrisim.plugins.render.raycast.engine import Engine, Surface
 from agrisim.plugins.render.raycast.points import PointTracer
@@ -69,6 +70,11 @@ class SceneTracer:
         self.engine = Engine(mi, scene, arms or {}, max_layers=options.max_layers, epsilon=options.epsilon)
         self.points: PointTracer | None = None
         if scene.points is not None and len(scene.points):
+            if self.engine.combined:
+                raise ConfigError(
+                    "point plants are traced on the CPU only (OptiX traces one scene per kernel, and the spheres are "
+                    "a scene of their own); set variant = 'llvm' for this renderer"
+                )
             self.points = PointTracer(scene.points, mi)
         self.has_instances = self.engine.has_instances or (self.points is not None and self.points.instances is not None)
         self._label_maps: dict[bytes, Any] = {}
