@@ -81,6 +81,33 @@ def same_outputs(a: Path, b: Path) -> list[str]:
     return problems
 
 
+def image_agreement(a: Path, b: Path) -> str:
+    """How far two runs' images agree, view by view: labels (share of equal pixels, worst view),
+    depth in whole millimetres (pixels that differ where both see something), RGB (PSNR in dB,
+    worst and mean view)."""
+    labels, depth, psnr = [], [], []
+    for pa in sorted((a / "labels").glob("*.png")):
+        pb = b / "labels" / pa.name
+        if pb.exists():
+            labels.append(float((np.asarray(Image.open(pa)) == np.asarray(Image.open(pb))).mean()))
+    for pa in sorted((a / "depth").glob("*.png")):
+        pb = b / "depth" / pa.name
+        if pb.exists():
+            da, db = np.asarray(Image.open(pa)).astype(int), np.asarray(Image.open(pb)).astype(int)
+            both = (da > 0) & (db > 0)
+            depth.append(int(((da != db) & both).sum()))
+    for pa in sorted((a / "rgb").glob("*.png")):
+        pb = b / "rgb" / pa.name
+        if pb.exists():
+            mse = float(((np.asarray(Image.open(pa)).astype(float) - np.asarray(Image.open(pb))) ** 2).mean())
+            psnr.append(10 * np.log10(255.0**2 / mse) if mse > 0 else float("inf"))
+    if not labels:
+        return "no images"
+    return (f"labels equal on {100 * min(labels):.4f}% of the pixels of the worst view (mean {100 * np.mean(labels):.4f}%); "
+            f"depth (mm) differs on {max(depth)} pixels of the worst view where both see something; "
+            f"RGB PSNR {min(psnr):.1f} dB worst view, {np.mean(psnr):.1f} mean")
+
+
 def rrd_chunks(python: str, rrd: Path) -> tuple[int, int]:
     """(chunks, theoretical lower bound) that ``rerun rrd stats`` reports (-1: not said)."""
     rerun = Path(python).with_name("rerun")
@@ -128,6 +155,8 @@ def main() -> None:
             print(f"{name} run: before {b:.1f} s, after {a:.1f} s (best of {args.repeat}): {a / b:.2f}x; "
                   f"peak RSS {max(peaks['before']):.0f} -> {max(peaks['after']):.0f} MB; "
                   f"outputs {'identical' if not problems else 'DIFFER: ' + '; '.join(problems[:8])}")
+            if problems:
+                print(f"  images: {image_agreement(Path(tmp) / f'{name}-before-0', Path(tmp) / f'{name}-after-0')}")
             rrd = {s: Path(tmp) / f"{name}-{s}-0" / "recording.rrd" for s in sides}
             if all(p.exists() for p in rrd.values()):
                 for s in sides:

@@ -55,6 +55,20 @@ def _grazes(reference: ReferenceTracer, T: np.ndarray, seg_mode: str, ys: np.nda
     return grazing
 
 
+def _tracers(scene, cell, poses) -> tuple[SceneTracer, ReferenceTracer]:
+    """The exact pass with the cell's arms at ``poses``, and the reference with the same arms
+    baked into its scene."""
+    options = RaycastOptions()
+    posed = []
+    for arm in cell.arms:
+        for lm in arm_link_meshes(arm.urdf, options.arm_triangles):
+            T = poses[arm.name][lm.link]
+            posed.append(dataclasses.replace(lm.mesh, vertices=lm.mesh.vertices @ T[:3, :3].T + T[:3, 3]))
+    tracer = SceneTracer(scene, cell, options)
+    tracer.place_arms(poses)
+    return tracer, ReferenceTracer(scene, posed)
+
+
 @pytest.fixture(scope="module")
 def registry():
     return Registry(make_plugin_manager())
@@ -64,17 +78,9 @@ def registry():
 def test_the_exact_pass_agrees_with_an_independent_one(species, registry, cell, kin):
     scene = build_scene(cell, resolve_plant(registry, build_config({"plant": species})))
     poses = {a.name: kin[a.name].link_poses(np.array(a.home)) for a in cell.arms}
-    options = RaycastOptions()
-    posed = []  # the arms baked into the reference's scene at their link poses
-    for arm in cell.arms:
-        for lm in arm_link_meshes(arm.urdf, options.arm_triangles):
-            T = poses[arm.name][lm.link]
-            posed.append(dataclasses.replace(lm.mesh, vertices=lm.mesh.vertices @ T[:3, :3].T + T[:3, 3]))
-    tracer = SceneTracer(scene, cell, options)
-    tracer.place_arms(poses)
-    reference = ReferenceTracer(scene, posed)
+    tracer, reference = _tracers(scene, cell, poses)
     setpoints = hemisphere(cell, RoutineConfig())
-    views = [setpoints["r1"][3].world_T_camera, setpoints["r2"][40].world_T_camera]
+    views = [setpoints["r1"][0].world_T_camera, setpoints["r2"][40].world_T_camera]
     for T in views:
         for seg_mode in ("texture", "repopa"):
             new = tracer.exact(CAMERA, T, seg_mode=seg_mode, label_map=label_map("organs"))
@@ -86,3 +92,24 @@ def test_the_exact_pass_agrees_with_an_independent_one(species, registry, cell, 
             assert differ.mean() <= 1e-4, f"{seg_mode}: {differ.sum()} of {differ.size} pixels differ"
             ys, xs = np.nonzero(differ)
             assert _grazes(reference, T, seg_mode, ys, xs, ref).all()
+
+
+def test_a_full_size_view_agrees_pixel_for_pixel_where_sampled(registry, cell, kin):
+    """At 1080p (the rays of a whole image traced together, as a run traces them), the camera
+    held by its arm just above the pot (the arm around the rays' origins): every 5th pixel of
+    each row and column against the independent pass."""
+    scene = build_scene(cell, resolve_plant(registry, build_config({"plant": "indian_cress"})))
+    T = hemisphere(cell, RoutineConfig(setpoints="1x2"))["r1"][0].world_T_camera
+    arm = cell.arm("r1")
+    q = kin["r1"].ik(T, np.array(arm.home), rng=np.random.default_rng(0)).q
+    poses = {a.name: kin[a.name].link_poses(np.array(a.home)) for a in cell.arms}
+    poses["r1"] = kin["r1"].link_poses(q)
+    tracer, reference = _tracers(scene, cell, poses)
+    camera = preset("rpi3-wide-1080p")
+    new = tracer.exact(camera, T, seg_mode="texture", label_map=label_map("organs"))
+    ys, xs = np.mgrid[0 : camera.height : 5, 0 : camera.width : 5]
+    ref = reference.pixels(camera, T, xs.ravel().astype(float), ys.ravel().astype(float), "texture")
+    sampled = {k: new[k][ys, xs].ravel() for k in ("labels", "depth", "instances")}
+    assert (ref["labels"] > 0).mean() > 0.05
+    differ = _differing(sampled, ref)
+    assert differ.mean() <= 1e-4, f"{differ.sum()} of {differ.size} pixels differ"

@@ -308,7 +308,7 @@ class Engine:
 
         def body(layer, active, t_acc, t, face, b, raw_face, raw_b, raw_t):
             ray = mi.Ray3f((d * t_acc + o) if walk else o, d)
-            th, f, bh = self.intersect(ray, active, coherent=True)
+            th, f, bh = self.intersect(ray, active)
             valid = f >= 0
             if walk:
                 passes, culled, _ = self._passes(valid, f, bh, d)
