@@ -15,7 +15,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import subprocess
 import sys
 import time
 from pathlib import Path
@@ -23,20 +22,12 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).parent))
-from machine import cpu_model  # noqa: E402
+from machine import cpu_model, gpu_name  # noqa: E402
 
 from agrisim.config import RenderConfig  # noqa: E402
 from agrisim.files import layout  # noqa: E402
 from agrisim.files.scene_glb import read_scene  # noqa: E402
 from agrisim.files.rundir import camera_from_json  # noqa: E402
-
-
-def gpu_name() -> str:
-    try:
-        out = subprocess.run(["nvidia-smi", "--query-gpu=name", "--format=csv,noheader"], capture_output=True, text=True, timeout=20)
-        return out.stdout.strip().splitlines()[0] if out.returncode == 0 and out.stdout.strip() else "no GPU"
-    except (OSError, subprocess.SubprocessError):
-        return "no GPU"
 
 
 def compiled(dr, history: list[dict]) -> str:  # noqa: ANN001

@@ -11,24 +11,15 @@ pluggy, Mitsuba): this is how it is measured on the GPU machine.
 from __future__ import annotations
 
 import argparse
-import subprocess
 import sys
 import tempfile
 import time
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).parent))
-from machine import cpu_model  # noqa: E402
+from machine import cpu_model, gpu_name  # noqa: E402
 
 from agrisim.app.render import RenderPlan  # noqa: E402
-
-
-def gpu_name() -> str:
-    try:
-        out = subprocess.run(["nvidia-smi", "--query-gpu=name", "--format=csv,noheader"], capture_output=True, text=True, timeout=20)
-        return out.stdout.strip().splitlines()[0] if out.returncode == 0 and out.stdout.strip() else "no GPU"
-    except (OSError, subprocess.SubprocessError):
-        return "no GPU"
 
 
 def main() -> None:

@@ -201,21 +201,21 @@ class SceneTracer:
         its leaves) from rays through the pixel centres, what the raycast renderer gives (the
         same rays, traced by the same code). Place the arms first."""
         H, W = camera.height, camera.width
-        out = {"labels": np.zeros((H, W), np.uint8), "depth": np.empty((H, W), F32)}
-        if self.has_instances:
-            out["instances"] = np.zeros((H, W), np.uint16)
+        parts: dict[str, list[np.ndarray]] = {"labels": [], "depth": [], "instances": []}
+        UInt8 = dr.uint8_array_t(self.mi.Float)
         rows = max(1, pixels_per_batch // W)
         for r0 in range(0, H, rows):  # bounded memory at any resolution
             r1 = min(r0 + rows, H)
             o, d = self.camera_rays(camera, world_T_camera, (r0, r1))
             s = self.trace(o, d, raw=seg_mode == "repopa")
             labels, depth, instances = self.annotate(s, seg_mode == "repopa", label_map)
+            labels = UInt8(labels)  # (the host only copies)
             dr.eval(labels, depth, instances)
-            out["labels"][r0:r1] = np.asarray(labels).reshape(r1 - r0, W)
-            out["depth"][r0:r1] = np.asarray(depth).reshape(r1 - r0, W)
+            parts["labels"].append(np.asarray(labels).reshape(r1 - r0, W))
+            parts["depth"].append(np.asarray(depth).reshape(r1 - r0, W))
             if instances is not None:
-                out["instances"][r0:r1] = np.asarray(instances).reshape(r1 - r0, W)
-        return out
+                parts["instances"].append(np.asarray(instances).astype(np.uint16).reshape(r1 - r0, W))
+        return {k: v[0] if len(v) == 1 else np.concatenate(v) for k, v in parts.items() if v}
 
     def close(self) -> None:
         """Drop the Mitsuba scenes."""
