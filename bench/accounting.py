@@ -36,15 +36,10 @@ from machine import cpu_model  # noqa: E402
 #: (category, test on one frame of the stack) tried from the innermost frame outwards; the
 #: first frame that matches any rule decides. Native frames come before Python ones.
 RULES: list[tuple[str, re.Pattern[str]]] = [
-    ("render: ray casting (Embree)", re.compile(r"libOpen3D|RaycastingScene|embree", re.I)),
+    ("render: Dr.Jit kernels (ray casts, walks, shading)", re.compile(r"embree|nanothread|drjit|libdrjit|jit_llvm|jitc_", re.I)),
     ("PNG encoding", re.compile(r"ImagingZip|PngImagePlugin|ZipEncode|write_png|encode_png|isal")),
-    ("render: posing the arms (BVH build)", re.compile(r"SceneTracer\.place_arms")),
-    ("render: texture lookups", re.compile(r"MaterialTable\.|SceneTracer\._uv |SceneTracer\.surface")),
-    ("render: labels, depth, instances", re.compile(r"SceneTracer\.(labels|annotate) ")),
-    ("render: shadow sampling", re.compile(r"LightTable\.irradiance")),
-    ("render: shading (lights, tone map)", re.compile(r"LightTable\.weights|RaycastRenderer\._shade|encode_srgb8")),
-    ("render: ray generation", re.compile(r"camera_rays")),
-    ("render: hit bookkeeping", re.compile(r"SceneTracer\.|RaycastRenderer\.")),
+    ("render: posing the arms (BVH build)", re.compile(r"Engine\.place_arms|SceneTracer\.place_arms")),
+    ("render: building a view's kernels (Python)", re.compile(r"Engine\.|SceneTracer\.|Shader\.|MaterialArrays\.|RaycastRenderer\.")),
     ("depth to millimetres", re.compile(r"depth_to_mm")),
     ("Rerun logging (Python side)", re.compile(r"rerun_sink|/rerun/|rerun_bindings")),
     ("run.json, cameras.json, trajectories", re.compile(r"write_json|_write_pretty|json_text|_run_json|json/encoder")),

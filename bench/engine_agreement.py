@@ -10,7 +10,10 @@ renderer with two seeds: ``--seeds K`` renders K seeds on each side and compares
 against the before mean of K others: the noise floor).
 
     python bench/engine_agreement.py ../before . [--plants indian_cress ...] [--resolution 1920x1080]
-        [--shadow-samples 0 1] [--seeds 8]
+        [--shadow-samples 0 1] [--seeds 8] [--figure docs/engine_agreement.png]
+
+``--figure`` draws the pixels whose labels differ, up to six, each as a close-up of the RGB with
+the labels before and after beside it.
 """
 
 from __future__ import annotations
@@ -74,6 +77,35 @@ def psnr(a: np.ndarray, b: np.ndarray) -> float:
     return 10 * np.log10(255.0**2 / mse) if mse > 0 else float("inf")
 
 
+def figure(path: Path, found: list[tuple[str, int, np.ndarray, np.ndarray, np.ndarray, int, int]]) -> None:
+    """Close-ups (RGB, labels before, labels after) of pixels whose labels differ, the pixel
+    outlined in magenta."""
+    from PIL import Image, ImageDraw
+
+    half, zoom = 10, 8
+    palette = np.random.default_rng(0).integers(40, 255, (256, 3)).astype(np.uint8)
+    palette[0] = 0
+    rows = []
+    for _, _, rgb, lab_b, lab_a, y, x in found[:6]:
+        y0, x0 = max(0, y - half), max(0, x - half)
+        crops = [rgb[y0 : y + half + 1, x0 : x + half + 1], palette[lab_b[y0 : y + half + 1, x0 : x + half + 1]],
+                 palette[lab_a[y0 : y + half + 1, x0 : x + half + 1]]]
+        tiles = []
+        for c in crops:
+            img = Image.fromarray(np.ascontiguousarray(c)).resize((c.shape[1] * zoom, c.shape[0] * zoom), Image.NEAREST)
+            ImageDraw.Draw(img).rectangle([(x - x0) * zoom, (y - y0) * zoom, (x - x0 + 1) * zoom - 1, (y - y0 + 1) * zoom - 1], outline=(255, 0, 255), width=2)
+            tiles.append(np.asarray(img))
+        h = max(t.shape[0] for t in tiles)
+        rows.append(np.concatenate([np.pad(t, ((0, h - t.shape[0]), (0, 4), (0, 0)), constant_values=255) for t in tiles], 1))
+    if not rows:
+        print(f"no label differs: {path} not drawn")
+        return
+    w = max(r.shape[1] for r in rows)
+    grid = np.concatenate([np.pad(r, ((0, 4), (0, w - r.shape[1]), (0, 0)), constant_values=255) for r in rows], 0)
+    Image.fromarray(grid).save(path)
+    print(f"{path}: {len(rows)} close-ups: " + ", ".join(f"{p} view {v} ({y}, {x})" for p, v, *_, y, x in found[:6]))
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("before", type=Path)
@@ -83,7 +115,9 @@ def main() -> None:
     parser.add_argument("--shadow-samples", type=int, nargs="+", default=[0, 1])
     parser.add_argument("--seeds", type=int, default=1, help="seeds per side for the means (with shadow samples)")
     parser.add_argument("--seg-mode", default="texture", choices=["texture", "repopa"])
+    parser.add_argument("--figure", type=Path, default=None, help="draw close-ups of pixels whose labels differ")
     args = parser.parse_args()
+    found = []
     print(f"{cpu_model()}; before {args.before}, after {args.after}; {args.resolution}, 5 views a plant, {args.seg_mode} labels")
     with tempfile.TemporaryDirectory() as tmp:
         for plant in args.plants:
@@ -96,6 +130,9 @@ def main() -> None:
                 rows = []
                 for v in range(5):
                     lab = float((a[f"labels_{v}"] == b[f"labels_{v}"]).mean())
+                    if samples == args.shadow_samples[0]:
+                        for y, x in zip(*np.nonzero(a[f"labels_{v}"] != b[f"labels_{v}"])):
+                            found.append((plant, v, a[f"rgb_0_{v}"], b[f"labels_{v}"], a[f"labels_{v}"], int(y), int(x)))
                     da, db = a[f"depth_{v}"], b[f"depth_{v}"]
                     both = (da > 0) & (db > 0)
                     far = int((both & (np.abs(da - db) > 1e-5)).sum())
@@ -110,6 +147,8 @@ def main() -> None:
                 print(f"{plant}, {samples} shadow sample(s), {what}:")
                 for v, row in enumerate(rows):
                     print(f"  view {v}: {row}")
+    if args.figure is not None:
+        figure(args.figure, found)
 
 
 if __name__ == "__main__":
