@@ -558,3 +558,17 @@ def test_views_after_the_first_compile_no_kernel(cell, kin):
             jit = [k for k in dr.kernel_history() if k["type"] == dr.KernelType.JIT]
         assert frame.rgb.shape == (camera.height, camera.width, 3) and (frame.depth > 0).any()
         assert jit and all(k["cache_hit"] for k in jit), [k["hash"] for k in jit if not k["cache_hit"]]
+
+
+def test_arms_left_out_of_the_link_poses_are_not_drawn(cell, kin):
+    """An arm that a frame gives no link poses for is left out (its instances parked), and comes
+    back when it has them again."""
+    poses = {a.name: kin[a.name].link_poses(np.array(a.home)) for a in cell.arms}
+    elbow = poses["r1"]["forearm_link"][:3, 3]
+    T = look_at(elbow + np.array([0.0, -1.5, 0.3]), elbow)
+    r = renderer(Scene([], LIGHTS, LabelTable()), cell, shadow_samples=0, hide_robots=False)
+    both = r.render(CAMERA, T, poses)
+    without = r.render(CAMERA, T, {"r2": poses["r2"]})
+    again = r.render(CAMERA, T, poses)
+    assert (both.depth > 0).mean() > 0.02 and not (without.depth > 0).any()
+    np.testing.assert_array_equal(again.depth, both.depth)
