@@ -11,7 +11,6 @@ Mitsuba takes one variant per process, so each side renders in a process of its 
 from __future__ import annotations
 
 import argparse
-import json
 import subprocess
 import sys
 import tempfile
