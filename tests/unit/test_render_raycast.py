@@ -572,3 +572,17 @@ def test_arms_left_out_of_the_link_poses_are_not_drawn(cell, kin):
     again = r.render(CAMERA, T, poses)
     assert (both.depth > 0).mean() > 0.02 and not (without.depth > 0).any()
     np.testing.assert_array_equal(again.depth, both.depth)
+
+
+def test_a_variant_that_cannot_run_is_refused_before_the_run_naming_raycast():
+    from agrisim.errors import ConfigError
+    from agrisim.plugins.render import raycast
+    from agrisim.plugins.render.mitsuba.variant import _backends
+
+    (spec,) = raycast.agrisim_renderers()
+    if _backends()[0]:
+        pytest.skip("CUDA is usable here: variant 'cuda' runs")
+    with pytest.raises(ConfigError, match=r"^\[renderer\.raycast\] variant 'cuda' needs a usable NVIDIA GPU") as info:
+        spec.preflight(None, RaycastOptions(variant="cuda"))
+    assert "\n" not in str(info.value)
+    spec.preflight(None, RaycastOptions(variant="auto"))  # the CPU serves

@@ -63,38 +63,38 @@ def _backends() -> tuple[bool, bool]:
     return bool(dr.has_backend(dr.JitBackend.CUDA)), bool(dr.has_backend(dr.JitBackend.LLVM))
 
 
-def resolve_variant(choice: str) -> str:
+def resolve_variant(choice: str, renderer: str = "mitsuba") -> str:
     """The Mitsuba variant for ``choice`` (``auto``, ``cuda`` or ``llvm``), or a ConfigError
-    saying what is missing."""
+    saying what is missing (naming the options of ``renderer``, whose choice it is)."""
     if choice not in ("auto", *VARIANTS):
-        raise ConfigError(f"[renderer.mitsuba] variant {choice!r} is unknown; allowed: auto, cuda, llvm")
+        raise ConfigError(f"[renderer.{renderer}] variant {choice!r} is unknown; allowed: auto, cuda, llvm")
     cuda, llvm = _backends()
     if choice == "cuda" and not cuda:
-        raise ConfigError("[renderer.mitsuba] variant 'cuda' needs a usable NVIDIA GPU and driver; none found "
+        raise ConfigError(f"[renderer.{renderer}] variant 'cuda' needs a usable NVIDIA GPU and driver; none found "
                           "(use variant = 'llvm' or 'auto' for the CPU)")
     if choice == "llvm" and not llvm:
-        raise ConfigError(f"[renderer.mitsuba] variant 'llvm': Dr.Jit found no usable libLLVM; {LLVM_HELP}")
+        raise ConfigError(f"[renderer.{renderer}] variant 'llvm': Dr.Jit found no usable libLLVM; {LLVM_HELP}")
     if choice == "auto":
         if cuda:
             return VARIANTS["cuda"]
         if not llvm:
-            raise ConfigError(f"renderer 'mitsuba': no NVIDIA GPU and no usable libLLVM; {LLVM_HELP}")
+            raise ConfigError(f"renderer {renderer!r}: no NVIDIA GPU and no usable libLLVM; {LLVM_HELP}")
         return VARIANTS["llvm"]
     return VARIANTS[choice]
 
 
-def use_variant(choice: str):  # noqa: ANN201 - the mitsuba module (typed lazily)
+def use_variant(choice: str, renderer: str = "mitsuba"):  # noqa: ANN201 - the mitsuba module (typed lazily)
     """Mitsuba set to the variant for ``choice`` (the first one set in a process stays: Mitsuba's
     variant is global, and switching it would invalidate scenes already loaded)."""
     import mitsuba as mi
 
-    variant = resolve_variant(choice)
+    variant = resolve_variant(choice, renderer)
     current = mi.variant()
     if current is None:
         mi.set_variant(variant)
     elif current != variant:
         raise ConfigError(
-            f"renderer 'mitsuba': this process already renders with {current}; {variant} cannot join it "
+            f"renderer {renderer!r}: this process already renders with {current}; {variant} cannot join it "
             "(one Mitsuba variant per process)"
         )
     return mi

@@ -100,6 +100,13 @@ class RaycastOptions(Options):
     view is one batch). Results do not depend on it: every pixel has its own random stream."""
 
 
+def preflight(config: object, options: RaycastOptions) -> None:
+    """Refuse, before anything is written, a variant that cannot run here."""
+    from agrisim.plugins.render.mitsuba.variant import resolve_variant
+
+    resolve_variant(options.variant, "raycast")
+
+
 @hookimpl
 def agrisim_renderers() -> list[BackendSpec]:
     return [
@@ -109,6 +116,7 @@ def agrisim_renderers() -> list[BackendSpec]:
             description="Exact ray tracing on Dr.Jit (Embree on the CPU, OptiX on NVIDIA GPUs): exact depth and "
             "texture labels, alpha-tested cards, soft shadows",
             options_model=RaycastOptions,
+            preflight=preflight,
             limits="Lambert shading with direct light and an ambient term (no indirect light, no specular); "
             "no texture mipmaps; alpha is a step at the cutoff (no blending)",
             capabilities=RendererCapabilities(

@@ -64,7 +64,7 @@ class SceneTracer:
         from agrisim.plugins.render.mitsuba.variant import use_variant
 
         self.options = options
-        self.mi = mi = use_variant(options.variant)
+        self.mi = mi = use_variant(options.variant, "raycast")
         if arms is None and cell is not None:
             arms = {a.name: [(lm.link, lm.mesh) for lm in arm_link_meshes(a.urdf, options.arm_triangles)] for a in cell.arms}
         self.engine = Engine(mi, scene, arms or {}, max_layers=options.max_layers, epsilon=options.epsilon)
