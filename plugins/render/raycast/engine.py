@@ -129,7 +129,7 @@ class Engine:
             face_slot.append(np.zeros(len(mesh.faces), np.uint32))
             n_faces += len(mesh.faces)
             n_verts += len(mesh.vertices)
-        self.n_static = n_faces
+        n_static = n_faces
 
         arm_shapes: dict[str, Any] = {}
         first_face: dict[str, int] = {"static": 0}  # instance id -> its first global face
@@ -152,14 +152,13 @@ class Engine:
                 n_faces += len(mesh.faces)
         mats.finish()
         self.mats = mats
-        self.n_faces = n_faces
 
         # Embree (llvm): the static mesh is a scene of its own, built once, and the arms another,
         # rebuilt when they move (Mitsuba's Embree rebuilds every shape group of a scene whose
         # instances move). OptiX (cuda) traces one scene per kernel: the static mesh is a shape
         # group placed once, beside the arms' instances (only the top level is rebuilt).
         self.combined = mi.variant().startswith("cuda")
-        static = self._mesh("static", np.concatenate(verts), np.concatenate(faces)) if self.n_static else None
+        static = self._mesh("static", np.concatenate(verts), np.concatenate(faces)) if n_static else None
         self.layers: list[Any] = []
         arm_layer = None
         if self.combined:

@@ -14,6 +14,7 @@ import numpy as np
 from agrisim.errors import ConfigError
 from agrisim.plugins.render.raycast import RaycastOptions
 from agrisim.plugins.render.raycast.engine import Engine, Surface
+from agrisim.plugins.render.raycast.lights import SHADOW_TFAR
 from agrisim.plugins.render.raycast.points import PointTracer
 from agrisim.robot.visuals import arm_link_meshes
 from agrisim.scene.camera import CameraModel
@@ -107,11 +108,10 @@ class SceneTracer:
         Y = np.concatenate([(y * R[j, 1] + R[j, 2]).astype(F32) for j in range(3)])
         W, H = len(x), len(y)
         k = dr.arange(mi.UInt32, W * H)
-        width = dr.opaque(mi.UInt32, W)  # opaque: one kernel for every image size
-        v = k // width
-        u = k - v * width
+        wide, high = dr.opaque(mi.UInt32, W), dr.opaque(mi.UInt32, H)  # opaque: one kernel for every image size
+        v = k // wide
+        u = k - v * wide
         Xd, Yd = mi.Float(X), mi.Float(Y)
-        wide, high = dr.opaque(mi.UInt32, W), dr.opaque(mi.UInt32, H)
         d = mi.Vector3f(*(dr.gather(mi.Float, Xd, u + j * wide) + dr.gather(mi.Float, Yd, v + j * high) for j in range(3)))
         near = dr.opaque(mi.Float, self.options.near)
         o = mi.Point3f(*(d[j] * near + dr.opaque(mi.Float, c[j]) for j in range(3)))
@@ -139,8 +139,6 @@ class SceneTracer:
     def occluded(self, o: Any, seg: Any, active: Any = True) -> Any:
         """Bool: is each shadow ray (origin, segment to the light) blocked before
         ``SHADOW_TFAR`` of its segment? Cut-out texels let light through."""
-        from agrisim.plugins.render.raycast.lights import SHADOW_TFAR
-
         blocked = self.engine.occluded(o, seg, active)
         if self.points is not None:
             blocked |= self.points.occluded_dr(o, seg, SHADOW_TFAR, active & ~blocked)
