@@ -24,18 +24,18 @@ if ! have_libusb; then
   DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq libusb-1.0-0 >/dev/null
 fi
 
-# The mitsuba renderer's CPU variant (Dr.Jit's LLVM backend) loads a shared libLLVM at run
+# The raycast and mitsuba renderers on the CPU (Dr.Jit's LLVM backend) load a shared libLLVM at run
 # time: 15 or newer, but LLVM 15's x86 backend aborted on an fminimum intrinsic here, so 16+.
 have_libllvm() { ldconfig -p 2>/dev/null | grep -Eq 'libLLVM(-(1[6-9]|[2-9][0-9])[.0-9]*\.so|\.so\.(1[6-9]|[2-9][0-9]))'; }
 
 if ! have_libllvm; then
   if command -v apt-get >/dev/null 2>&1; then
     if [ "$(id -u)" -eq 0 ]; then SUDO=""; else SUDO="sudo"; fi
-    echo "agrisim setup: installing libllvm19 (the mitsuba renderer's CPU variant needs libLLVM 16+)"
+    echo "agrisim setup: installing libllvm19 (the renderers' CPU backend, Dr.Jit's LLVM, needs libLLVM 16+)"
     $SUDO apt-get update -qq
     DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq libllvm19 >/dev/null
   else
-    echo "agrisim setup: no libLLVM 16+ found and no apt-get; the mitsuba renderer's CPU variant needs one" >&2
+    echo "agrisim setup: no libLLVM 16+ found and no apt-get; the renderers' CPU backend (Dr.Jit's LLVM) needs one" >&2
     echo "  (install LLVM 16 or newer, or set DRJIT_LIBLLVM_PATH to its shared library)" >&2
   fi
 fi
