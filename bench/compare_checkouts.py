@@ -19,6 +19,7 @@ import subprocess
 import sys
 import tempfile
 import time
+from decimal import Decimal
 from pathlib import Path
 
 import numpy as np
@@ -58,21 +59,55 @@ def _strip(doc: object) -> object:
     return doc
 
 
+def _files(root: Path) -> set[Path]:
+    return {p.relative_to(root) for p in root.rglob("*") if p.is_file()}
+
+
+def one_sided(a: Path, b: Path) -> list[str]:
+    """Files only one of two run directories has, by folder: ``only after: trajectories/ (100
+    files)`` (a newer checkout may write more than an older one)."""
+    files_a, files_b = _files(a), _files(b)
+    out = []
+    for side, only in (("before", files_a - files_b), ("after", files_b - files_a)):
+        folders: dict[str, int] = {}
+        for rel in only:
+            key = f"{rel.parts[0]}/" if len(rel.parts) > 1 else str(rel)
+            folders[key] = folders.get(key, 0) + 1
+        out += [f"only {side}: {k} ({n} file{'s' if n > 1 else ''})" for k, n in sorted(folders.items())]
+    return out
+
+
+def _decimals(x: float) -> int:
+    """Decimal places of the shortest text that reads back as ``x`` (5.30261e-07: 12)."""
+    return max(-int(Decimal(repr(x)).as_tuple().exponent), 0)
+
+
+def _same_values(a: object, b: object) -> bool:
+    """Equal JSON values, where a number written to fewer decimals by one side (an older
+    checkout rounded poses to 12) equals the other rounded alike, and a dict key only one side
+    has (an option added since) is not compared."""
+    if isinstance(a, dict) and isinstance(b, dict):
+        return all(_same_values(a[k], b[k]) for k in a.keys() & b.keys())
+    if isinstance(a, list) and isinstance(b, list):
+        return len(a) == len(b) and all(_same_values(x, y) for x, y in zip(a, b))
+    if isinstance(a, float) and isinstance(b, float) and a != b:
+        places = min(_decimals(a), _decimals(b))
+        return round(a, places) == round(b, places)
+    return a == b
+
+
 def same_outputs(a: Path, b: Path) -> list[str]:
-    """What differs between two run directories (empty: images equal pixel for pixel, every
-    other file equal byte for byte, run.json and metrics.json equal but for clocks)."""
+    """What differs between the files two run directories both have (empty: images equal pixel
+    for pixel, JSON equal in value (run.json and metrics.json but for clocks), every other file
+    equal byte for byte)."""
     problems = []
-    files_a = {p.relative_to(a) for p in a.rglob("*") if p.is_file()}
-    files_b = {p.relative_to(b) for p in b.rglob("*") if p.is_file()}
-    for missing in sorted(files_a ^ files_b):
-        problems.append(f"only in one run: {missing}")
-    for rel in sorted(files_a & files_b):
+    for rel in sorted(_files(a) & _files(b)):
         pa, pb = a / rel, b / rel
         if rel.suffix == ".png":
             if not np.array_equal(np.asarray(Image.open(pa)), np.asarray(Image.open(pb))):
                 problems.append(f"pixels differ: {rel}")
-        elif rel.name in ("run.json", "metrics.json"):
-            if _strip(json.loads(pa.read_text())) != _strip(json.loads(pb.read_text())):
+        elif rel.suffix == ".json":
+            if pa.read_bytes() != pb.read_bytes() and not _same_values(_strip(json.loads(pa.read_text())), _strip(json.loads(pb.read_text()))):
                 problems.append(f"values differ: {rel}")
         elif rel.suffix == ".rrd":
             continue  # the recording's chunking may change on purpose (its size is reported)
@@ -154,7 +189,10 @@ def main() -> None:
             b, a = min(walls["before"]), min(walls["after"])
             print(f"{name} run: before {b:.1f} s, after {a:.1f} s (best of {args.repeat}): {a / b:.2f}x; "
                   f"peak RSS {max(peaks['before']):.0f} -> {max(peaks['after']):.0f} MB; "
-                  f"outputs {'identical' if not problems else 'DIFFER: ' + '; '.join(problems[:8])}")
+                  f"outputs {'identical' if not problems else 'DIFFER: ' + '; '.join(problems[:8])} in the files both write")
+            extra = one_sided(Path(tmp) / f"{name}-before-0", Path(tmp) / f"{name}-after-0")
+            if extra:
+                print(f"  {'; '.join(extra)}")
             if problems:
                 print(f"  images: {image_agreement(Path(tmp) / f'{name}-before-0', Path(tmp) / f'{name}-after-0')}")
             rrd = {s: Path(tmp) / f"{name}-{s}-0" / "recording.rrd" for s in sides}

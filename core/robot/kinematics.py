@@ -66,6 +66,9 @@ class ArmKinematics:
         self.upper = np.array(self.model.upperPositionLimit, float)
         self.velocity_limit = np.array(self.model.velocityLimit, float)
         self.dof = self.model.nq
+        #: (frame id, link name) of the URDF's links: link_poses runs for every sample of
+        #: every move the recording shows
+        self._links = [(fid, f.name) for fid, f in enumerate(self.model.frames) if f.type == pin.FrameType.BODY]
 
     # ------------------------------------------------------------------ forward
     def fk(self, q: np.ndarray, frame: str | None = None) -> np.ndarray:
@@ -77,11 +80,8 @@ class ArmKinematics:
     def link_poses(self, q: np.ndarray) -> dict[str, np.ndarray]:
         """``world_T_link`` of every body frame (links of the URDF) at ``q``."""
         pin.framesForwardKinematics(self.model, self.data, np.asarray(q, float))
-        out = {}
-        for fid, frame in enumerate(self.model.frames):
-            if frame.type == pin.FrameType.BODY:
-                out[frame.name] = (self._base * self.data.oMf[fid]).homogeneous
-        return out
+        base, oMf = self._base, self.data.oMf
+        return {name: (base * oMf[fid]).homogeneous for fid, name in self._links}
 
     # ------------------------------------------------------------------ inverse
     def _solve(self, target: pin.SE3, q0: np.ndarray, iterations: int, tol: float) -> tuple[np.ndarray, float, float]:
@@ -90,15 +90,27 @@ class ArmKinematics:
         # they call (the same float operations: the same answers, bit for bit).
         model, data, tip = self.model, self.data, self.tip
         lower, upper = self.lower, self.upper
+        fk, log6, jlog6, jacobian, local = pin.framesForwardKinematics, pin.log6, pin.Jlog6, pin.computeFrameJacobian, pin.ReferenceFrame.LOCAL
+        oMf = data.oMf
         q = q0.copy()
-        for _ in range(iterations):
-            pin.framesForwardKinematics(model, data, q)
-            current_T_target = data.oMf[tip].actInv(target)
-            err = pin.log6(current_T_target).vector
+        # A step is a function of q alone, so a q seen before starts a cycle that never
+        # converges (it would have): the q the loop would end on is known without running on.
+        # Seeds that fail mostly end so (stuck on a joint limit, or swapping between a few
+        # configurations): half of their iterations, skipped with the same answer bit for bit.
+        seen: dict[bytes, int] = {}
+        visited: list[np.ndarray] = []
+        for step in range(iterations):
+            first = seen.setdefault(q.tobytes(), step)
+            if first != step:
+                q = visited[first + (iterations - first) % (step - first)]
+                break
+            visited.append(q)
+            fk(model, data, q)
+            current_T_target = oMf[tip].actInv(target)
+            err = log6(current_T_target).vector
             if _norm3(err[:3]) < tol and _norm3(err[3:]) < tol:
                 break
-            J = pin.computeFrameJacobian(model, data, q, tip, pin.ReferenceFrame.LOCAL)
-            J = pin.Jlog6(current_T_target) @ J
+            J = jlog6(current_T_target) @ jacobian(model, data, q, tip, local)
             dq = J.T @ _solve6(J @ J.T + _DAMPING, err)
             q = np.minimum(np.maximum(q + dq, lower), upper)
         pin.framesForwardKinematics(model, data, q)

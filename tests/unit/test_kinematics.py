@@ -88,3 +88,46 @@ def test_ik_reports_why_an_unreachable_pose_fails(cell, kin):
     result = kin["r1"].ik(far, np.array(cell.arms[0].home), rng=np.random.default_rng(0), restarts=2, max_restarts=2)
     assert not result.ok
     assert "no solution within tolerance" in result.reason
+
+
+def _every_iteration(k, target, q0: np.ndarray, iterations: int, tol: float):  # noqa: ANN001, ANN202
+    """Damped least squares written plainly (numpy's own norm, solve and clip), every iteration
+    run: the answer the cycle shortcut in ``_solve`` must give, and the configurations visited."""
+    import pinocchio as pin
+
+    q, visited = q0.copy(), []
+    for _ in range(iterations):
+        visited.append(q.tobytes())
+        pin.framesForwardKinematics(k.model, k.data, q)
+        current_T_target = k.data.oMf[k.tip].actInv(target)
+        err = pin.log6(current_T_target).vector
+        if np.linalg.norm(err[:3]) < tol and np.linalg.norm(err[3:]) < tol:
+            break
+        J = pin.Jlog6(current_T_target) @ pin.computeFrameJacobian(k.model, k.data, q, k.tip, pin.ReferenceFrame.LOCAL)
+        q = np.clip(q + J.T @ np.linalg.solve(J @ J.T + 1e-6 * np.eye(6), err), k.lower, k.upper)
+    pin.framesForwardKinematics(k.model, k.data, q)
+    err = pin.log6(k.data.oMf[k.tip].actInv(target)).vector
+    return q, np.linalg.norm(err[:3]), np.linalg.norm(err[3:]), visited
+
+
+def test_ik_iterations_cut_short_by_a_cycle_give_the_full_answer_bit_for_bit(cell, kin):
+    """A seed that revisits a configuration cycles for good: ``_solve`` stops there and picks
+    the cycle's member that the last iteration would reach. Against every iteration run, on
+    seeds of the run's kind (random, many of them failing), for targets in reach and out of it."""
+    import pinocchio as pin
+
+    k = kin["r1"]
+    rng = np.random.default_rng(11)
+    tol = 5e-8
+    cycled = 0
+    for n in range(60):
+        far = n % 3 == 0  # a third out of reach: those seeds all fail, most by cycling
+        target_T = look_at(np.array([2.5, 0.3, 1.0]), np.array([3.0, 0.0, 1.0])) if far else k.fk(rng.uniform(-2.5, 2.5, k.dof))
+        target = k._base.actInv(pin.SE3(target_T))
+        q0 = rng.uniform(k.lower / 2, k.upper / 2)
+        iterations = int(rng.integers(20, 200))
+        q, ep, er = k._solve(target, q0, iterations, tol)
+        q_ref, ep_ref, er_ref, visited = _every_iteration(k, target, q0, iterations, tol)
+        assert q.tobytes() == q_ref.tobytes() and (ep, er) == (ep_ref, er_ref), n
+        cycled += len(set(visited)) < len(visited)
+    assert cycled >= 10, cycled  # the shortcut was taken, not only the plain loop compared

@@ -31,6 +31,18 @@ def _without_visuals(urdf: str) -> str:
     return ElementTree.tostring(root, encoding="unicode")
 
 
+class _Client(BulletClient):
+    """A BulletClient that binds each pybullet function to its server once. The base class
+    builds a new ``functools.partial`` (after an ``inspect`` test) on every attribute access,
+    and a run's collision queries and simulation steps make some 400,000 of them."""
+
+    def __getattr__(self, name: str) -> object:
+        attribute = super().__getattr__(name)
+        if name != "disconnect":  # the base class marks the client closed when it is looked up
+            setattr(self, name, attribute)  # ordinary lookup finds it from now on
+        return attribute
+
+
 class _World:
     """One pybullet world holding the cell: arms, obstacles, collision filters."""
 
@@ -47,7 +59,7 @@ class _World:
         margin: float = 0.0,
     ) -> None:
         with native_output_silenced():
-            self.client = BulletClient(connection_mode=pb.DIRECT)
+            self.client = _Client(connection_mode=pb.DIRECT)
         c = self.client
         self.margin = margin
         if dynamics:
