@@ -8,6 +8,7 @@ episode of the paper (100 setpoints, pybullet physics, OMPL). Prints figures; as
 from __future__ import annotations
 
 import argparse
+import sys
 import tempfile
 import time
 from pathlib import Path
@@ -26,6 +27,9 @@ from agrisim.plugins.physics.kinematic.backend import KinematicPhysics
 from agrisim.plugins.planners.ompl_planner import OmplOptions
 from agrisim.plugins.planners.ompl_planner.backend import OmplPlanner
 from agrisim.robot.trajectory import Limits, time_parametrize
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from machine import cpu_model  # noqa: E402
 
 
 def per_call(fn, n: int) -> float:
@@ -98,6 +102,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="components only")
     args = parser.parse_args()
+    print(cpu_model())
     bench_components()
     if not args.quick:
         for physics, planner in (("pybullet", "ompl"), ("pybullet", "direct"), ("kinematic", "ompl")):

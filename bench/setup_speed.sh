@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Cold-cache install of requirements.lock into a fresh venv: pip against uv (what
-# scripts/setup.sh uses), both hash-checked, both followed by agrisim's editable install.
+# scripts/setup.sh uses, compiling bytecode as pip does), both hash-checked, both followed by
+# agrisim's editable install.
 # Prints the CPU model and both wall times. Needs network access to PyPI; takes a few minutes.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -18,7 +19,7 @@ pip_s=$(echo "$(date +%s.%N) - $start" | bc)
 start=$(date +%s.%N)
 "$PYTHON" -m venv "$tmp/uv"
 "$tmp/uv/bin/pip" install -q --no-cache-dir "uv==$(sed -n 's/^UV_VERSION=//p' scripts/setup.sh)" 2>&1 | { grep -v "is ignored" || true; }
-"$tmp/uv/bin/uv" pip install -q --no-cache --python "$tmp/uv/bin/python" --require-hashes -r requirements.lock
+"$tmp/uv/bin/uv" pip install -q --no-cache --python "$tmp/uv/bin/python" --compile-bytecode --require-hashes -r requirements.lock
 "$tmp/uv/bin/uv" pip install -q --no-cache --python "$tmp/uv/bin/python" --no-deps -e .
 uv_s=$(echo "$(date +%s.%N) - $start" | bc)
 

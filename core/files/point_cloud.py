@@ -16,9 +16,10 @@ Then, as meshes, ``scale`` multiplies the coordinates and the cloud is placed in
 frame (lowest point at z = 0, bounding box centred on x = y = 0).
 
 Label table (first that applies): ``[plant_file] label_names`` (``{"1" = "leaf", "2" =
-"stem"}``); the table in an agrisim PLY's header (``comment agrisim {json}``); else id 1 is
-"plant" when it is the only one and every other id is ``label_<id>``. A point whose label the
-table does not name is refused.
+"stem"}``); the table in an agrisim PLY's header (``comment agrisim {json}``); else the default
+table of a plant without organ labels, 0 "background" and 1 "plant", as for meshes. A point whose
+label the table does not name is refused (a scan's other ids need their names: a guessed
+``label_<id>`` would reach the dataset's label table unnoticed).
 """
 
 from __future__ import annotations
@@ -169,29 +170,17 @@ def _table(
             raise AssetError(f"{shown}: the label table in its header is malformed ({exc})") from None
         source = "the table in its header"
     else:
-        ids = [int(i) for i in present if i != 0]
-        rows = [Label(0, "background", BACKGROUND)]
-        for i in ids:
-            name = "plant" if ids == [1] else f"label_{i}"
-            rows.append(Label(i, name, PALETTE["plant"] if name == "plant" else _spread(i)))
-        return LabelTable(rows)
+        table = LabelTable([Label(0, "background", BACKGROUND), Label(1, "plant", PALETTE["plant"])])
+        source = "the default table (0 background, 1 plant)"
     known = {lab.id for lab in table.labels}
     unknown = [int(i) for i in present if int(i) not in known]
     if unknown:
+        example = ", ".join(f'"{i}" = "leaf"' for i in unknown[:1])
         raise AssetError(
             f"{shown}: points carry label ids {unknown[:8]} that {source} does not name (it names "
-            f"{sorted(known)}); name every id"
+            f"{sorted(known)}); name every id in [plant_file] label_names, e.g. {{{example}}}"
         )
     return table
-
-
-def _spread(i: int) -> tuple[int, int, int]:
-    """A distinct colour for an unnamed label id."""
-    h = (i * 0.618033988749895) % 1.0
-    k = int(h * 6)
-    f = h * 6 - k
-    q, t = int(255 * (1 - f)), int(255 * f)
-    return [(255, t, 0), (q, 255, 0), (0, 255, t), (0, q, 255), (t, 0, 255), (255, 0, q)][k % 6]
 
 
 def load_point_plant(

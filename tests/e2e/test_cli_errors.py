@@ -42,6 +42,8 @@ def workdir(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
     (tmp_path / "nan.ply").write_text(head.format(n=2) + "end_header\n0 0 0\n0 nan 0.1\n")
     (tmp_path / "good.ply").write_text(head.format(n=2) + "end_header\n0 0 0\n0 0 0.1\n")
     (tmp_path / "label300.ply").write_text(head.format(n=2) + "property int label\nend_header\n0 0 0 1\n0 0 0.1 300\n")
+    (tmp_path / "label250.ply").write_text(head.format(n=2) + "property int label\nend_header\n0 0 0 1\n0 0 0.1 250\n")
+    (tmp_path / "names.toml").write_text('[plant_file]\nlabel_names = {"1" = "leaf", "2" = "stem"}\n')
     (tmp_path / "existing").mkdir()
     (tmp_path / "existing" / "keep.txt").write_text("precious results\n")
     (tmp_path / "cwd").mkdir()
@@ -189,6 +191,12 @@ CASES = [
     pytest.param(["--plant", "{tmp}/empty.ply"], ["empty.ply", "no points"], id="cloud-without-points"),
     pytest.param(["--plant", "{tmp}/nan.ply"], ["nan.ply", "NaN or infinite"], id="cloud-with-nan"),
     pytest.param(["--plant", "{tmp}/label300.ply"], ["label300.ply", "300", "outside 0..255"], id="cloud-label-300"),
+    pytest.param(["--plant", "{tmp}/label250.ply"], ["label250.ply", "[250]", "default table", "label_names"], id="cloud-label-not-in-default-table"),
+    pytest.param(
+        ["--plant", "{tmp}/label250.ply", "--config", "{tmp}/names.toml"],
+        ["label250.ply", "[250]", "label_names does not name", "[0, 1, 2]"],
+        id="cloud-label-not-in-label-names",
+    ),
     pytest.param(["--plant", "{tmp}/missing.ply"], ["missing.ply"], id="missing-cloud"),
     pytest.param(["--plant", "{tmp}/good.ply", "--as-points", "10"], ["already a point cloud"], id="as-points-of-a-cloud"),
 ]

@@ -189,6 +189,8 @@ def _ply(path, rows: str, props: str = "property float x\nproperty float y\nprop
         ("property float x\nproperty float y\nproperty float z\nproperty int label\n", "0 0 0 1\n0 0 1 300\n", None, "outside 0..255"),
         ("property float x\nproperty float y\nproperty float z\nproperty int label\n", "0 0 0 1\n0 0 1 -1\n", None, "outside 0..255"),
         ("property float x\nproperty float y\nproperty float z\nproperty uchar label\n", "0 0 0 1\n0 0 1 7\n", {1: "leaf"}, "does not name"),
+        # without names, the default table: 0 background and 1 plant, nothing guessed
+        ("property float x\nproperty float y\nproperty float z\nproperty uchar label\n", "0 0 0 1\n0 0 1 250\n", None, r"\[250\] that the default table"),
         ("property float x\nproperty float y\n", "0 0\n", None, "x, y and z"),
     ],
 )
@@ -197,6 +199,19 @@ def test_bad_point_files_are_refused_with_one_line(tmp_path, props, rows, names,
     with pytest.raises(UserError, match=expect) as info:
         load_point_plant(path, label_names=names)
     assert "\n" not in str(info.value)
+
+
+def test_ids_the_header_table_of_an_agrisim_ply_does_not_name_are_refused(tmp_path):
+    pts = _plane(0.003, 0.002, n_side=4, jitter=0.0)
+    pts.labels[:] = 1
+    pts.labels[5] = 42  # in no table
+    write_points_ply(tmp_path / "c.ply", pts, TABLE)
+    with pytest.raises(UserError, match=r"\[42\] that the table in its header does not name") as info:
+        load_point_plant(tmp_path / "c.ply")
+    assert "\n" not in str(info.value)
+    # named by the run, the same file reads
+    names = {lab.id: lab.name for lab in TABLE.labels if lab.id} | {42: "fruit"}
+    assert 42 in {lab.id for lab in load_point_plant(tmp_path / "c.ply", label_names=names).labels.labels}
 
 
 def test_a_ply_mesh_is_not_taken_for_a_cloud(tmp_path):
