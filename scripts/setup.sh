@@ -4,7 +4,7 @@
 # then agrisim itself in editable mode. Safe to run again: a venv that already matches the lock
 # is left as it is.
 #
-# The lock is installed with uv (pinned below) because it is about 3.5x faster than pip on a cold
+# The lock is installed with uv (pinned below) because it is about 2.7x faster than pip on a cold
 # cache (bench figures in the README); if uv cannot be installed, pip installs the same lock.
 set -euo pipefail
 cd "$(dirname "$0")/.."
