@@ -1,4 +1,6 @@
-"""The ``agrisim`` command line: ``agrisim run``, ``agrisim plants`` and ``agrisim plugins``.
+"""The ``agrisim`` commands: ``run``, ``view``, ``recon``, ``render``, ``plugins``, ``plants``,
+``export`` and ``compare``, each a function of its parsed flags (:mod:`agrisim.app.arguments`
+declares them).
 
 Bad input exits with status 2 and one line naming the problem; nothing is written. Internal
 failures exit 1 (``AGRISIM_DEBUG=1`` shows the traceback) with the run's partial results kept.
@@ -8,292 +10,15 @@ from __future__ import annotations
 
 import argparse
 import os
-import re
 import sys
 import traceback
 from collections.abc import Sequence
-from pathlib import Path
-from typing import Any, NoReturn
+from typing import Any
 
+from agrisim.app.arguments import COMPARE_EPISODE_FLAGS, PROG, apply_sets, build_parser, fail, overrides_from_args, set_dotted, web_address
 from agrisim.files import layout
 from agrisim.config import RunConfig, build_config, first_difference, load_toml, outcome_settings
 from agrisim.errors import BackendFailure, UserError
-
-if sys.version_info >= (3, 11):
-    import tomllib
-else:  # pragma: no cover
-    import tomli as tomllib
-
-PROG = "agrisim"
-
-
-class _Parser(argparse.ArgumentParser):
-    """argparse with one-line errors (no usage dump), exit status 2."""
-
-    def error(self, message: str) -> NoReturn:
-        _fail(message)
-
-
-def _fail(message: str, status: int = 2) -> NoReturn:
-    sys.stderr.write(f"{PROG}: error: {message}\n")
-    raise SystemExit(status)
-
-
-# Long but flat: one declaration per flag, the CLI's reference in one place.
-def _parser() -> argparse.ArgumentParser:
-    p = _Parser(prog=PROG, description="Robot arms photographing plants: simulate, annotate, reconstruct.")
-    sub = p.add_subparsers(dest="command", metavar="COMMAND")
-    sub.required = True
-
-    run = sub.add_parser("run", help="run one episode of the routine", description="Run one episode of the routine.")
-    run.add_argument("--config", type=Path, metavar="TOML", help="configuration file; flags override it")
-    run.add_argument("--plant", metavar="NAME|PATH", help="species (agrisim plants), a .glb/.gltf/.obj mesh or a .ply/.pcd point cloud")
-    run.add_argument("--plant-age", type=float, metavar="DAYS", help="age of a growing plant (helios:*), days")
-    run.add_argument(
-        "--as-points", type=int, metavar="N", help="draw the plant as N points sampled on its opaque surface (the paper's Table 3)"
-    )
-    run.add_argument(
-        "--point-size", type=float, metavar="M", help="diameter of each point of a point plant, metres (default: one that covers its surface)"
-    )
-    run.add_argument("--seg-mode", choices=["texture", "repopa"], help="segmentation mode (default: texture)")
-    run.add_argument("--labels", choices=["plant", "organs"], help="one plant label, or one per organ (default: plant)")
-    run.add_argument("--renderer", metavar="NAME", help="renderer (default: raycast; none: robots only)")
-    run.add_argument("--shadow-samples", type=int, metavar="N", help="shadow rays per pixel, 0..32 (default: 1)")
-    run.add_argument("--supersample", type=int, metavar="S", help="S x S RGB rays per pixel, 1..4 (default: 1)")
-    run.add_argument("--hide-robots", action="store_true", default=None, help="render without the arms")
-    run.add_argument(
-        "--depth-format", choices=["png16", "exr", "both"], help="depth as uint16 mm PNG, float32 m EXR, or both (default: png16)"
-    )
-    run.add_argument("--pcg-seed", type=int, metavar="N", help="seed of the lab clutter (default: 42)")
-    run.add_argument("--physics", metavar="NAME", help="physics backend (default: pybullet)")
-    run.add_argument("--planner", metavar="NAME", help="motion planner (default: ompl)")
-    run.add_argument("--recon", metavar="NAME", help="reconstructor (default: pointcloud; none: no reconstruction)")
-    run.add_argument("--camera", metavar="PRESET", help="camera preset (default: rpi3-wide-1080p)")
-    run.add_argument("--resolution", metavar="WxH", help="image size (default: the preset's 1920x1080)")
-    run.add_argument("--setpoints", metavar="LxC", help="L levels x C columns per arm (default: 5x10)")
-    run.add_argument("--setpoints-csv", type=Path, metavar="CSV", help="camera poses from a CSV instead")
-    run.add_argument("--arms", type=int, metavar="N", help="1 or 2 arms (default: 2)")
-    run.add_argument("--seed", type=int, metavar="N", help="seed for IK restarts and planners (default: 0)")
-    run.add_argument("--out", type=Path, metavar="DIR", help="output directory (default: runs/<timestamp>)")
-    rec = run.add_mutually_exclusive_group()
-    rec.add_argument("--rrd", type=Path, metavar="PATH", help="Rerun recording path (default: OUT/recording.rrd)")
-    rec.add_argument("--no-rrd", action="store_true", default=None, help="write no Rerun recording")
-    run.add_argument("--spawn", action="store_true", default=None, help="stream to a spawned Rerun viewer")
-    run.add_argument(
-        "--serve-web",
-        action="store_true",
-        help="stream the run live to Rerun's web viewer, served here (print its address; after the run, serve until Ctrl-C)",
-    )
-    _web_flags(run)
-    run.add_argument("--overwrite", action="store_true", default=None, help="replace an existing --out")
-    run.add_argument(
-        "--resume",
-        action="store_true",
-        default=None,
-        help="continue the unfinished run in --out with its saved configuration",
-    )
-    run.add_argument(
-        "--set",
-        action="append",
-        default=[],
-        metavar="KEY=VALUE",
-        help="any setting by its dotted name, e.g. physics.pybullet.position_gain=0.5",
-    )
-
-    plants = sub.add_parser("plants", help="list the plant species: triangles, organs, area cut away by opacity")
-    plants.add_argument("--seed", type=int, default=0, metavar="N", help="seed to grow each species with (0)")
-    plugins = sub.add_parser("plugins", help="list every backend of every kind and where it comes from")
-    plugins.add_argument("--options", action="store_true", help="also list each backend's options")
-    recon = sub.add_parser(
-        "recon",
-        help="rebuild a run's reconstruction and metrics from its files",
-        description="Rebuild the reconstruction (clouds/) and metrics.json of a complete run from its images.",
-    )
-    recon.add_argument("run_dir", type=Path, metavar="RUN_DIR", help="a complete run's output directory")
-    recon.add_argument("--recon", metavar="NAME", help="reconstructor (default: the run's own)")
-    recon.add_argument("--out", type=Path, metavar="DIR", help="write clouds/ and metrics.json here (default: RUN_DIR)")
-    recon.add_argument("--overwrite", action="store_true", help="replace existing clouds and metrics.json")
-    recon.add_argument(
-        "--set",
-        action="append",
-        default=[],
-        metavar="KEY=VALUE",
-        help="recon.* or metrics.* settings, e.g. recon.tsdf.voxel_size=0.003",
-    )
-    render = sub.add_parser(
-        "render",
-        help="re-render a finished run's RGB with another renderer (e.g. path-traced), keeping its labels and depth",
-        description="Draw the RGB of a complete run again from its saved scene, camera and arm poses, into a complete "
-        "dataset (default: RUN_DIR-<renderer>); labels, depth, instances, clouds and metrics are carried over.",
-    )
-    render.add_argument("run_dirs", type=Path, nargs="+", metavar="RUN_DIR", help="complete runs' output directories")
-    render.add_argument("--renderer", default="mitsuba", metavar="NAME", help="a renderer that can re-render (mitsuba)")
-    render.add_argument("--out", type=Path, metavar="DIR", help="output directory of one run (default: RUN_DIR-<renderer>)")
-    render.add_argument(
-        "--ray-address", metavar="ADDR", help="several runs: join this Ray cluster (default: a local one), one GPU a run"
-    )
-    render.add_argument("--overwrite", action="store_true", help="replace an existing --out (or RUN_DIR's own RGB)")
-    render.add_argument(
-        "--set", action="append", default=[], metavar="KEY=VALUE", help="renderer.* settings, e.g. renderer.mitsuba.spp=64"
-    )
-    export = sub.add_parser(
-        "export",
-        help="export a run directory to another tool's format",
-        description="Export a run directory: nerfstudio writes RUN_DIR/transforms.json and RUN_DIR/masks/; "
-        "coco writes RUN_DIR/coco/annotations.json (COCO instance masks); rosbag writes RUN_DIR/rosbag/ "
-        "(a ROS 2 bag in MCAP: TF, joint states, planned trajectories, camera images, depth, labels, clouds).",
-    )
-    export.add_argument(
-        "format", choices=["nerfstudio", "coco", "rosbag"], help="the format: nerfstudio (transforms.json), coco or rosbag"
-    )
-    export.add_argument("run_dir", type=Path, metavar="RUN_DIR", help="a run's output directory (agrisim run --out)")
-    export.add_argument("--overwrite", action="store_true", help="replace an existing export (coco, rosbag)")
-    view = sub.add_parser(
-        "view",
-        help="serve a run's Rerun recording to a web browser",
-        description="Serve a run's recording (RUN_DIR/recording.rrd, or an .rrd file) with Rerun's web viewer and "
-        "print the address to open; Ctrl-C stops. Loopback only unless --bind says otherwise.",
-    )
-    view.add_argument("target", type=Path, metavar="RUN_DIR|RRD", help="a run's output directory or a recording file")
-    _web_flags(view)
-    compare = sub.add_parser(
-        "compare",
-        help="the paper's Table 2: every plant in both segmentation modes, episodes on Ray",
-        description="Run every plant in both segmentation modes (texture, repopa) as Ray tasks, each into "
-        "OUT/<plant>/<seg_mode>, and write the paper's Table 2 with accuracy: OUT/table.md, table.csv, chart.png.",
-    )
-    compare.add_argument("--plants", metavar="A,B,...", help="species or plant files (default: the ten species)")
-    compare.add_argument("--seg-modes", metavar="M,...", help="segmentation modes (default: texture,repopa)")
-    compare.add_argument(
-        "--as-points", type=int, metavar="N", help="with --point-sizes: each plant as N points sampled on its surface"
-    )
-    compare.add_argument(
-        "--point-sizes",
-        metavar="M,...",
-        help="the paper's Table 3: the mesh, then its points at each size (diameters in metres, e.g. 0.001,0.002)",
-    )
-    compare.add_argument("--workers", type=int, metavar="N", help="episodes at a time (default: one per CPU)")
-    compare.add_argument(
-        "--ray-address", metavar="ADDR", help="join this Ray cluster (HOST:PORT or auto; default: a local Ray)"
-    )
-    compare.add_argument("--out", type=Path, metavar="DIR", help="output directory (default: runs/compare-<timestamp>)")
-    compare.add_argument("--overwrite", action="store_true", help="replace an existing --out")
-    compare.add_argument("--resume", action="store_true", help="continue the compare in --out: complete runs are kept")
-    compare.add_argument("--recordings", action="store_true", help="also write each episode's recording.rrd")
-    compare.add_argument("--config", type=Path, metavar="TOML", help="configuration file shared by the episodes")
-    for flag, meta, kind, text in _COMPARE_EPISODE_FLAGS:
-        compare.add_argument(flag, metavar=meta, type=kind, help=text)
-    compare.add_argument(
-        "--set", action="append", default=[], metavar="KEY=VALUE", help="any setting by its dotted name"
-    )
-    return p
-
-
-#: the episode options `compare` passes on (as `agrisim run` has them)
-_COMPARE_EPISODE_FLAGS: list[tuple[str, str, Any, str]] = [
-    ("--labels", "plant|organs", str, "one plant label, or one per organ (default: plant)"),
-    ("--plant-age", "DAYS", float, "age of every growing plant (helios:*), days (default: each model's)"),
-    ("--renderer", "NAME", str, "renderer (default: raycast)"),
-    ("--shadow-samples", "N", int, "shadow rays per pixel, 0..32 (default: 1)"),
-    ("--physics", "NAME", str, "physics backend (default: pybullet)"),
-    ("--planner", "NAME", str, "motion planner (default: ompl)"),
-    ("--recon", "NAME", str, "reconstructor (default: pointcloud)"),
-    ("--camera", "PRESET", str, "camera preset (default: rpi3-wide-1080p)"),
-    ("--resolution", "WxH", str, "image size (default: the preset's 1920x1080)"),
-    ("--setpoints", "LxC", str, "L levels x C columns per arm (default: 5x10)"),
-    ("--seed", "N", int, "seed for IK restarts and planners (default: 0)"),
-    ("--pcg-seed", "N", int, "seed of the lab clutter (default: 42)"),
-]
-
-
-def _set(tree: dict[str, Any], dotted: str, value: Any) -> None:
-    keys = dotted.split(".")
-    node = tree
-    for key in keys[:-1]:
-        node = node.setdefault(key, {})
-        if not isinstance(node, dict):
-            raise UserError(f"--set {dotted}: {key!r} is not a table")
-    node[keys[-1]] = value
-
-
-def _parse_value(text: str) -> Any:
-    """A TOML value (number, bool, string, array); bare words are strings, and so are words
-    like ``0x1`` that TOML would read as hexadecimal, octal or binary numbers (a grid ``LxC``)."""
-    if re.fullmatch(r"[+-]?0[xob][0-9a-fA-F_]*", text.strip()):
-        return text
-    try:
-        return tomllib.loads(f"v = {text}")["v"]
-    except tomllib.TOMLDecodeError:
-        return text
-
-
-def _web_flags(parser: argparse.ArgumentParser) -> None:
-    from agrisim.app.web import DEFAULT_BIND, DEFAULT_GRPC_PORT, DEFAULT_WEB_PORT
-
-    parser.add_argument("--web-port", type=int, metavar="N", help=f"port of the web page (default: {DEFAULT_WEB_PORT})")
-    parser.add_argument("--grpc-port", type=int, metavar="N", help=f"port the page reads the recording from (default: {DEFAULT_GRPC_PORT})")
-    parser.add_argument("--bind", metavar="ADDR", help=f"address to serve on (default: {DEFAULT_BIND}, this machine only; 0.0.0.0: every interface)")
-
-
-def _web_address(args: argparse.Namespace) -> tuple[str, int, int]:
-    """(bind, web port, gRPC port) of ``--bind``, ``--web-port``, ``--grpc-port``, checked."""
-    from agrisim.app.web import DEFAULT_BIND, DEFAULT_GRPC_PORT, DEFAULT_WEB_PORT, check_address
-
-    bind = args.bind or DEFAULT_BIND
-    web = args.web_port if args.web_port is not None else DEFAULT_WEB_PORT
-    grpc = args.grpc_port if args.grpc_port is not None else DEFAULT_GRPC_PORT
-    if web == grpc:
-        raise UserError(f"--web-port and --grpc-port must differ (both {web})")
-    check_address(bind, {"--web-port": web, "--grpc-port": grpc})
-    return bind, web, grpc
-
-
-def overrides_from_args(args: argparse.Namespace) -> dict[str, Any]:
-    """The flags given on the command line, as a nested config dictionary."""
-    out: dict[str, Any] = {}
-    flat = {
-        "plant": args.plant,
-        "plant_age": args.plant_age,
-        "points.count": args.as_points,
-        "points.size": args.point_size,
-        "render.seg_mode": args.seg_mode,
-        "render.labels": args.labels,
-        "renderer.backend": args.renderer,
-        "render.shadow_samples": args.shadow_samples,
-        "render.supersample": args.supersample,
-        "render.hide_robots": args.hide_robots,
-        "render.depth_format": args.depth_format,
-        "pcg_seed": args.pcg_seed,
-        "physics.backend": args.physics,
-        "planner.backend": args.planner,
-        "recon.backend": args.recon,
-        "camera.preset": args.camera,
-        "camera.resolution": args.resolution,
-        "routine.setpoints": args.setpoints,
-        "routine.csv": str(args.setpoints_csv) if args.setpoints_csv else None,
-        "cell.arms": args.arms,
-        "seed": args.seed,
-        "output.out": str(args.out) if args.out else None,
-        "output.rrd": str(args.rrd) if args.rrd else None,
-        "output.no_rrd": args.no_rrd,
-        "output.spawn": args.spawn,
-        "output.overwrite": args.overwrite,
-        "output.resume": args.resume,
-    }
-    for key, value in flat.items():
-        if value is not None:
-            _set(out, key, value)
-    _apply_sets(out, args.set)
-    return out
-
-
-def _apply_sets(tree: dict[str, Any], items: Sequence[str]) -> None:
-    """``--set KEY=VALUE`` items into a nested config dictionary."""
-    for item in items:
-        key, sep, value = item.partition("=")
-        if not sep or not key.strip():
-            raise UserError(f"--set expects KEY=VALUE, got {item!r}")
-        _set(tree, key.strip(), _parse_value(value.strip()))
 
 
 def _cmd_run(args: argparse.Namespace) -> int:
@@ -305,8 +30,8 @@ def _cmd_run(args: argparse.Namespace) -> int:
     if args.serve_web:
         from agrisim.app.web import grpc_url
 
-        web = _web_address(args)
-        _set(overrides, "sink.rerun.connect", grpc_url(web[0], web[2]))
+        web = web_address(args)
+        set_dotted(overrides, "sink.rerun.connect", grpc_url(web[0], web[2]))
     elif any(v is not None for v in (args.web_port, args.grpc_port, args.bind)):
         raise UserError("--web-port, --grpc-port and --bind go with --serve-web")
     if args.resume:
@@ -353,12 +78,12 @@ def _cmd_view(args: argparse.Namespace) -> int:
     from agrisim.app.web import recording_of, serve_web
 
     recording = recording_of(args.target)
-    bind, web, grpc = _web_address(args)
+    bind, web, grpc = web_address(args)
     with serve_web(recording, bind, web, grpc) as viewer:
         print(f"serving {recording} at {viewer.url} (Ctrl-C to stop)", flush=True)
         status = viewer.wait()
     if status not in (0, -2, -15):
-        _fail(f"the Rerun web viewer stopped with status {status}", status=1)
+        fail(f"the Rerun web viewer stopped with status {status}", status=1)
     return 0
 
 
@@ -368,8 +93,8 @@ def _cmd_recon(args: argparse.Namespace) -> int:
 
     overrides: dict[str, Any] = {}
     if args.recon:
-        _set(overrides, "recon.backend", args.recon)
-    _apply_sets(overrides, args.set)
+        set_dotted(overrides, "recon.backend", args.recon)
+    apply_sets(overrides, args.set)
     with EpisodeProgress("views") as progress:
         out, metrics = reconstruct_saved_run(args.run_dir, overrides, args.out, args.overwrite, progress.update)
     print(f"reconstructed {metrics['frames']} views with {metrics['recon']}")
@@ -388,7 +113,7 @@ def _cmd_render(args: argparse.Namespace) -> int:
     from agrisim.app.render import RenderPlan
 
     overrides: dict[str, Any] = {}
-    _apply_sets(overrides, args.set)
+    apply_sets(overrides, args.set)
     if len(args.run_dirs) > 1:
         return _render_several(args, overrides)
     plan = RenderPlan(args.run_dirs[0], args.renderer, overrides, args.out, args.overwrite)
@@ -417,7 +142,7 @@ def _render_several(args: argparse.Namespace, overrides: dict[str, Any]) -> int:
     for r in records:
         print(f"  {r['run']}: " + (f"failed: {r['error']}" if "error" in r else f"{r['frames']} frames -> {r['out']}"))
     if failed:
-        _fail(f"{len(failed)} of {len(records)} re-renders failed; run the command again to resume them", status=1)
+        fail(f"{len(failed)} of {len(records)} re-renders failed; run the command again to resume them", status=1)
     return 0
 
 
@@ -529,8 +254,8 @@ def _cmd_compare(args: argparse.Namespace) -> int:
         raise UserError(f"--workers must be 1 or more, got {args.workers}")
     # Every `run` option at its default, then compare's episode options on top: the overrides
     # are built exactly as for `agrisim run`.
-    episode = _parser().parse_args(["run"])
-    for flag, *_ in _COMPARE_EPISODE_FLAGS:
+    episode = build_parser().parse_args(["run"])
+    for flag, *_ in COMPARE_EPISODE_FLAGS:
         dest = flag.lstrip("-").replace("-", "_")
         setattr(episode, dest, getattr(args, dest))
     episode.set = args.set
@@ -568,14 +293,14 @@ def _cmd_compare(args: argparse.Namespace) -> int:
     for r in result.failed:
         sys.stderr.write(f"{PROG}: {r['plant']} ({r.get('variant') or r['seg_mode']}) {r['status']}: {r.get('error', '')}\n")
     if result.failed or result.missing:
-        _fail(f"{len(result.failed)} of {len(result.records)} episodes did not complete; "
+        fail(f"{len(result.failed)} of {len(result.records)} episodes did not complete; "
               f"the table lacks {', '.join(result.missing) or 'nothing'}; --resume continues", status=1)
     return 0
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``agrisim`` console script."""
-    args = _parser().parse_args(argv)
+    args = build_parser().parse_args(argv)
     try:
         if args.command == "run":
             return _cmd_run(args)
@@ -593,7 +318,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             return _cmd_view(args)
         return _cmd_plugins(args)
     except UserError as exc:
-        _fail(str(exc))
+        fail(str(exc))
     except KeyboardInterrupt:
         sys.stderr.write(f"{PROG}: interrupted\n")
         return 130
@@ -601,11 +326,11 @@ def main(argv: Sequence[str] | None = None) -> int:
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 0
     except BackendFailure as exc:  # a plugin's failure: named, the run's finished work kept
-        _fail(str(exc), status=1)
+        fail(str(exc), status=1)
     except Exception as exc:  # an internal failure, not the user's input
         if os.environ.get("AGRISIM_DEBUG"):
             traceback.print_exc()
-        _fail(f"internal error: {type(exc).__name__}: {exc} (set AGRISIM_DEBUG=1 for the traceback)", status=1)
+        fail(f"internal error: {type(exc).__name__}: {exc} (set AGRISIM_DEBUG=1 for the traceback)", status=1)
 
 
 if __name__ == "__main__":  # pragma: no cover

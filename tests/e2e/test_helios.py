@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from agrisim.app.cli import _parser, overrides_from_args
+from agrisim.app.arguments import build_parser, overrides_from_args
 from agrisim.config import RunConfig, build_config
 from agrisim.episode import Episode, resolve_plant
 from agrisim.errors import UserError
@@ -203,10 +203,10 @@ def test_plants_fit_the_routine_or_are_refused():
 
 
 def test_plant_age_flag_and_settings(tmp_path, cli):
-    args = _parser().parse_args(["run", "--plant", "helios:tomato", "--plant-age", "25"])
+    args = build_parser().parse_args(["run", "--plant", "helios:tomato", "--plant-age", "25"])
     assert build_config(overrides_from_args(args)).plants == {"helios:tomato": {"age": 25.0}}  # the species' option
     for extra in (["--set", "plant_age=25"], ["--set", "plants.helios:tomato.age=25"]):
-        config = build_config(overrides_from_args(_parser().parse_args(["run", "--plant", "helios:tomato", *extra])))
+        config = build_config(overrides_from_args(build_parser().parse_args(["run", "--plant", "helios:tomato", *extra])))
         plant = resolve_plant(Registry(make_plugin_manager()), config)
         assert "at 25 days" in plant.notes[0]
     out = tmp_path / "out"

@@ -165,12 +165,12 @@ def test_broken_set_flags_are_refused(key: str, text: str, sandbox: Path, cli) -
     or the KEY itself is misspelt."""
     out = str(sandbox / f"out-{uuid.uuid4().hex}")
     base = ["run", "--renderer", "none", "--physics", "kinematic", "--setpoints", "1x1", "--out", out]
-    from agrisim.app.cli import _parse_value
+    from agrisim.app.arguments import parse_value
     from agrisim.config import build_config
     from agrisim.errors import UserError
 
     tree: dict[str, Any] = {}
-    _set(tree, key, _parse_value(text))
+    _set(tree, key, parse_value(text))
     try:  # a value that happens to be valid for KEY is not hostile: misspell the key instead
         build_config(BASE, tree)
         key = key + "_x"
