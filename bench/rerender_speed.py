@@ -38,7 +38,7 @@ def main() -> None:
         with tempfile.TemporaryDirectory() as tmp:
             plan = RenderPlan(args.run_dir, "mitsuba", options, Path(tmp) / "out", overwrite=False)
             t0 = time.perf_counter()
-            plan.run(lambda done, total: stamps.append(time.perf_counter()))
+            plan.run(lambda done, total, stamps=stamps: stamps.append(time.perf_counter()))
             import mitsuba
 
             variant = mitsuba.variant()

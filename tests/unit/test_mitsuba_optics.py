@@ -94,7 +94,7 @@ def icosphere(subdivisions: int) -> tuple[np.ndarray, np.ndarray]:
     for _ in range(subdivisions):
         middle: dict[tuple[int, int], int] = {}
 
-        def mid(i: int, j: int) -> int:
+        def mid(i: int, j: int, middle: dict[tuple[int, int], int] = middle) -> int:
             key = (min(i, j), max(i, j))
             if key not in middle:
                 m = verts[i] + verts[j]

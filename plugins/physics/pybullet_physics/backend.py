@@ -123,12 +123,12 @@ class _World:
             # Links welded by fixed joints form one rigid part (flange, ee_link, camera): each
             # link's part is named by its first ancestor behind a moving joint. Parts touching
             # themselves or their parent part is not a collision, nor the base part its stand.
-            def part(j: int) -> int:
+            def part(j: int, fixed: set[int] = fixed, parent: dict[int, int] = parent) -> int:
                 while j in fixed:
                     j = parent[j]
                 return j
 
-            def part_parent(p: int) -> int:
+            def part_parent(p: int, parent: dict[int, int] = parent) -> int:
                 return part(parent[p]) if p >= 0 else -2
 
             shaped = [j for j in links if c.getCollisionShapeData(body, j)]

@@ -34,7 +34,9 @@ def grow_boston_fern(geo, tex, size, density) -> Grown:
         "rachis": (0.35, 0.45, 0.18),
     }
     aspect = 0.17
-    env = lambda Y: np.sin(np.pi * np.clip(Y, 0, 1) ** 0.5) ** 0.4
+    def env(Y: np.ndarray) -> np.ndarray:
+        return np.sin(np.pi * np.clip(Y, 0, 1) ** 0.5) ** 0.4
+
     frond_t = tiles(
         atlas,
         tex,
@@ -126,7 +128,9 @@ def grow_common_fern(geo, tex, size, density) -> Grown:
         "vein": (0.45, 0.62, 0.25),
         "rachis": (0.38, 0.42, 0.18),
     }
-    env = lambda Y: np.sin(np.pi * np.clip(Y, 0, 1) ** 0.75) ** 0.7
+    def env(Y: np.ndarray) -> np.ndarray:
+        return np.sin(np.pi * np.clip(Y, 0, 1) ** 0.75) ** 0.7
+
     frond_t = tiles(
         atlas,
         tex,

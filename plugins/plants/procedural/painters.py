@@ -357,8 +357,8 @@ def sprig(leaf_label: int, stem_label: int, colours: dict, twig_colour: tuple, p
                 ang = side * rng.uniform(0.7, 1.1)  # leaf axis from +Y
                 lx, ly = X * np.cos(ang) - (Y - y0) * np.sin(ang), X * np.sin(ang) + (Y - y0) * np.cos(ang)
                 # ellipse from the twig outward along the rotated x axis
-                l = L * rng.uniform(0.8, 1.0)
-                e = np.sqrt(((side * lx - l / 2) / (l / 2)) ** 2 + (ly / W) ** 2)
+                length = L * rng.uniform(0.8, 1.0)
+                e = np.sqrt(((side * lx - length / 2) / (length / 2)) ** 2 + (ly / W) ** 2)
                 f_leaf = np.maximum(f_leaf, (1 - e) * W)
         tipx, tipy = X, Y - 0.93
         e = np.sqrt((tipx / W) ** 2 + (tipy / 0.07) ** 2)

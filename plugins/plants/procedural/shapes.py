@@ -78,7 +78,9 @@ def strip_cards(
     """
     base = np.asarray(base, float)
     n = len(base)
-    b = lambda x: np.broadcast_to(np.asarray(x, float), (n,))
+    def b(x: object) -> np.ndarray:
+        return np.broadcast_to(np.asarray(x, float), (n,))
+
     az, elev, length = b(az), b(elev), b(length)
     bend, curl, roll, twist, fold = b(bend), b(curl), b(roll), b(twist), b(fold)
     rects = np.asarray(rects, float)

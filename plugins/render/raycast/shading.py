@@ -70,11 +70,11 @@ class Shader:
         out = []
         for i in range(L.n):
             pos = L.position[i]
-            l = self.mi.Vector3f(float(pos[0]) - p.x, float(pos[1]) - p.y, float(pos[2]) - p.z)
-            r2 = dr.maximum((l.x * l.x + l.y * l.y) + l.z * l.z, _TINY)
-            cos_s = dr.maximum((n.x * l.x + n.y * l.y) + n.z * l.z, 0.0)
+            to_light = self.mi.Vector3f(float(pos[0]) - p.x, float(pos[1]) - p.y, float(pos[2]) - p.z)
+            r2 = dr.maximum((to_light.x * to_light.x + to_light.y * to_light.y) + to_light.z * to_light.z, _TINY)
+            cos_s = dr.maximum((n.x * to_light.x + n.y * to_light.y) + n.z * to_light.z, 0.0)
             dx, dy, dz = (float(-v) for v in L.direction[i])
-            cos_e = (l.x * dx + l.y * dy) + l.z * dz
+            cos_e = (to_light.x * dx + to_light.y * dy) + to_light.z * dz
             if L.kind[i] == "area":
                 cos_s = cos_s * dr.maximum(cos_e, 0.0)
                 r2 = r2 * r2
