@@ -1,7 +1,8 @@
 """A real headless browser for the tests: Debian's ``chromium-headless-shell`` (or
 ``chromium``), driven over the DevTools protocol through a pipe (``--remote-debugging-pipe``:
 JSON messages separated by NUL bytes on file descriptors 3 and 4), so no WebDriver or websocket
-library is needed. WebGL runs on SwiftShader, Chromium's CPU rasterizer."""
+library is needed. WebGL runs on SwiftShader, Chromium's CPU rasterizer. The page's console is
+kept (``Page.console_lines()``), so a test can read what the page logged, e.g. a viewer's notices."""
 
 from __future__ import annotations
 
@@ -52,8 +53,13 @@ class Page:
         os.close(to_us)
         self._buffer = b""
         self._id = 0
+        #: what the page logged to its console, in order: (level, text), level as the console
+        #: call's name ("log", "debug", "info", "warning", "error", ...)
+        self.console: list[tuple[str, str]] = []
         target = self.call("Target.createTarget", {"url": url, "width": width, "height": height})["targetId"]
         self.session = self.call("Target.attachToTarget", {"targetId": target, "flatten": True})["sessionId"]
+        # the lines logged before this are not lost: enabling replays those the page has kept
+        self.call("Runtime.enable", session=self.session)
 
     def call(self, method: str, params: dict[str, Any] | None = None, session: str | None = None) -> dict[str, Any]:
         self._id += 1
@@ -73,6 +79,16 @@ class Page:
                 if "error" in reply:
                     raise RuntimeError(f"{method}: {reply['error']}")
                 return reply["result"]
+            if reply.get("method") == "Runtime.consoleAPICalled":
+                event = reply["params"]
+                text = " ".join(str(arg.get("value", arg.get("description", ""))) for arg in event["args"])
+                self.console.append((event["type"], text))
+
+    def console_lines(self) -> list[tuple[str, str]]:
+        """Everything the page has logged to its console so far (events are read while waiting
+        for replies, so one round trip first takes in those still in the pipe)."""
+        self.call("Runtime.evaluate", {"expression": "0"}, self.session)
+        return list(self.console)
 
     def screenshot(self) -> np.ndarray:
         """The tab as an RGB array."""

@@ -8,7 +8,9 @@ import socket
 import subprocess
 import sys
 import time
+import uuid
 from collections import defaultdict
+from collections.abc import Iterator
 from importlib import metadata
 from pathlib import Path
 
@@ -96,6 +98,81 @@ class Recording:
             if chunk.is_static and component in rb.schema.names:
                 return rb.column(component).to_pylist()[-1]
         return []
+
+
+@dataclasses.dataclass
+class StoredView:
+    """One view of a stored blueprint: what it is, where, and which entities it draws."""
+
+    kind: str  # "3D", "2D", "TimeSeries"
+    name: str
+    origin: str
+    queries: list[str]
+    hidden: set[str]  # entity paths an EntityBehavior override makes invisible (with their subtrees)
+
+    def holds(self, entity: str) -> bool:
+        """Is ``entity`` in the view's contents (drawn, or listed with its eye off)?"""
+        held = False
+        for query in self.queries:
+            rule = query.strip().replace("$origin", self.origin).lstrip("/")
+            # only inclusions are written by the sink; an exclusion would need Rerun's precedence
+            assert not rule.startswith("-"), f"{self.name}: exclusion rules are not read here: {query}"
+            rule = rule.removeprefix("+").strip()
+            if rule.endswith("/**"):
+                base = rule.removesuffix("/**")
+                held |= entity == base or entity.startswith(base + "/")
+            else:
+                held |= entity == rule
+        return held
+
+    def shows(self, entity: str) -> bool:
+        """Is ``entity`` drawn when the recording opens (held, and no ancestor override hides it)?"""
+        return self.holds(entity) and not any(entity == h or entity.startswith(h + "/") for h in self.hidden)
+
+
+class StoredBlueprint:
+    """The default blueprint an ``.rrd`` holds: its views in layout order (depth first through the
+    containers, as the viewer lays them out) and every blueprint component by entity."""
+
+    def __init__(self, path: Path) -> None:
+        reader = RrdReader(path)
+        (store,) = reader.blueprints()
+        self.rows: dict[str, dict[str, list]] = defaultdict(dict)
+        for chunk in reader.stream(store=store):
+            rb = chunk.to_record_batch()
+            for name in rb.schema.names:
+                if ":" in name:  # a component (the others: row ids and the blueprint's own timelines)
+                    self.rows[chunk.entity_path.lstrip("/")][name] = rb.column(name).to_pylist()[-1]
+        root = self.rows["viewport"]["ViewportBlueprint:root_container"][0]
+        self.views = list(self._walk(f"container/{uuid.UUID(bytes=bytes(root))}"))
+
+    def _walk(self, item: str) -> Iterator[StoredView]:
+        if item.startswith("container/"):
+            for child in self.rows[item]["ContainerBlueprint:contents"]:
+                yield from self._walk(child)
+            return
+        row = self.rows[item]
+        prefix = f"{item}/ViewContents/overrides/"
+        hidden = {
+            path.removeprefix(prefix).removesuffix("/visualizers")
+            for path, components in self.rows.items()
+            if path.startswith(prefix) and components.get("EntityBehavior:visible") == [False]
+        }
+        yield StoredView(
+            kind=row["ViewBlueprint:class_identifier"][0],
+            name=row["ViewBlueprint:display_name"][0],
+            origin=row["ViewBlueprint:space_origin"][0].lstrip("/"),
+            queries=self.rows[f"{item}/ViewContents"]["ViewContents:query"],
+            hidden=hidden,
+        )
+
+    def view(self, name: str) -> StoredView:
+        (found,) = [v for v in self.views if v.name == name]
+        return found
+
+    def components(self, component: str) -> list:
+        """Every value of ``component`` anywhere in the blueprint."""
+        return [row[component] for row in self.rows.values() if component in row]
 
 
 def _plugin_manager():
@@ -259,6 +336,63 @@ def test_hooks_record_motion_images_and_clouds(tmp_path: Path) -> None:
     colors = rec.temporal(paths.setpoints("r1"), "Points3D:colors")
     assert len(colors["setpoint"]) == 3  # pending at start, then one update per setpoint
     assert rec.temporal(paths.log("r1"), "TextLog:text")["TextLog:text"][-1][0].startswith("r1_001: not reached")
+
+
+# ---------------------------------------------------------------------- the layout a viewer opens
+
+
+def test_blueprint_shows_photographs_and_merged_clouds(tmp_path: Path) -> None:
+    """The blueprint stored in a real run's recording: each camera panel draws the photograph,
+    with labels and leaf instances held as overlays switched off; depth has a panel of its own;
+    the 3D view draws the cell and the merged clouds, and holds each view's depth and cloud
+    switched off (they stay in the recording, one click from showing)."""
+    from conftest import small_run
+
+    run_dir = small_run(tmp_path / "run", output={"out": str(tmp_path / "run"), "no_rrd": False})
+    rrd = run_dir / "recording.rrd"
+    recorded = Recording(rrd)
+    entities_ = set(recorded.chunks)
+    blueprint = StoredBlueprint(rrd)
+    arms = ("r1", "r2")
+    view_clouds = {e for e in entities_ if e.startswith(paths.VIEW_CLOUDS + "/")}
+    merged_clouds = {e for e in entities_ if e.startswith(paths.MERGED_CLOUDS + "/")}
+    assert view_clouds and merged_clouds, "the run reconstructed nothing: nothing to check"
+    images = {kind: {paths.camera_image(a, kind) for a in arms} for kind in paths.IMAGE_KINDS}
+    assert set().union(*images.values()) <= entities_
+
+    names = [v.name for v in blueprint.views]
+    for arm in arms:
+        camera, depth = blueprint.view(f"{arm} camera"), blueprint.view(f"{arm} depth")
+        assert names.index(camera.name) < names.index(depth.name)  # the photograph first
+        held = {e for e in entities_ if camera.holds(e)}
+        assert {e for e in held if camera.shows(e)} == {paths.camera_image(arm, "rgb")}
+        assert held == {paths.camera_image(arm, kind) for kind in ("rgb", "labels", "instances")}
+        assert camera.kind == depth.kind == "2D" and camera.origin == depth.origin == paths.camera(arm)
+        assert {e for e in entities_ if depth.shows(e)} == {paths.camera_image(arm, "depth")}
+
+    cell = blueprint.view("cell")
+    assert cell.kind == "3D" and cell.origin == paths.WORLD
+    world = {e for e in entities_ if e == paths.WORLD or e.startswith(paths.WORLD + "/")}
+    assert all(cell.holds(e) for e in world)
+    hidden = {e for e in world if not cell.shows(e)}
+    assert hidden == view_clouds | images["depth"] | images["labels"] | images["instances"]
+    shown = world - hidden
+    assert merged_clouds | images["rgb"] <= shown
+    assert any(e.startswith("world/scene/") for e in shown) and paths.link_visual("r1", "base_link", 0) in shown
+
+    # Naming a timeline makes the viewer look it up before any row on it has arrived (a gRPC
+    # server replays blueprints ahead of all data): "Timeline sim_time not found". Unnamed, the
+    # viewer takes the timeline with the most rows, its own log_time and log_tick last, ties to
+    # the later name (Rerun's time_control.rs, default_timeline): that must be sim_time.
+    assert not blueprint.components("TimePanelBlueprint:timeline")
+    rows: dict[str, int] = defaultdict(int)
+    for chunks in recorded.chunks.values():
+        for chunk in chunks:
+            if not chunk.is_static:
+                rb = chunk.to_record_batch()
+                for timeline in ("setpoint", "sim_time", "log_time", "log_tick"):
+                    rows[timeline] += rb.num_rows if timeline in rb.schema.names else 0
+    assert max(rows, key=lambda t: (rows[t], t not in ("log_time", "log_tick"), t)) == "sim_time", dict(rows)
 
 
 def _free_port() -> int:

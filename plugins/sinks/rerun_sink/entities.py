@@ -50,6 +50,10 @@ class paths:  # noqa: N801 - a namespace of path builders, used like a module
     CELL = "world/cell"
     SETPOINTS = "world/setpoints"
     CLOUDS = "world/clouds"
+    #: every view's cloud, per label (``cloud(label, merged=False)``)
+    VIEW_CLOUDS = "world/clouds/view"
+    #: the merged clouds, per label (``cloud(label, merged=True)``)
+    MERGED_CLOUDS = "world/clouds/merged"
     PLANT = "world/plant"
     LIGHTS = "world/lights"
     METRICS = "metrics"
@@ -118,7 +122,7 @@ class paths:  # noqa: N801 - a namespace of path builders, used like a module
 
     @staticmethod
     def cloud(label: str, merged: bool) -> str:
-        return f"world/clouds/{'merged' if merged else 'view'}/{label}"
+        return f"{paths.MERGED_CLOUDS if merged else paths.VIEW_CLOUDS}/{label}"
 
     @staticmethod
     def metric(robot: str, name: str) -> str:
