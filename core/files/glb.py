@@ -1,23 +1,45 @@
 """agrisim's GLB writer: any :class:`Mesh` as a binary glTF that any viewer shows and that
 :func:`agrisim.files.plant_asset.load_plant` reads back exactly (textures, alpha settings,
 label textures, the label table and leaf instances in ``extras``; the format is described in
-:mod:`agrisim.files.plant_asset`)."""
+:mod:`agrisim.files.plant_asset`).
+
+The document is pygltflib's object model, which it serializes into the binary glTF. What goes in
+it is agrisim's: trimesh's exporter writes one vertex array per primitive (agrisim's primitives
+share one, so that vertices and their order read back as they were), no samplers (label textures
+need NEAREST), ``baseColorFactor`` through 8-bit colours and no ``normalTexture.scale``."""
 
 from __future__ import annotations
 
 import hashlib
 import io
-import json
+import itertools
 import os
-import struct
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 from PIL import Image
+from pygltflib import (  # type: ignore[import-untyped]  # (pygltflib ships no type hints)
+    GLTF2,
+    Accessor,
+    Asset,
+    Attributes,
+    Buffer,
+    BufferView,
+    Node,
+    NormalMaterialTexture,
+    PbrMetallicRoughness,
+    Primitive,
+    Sampler,
+    Scene,
+    Texture,
+    TextureInfo,
+)
+from pygltflib import Image as GltfImage
+from pygltflib import Material as GltfMaterial
+from pygltflib import Mesh as GltfMesh
 
 from agrisim.files.atomic import write_bytes
-from agrisim.files.gltf import CHUNK_BIN, CHUNK_JSON, GLB_MAGIC
 from agrisim.scene.model import LabelTable, Material, Mesh
 
 
@@ -37,9 +59,15 @@ def glb_bytes(mesh: Mesh, labels: LabelTable) -> bytes:
         raise ValueError(f"mesh {mesh.name!r} has no triangles to export")
     known = {lab.id for lab in labels.labels}
     for mat in mesh.materials:
-        used = {int(mat.label)} if mat.labels is None else set(np.flatnonzero(np.bincount(mat.labels.ravel(), minlength=256)).tolist())
+        used = (
+            {int(mat.label)}
+            if mat.labels is None
+            else set(np.flatnonzero(np.bincount(mat.labels.ravel(), minlength=256)).tolist())
+        )
         if not used <= known:
-            raise ValueError(f"material {mat.name!r} uses label ids {sorted(used - known)} missing from the label table")
+            raise ValueError(
+                f"material {mat.name!r} uses label ids {sorted(used - known)} missing from the label table"
+            )
 
     w = _GlbWriter()
     gltf_mesh = w.mesh(mesh)
@@ -66,39 +94,37 @@ def glb_bytes(mesh: Mesh, labels: LabelTable) -> bytes:
 
 
 class _GlbWriter:
-    """Collects buffer views, accessors, images and textures of one binary glTF."""
+    """Collects buffer views, accessors, images, textures and materials of one binary glTF
+    (:mod:`agrisim.files.scene_glb` writes its scenes through it too)."""
 
     def __init__(self) -> None:
         self.blob = bytearray()
-        self.views: list[dict[str, Any]] = []
-        self.accessors: list[dict[str, Any]] = []
-        self.images: list[dict[str, Any]] = []
-        self.textures: list[dict[str, Any]] = []
+        self.views: list[BufferView] = []
+        self.accessors: list[Accessor] = []
+        self.images: list[GltfImage] = []
+        self.textures: list[Texture] = []
         self._image_keys: dict[tuple[Any, ...], int] = {}
         self._texture_keys: dict[tuple[int, bool], int] = {}
-        self.materials: list[dict[str, Any]] = []
+        self.materials: list[GltfMaterial] = []
         self._material_index: dict[int, int] = {}
 
     def view(self, data: bytes, target: int | None = None) -> int:
         self.blob += b"\0" * (-len(self.blob) % 4)
-        v: dict[str, Any] = {"buffer": 0, "byteOffset": len(self.blob), "byteLength": len(data)}
-        if target is not None:
-            v["target"] = target
+        self.views.append(BufferView(buffer=0, byteOffset=len(self.blob), byteLength=len(data), target=target))
         self.blob += data
-        self.views.append(v)
         return len(self.views) - 1
 
     def accessor(self, arr: np.ndarray, target: int | None = None, minmax: bool = False) -> int:
         ctype = {np.dtype("<f4"): 5126, np.dtype("<u4"): 5125, np.dtype("<u2"): 5123}[arr.dtype]
-        acc: dict[str, Any] = {
-            "bufferView": self.view(np.ascontiguousarray(arr).tobytes(), target),
-            "componentType": ctype,
-            "count": int(arr.shape[0]),
-            "type": {1: "SCALAR", 2: "VEC2", 3: "VEC3"}[arr.shape[1]],
-        }
+        acc = Accessor(
+            bufferView=self.view(np.ascontiguousarray(arr).tobytes(), target),
+            componentType=ctype,
+            count=int(arr.shape[0]),
+            type={1: "SCALAR", 2: "VEC2", 3: "VEC3"}[arr.shape[1]],
+        )
         if minmax and len(arr):
-            acc["min"] = [float(x) for x in arr.min(axis=0)]
-            acc["max"] = [float(x) for x in arr.max(axis=0)]
+            acc.min = [float(x) for x in arr.min(axis=0)]
+            acc.max = [float(x) for x in arr.max(axis=0)]
         self.accessors.append(acc)
         return len(self.accessors) - 1
 
@@ -107,11 +133,11 @@ class _GlbWriter:
         if key not in self._image_keys:
             buf = io.BytesIO()
             Image.fromarray(np.ascontiguousarray(pixels), mode).save(buf, format="PNG")
-            self.images.append({"bufferView": self.view(buf.getvalue()), "mimeType": "image/png"})
+            self.images.append(GltfImage(bufferView=self.view(buf.getvalue()), mimeType="image/png"))
             self._image_keys[key] = len(self.images) - 1
         tkey = (self._image_keys[key], nearest)
         if tkey not in self._texture_keys:
-            self.textures.append({"sampler": 1 if nearest else 0, "source": tkey[0]})
+            self.textures.append(Texture(sampler=1 if nearest else 0, source=tkey[0]))
             self._texture_keys[tkey] = len(self.textures) - 1
         return self._texture_keys[tkey]
 
@@ -122,38 +148,39 @@ class _GlbWriter:
         transmission texture in ``extras``."""
         if id(mat) in self._material_index:
             return self._material_index[id(mat)]
-        pbr: dict[str, Any] = {
-            "baseColorFactor": [float(c) for c in mat.color],
-            "metallicFactor": float(mat.metallic),
-            "roughnessFactor": float(mat.roughness),
-        }
+        pbr = PbrMetallicRoughness(
+            baseColorFactor=[float(c) for c in mat.color],
+            metallicFactor=float(mat.metallic),
+            roughnessFactor=float(mat.roughness),
+        )
         extras: dict[str, Any] = {"label": int(mat.label), "alpha_cutoff": float(mat.alpha_cutoff)}
         if mat.transmittance is not None:
             extras["transmittance"] = [float(t) for t in mat.transmittance]
         if mat.albedo is not None:
-            pbr["baseColorTexture"] = {"index": self.texture(mat.albedo, "RGBA", nearest=False)}
+            pbr.baseColorTexture = TextureInfo(index=self.texture(mat.albedo, "RGBA", nearest=False))
         if mat.labels is not None:
             extras["label_texture"] = self.texture(mat.labels, "L", nearest=True)
         if mat.transmission is not None:
             extras["transmission_texture"] = self.texture(mat.transmission, "RGB", nearest=False)
         if mat.metallic_roughness is not None:
-            pbr["metallicRoughnessTexture"] = {"index": self.texture(mat.metallic_roughness, "RGB", nearest=False)}
-        m: dict[str, Any] = {
-            "name": mat.name,
-            "pbrMetallicRoughness": pbr,
-            "alphaMode": mat.alpha_mode,
-            "doubleSided": bool(mat.double_sided),
-            "extras": {"agrisim": extras},
-        }
-        if mat.alpha_mode == "MASK":
-            m["alphaCutoff"] = float(mat.alpha_cutoff)
+            pbr.metallicRoughnessTexture = TextureInfo(index=self.texture(mat.metallic_roughness, "RGB", nearest=False))
+        m = GltfMaterial(
+            name=mat.name,
+            pbrMetallicRoughness=pbr,
+            alphaMode=mat.alpha_mode,
+            alphaCutoff=float(mat.alpha_cutoff) if mat.alpha_mode == "MASK" else None,
+            doubleSided=bool(mat.double_sided),
+            extras={"agrisim": extras},
+        )
         if mat.normal_map is not None:
-            m["normalTexture"] = {"index": self.texture(mat.normal_map, "RGB", nearest=False), "scale": float(mat.normal_scale)}
+            m.normalTexture = NormalMaterialTexture(
+                index=self.texture(mat.normal_map, "RGB", nearest=False), scale=float(mat.normal_scale)
+            )
         self.materials.append(m)
         self._material_index[id(mat)] = len(self.materials) - 1
         return len(self.materials) - 1
 
-    def mesh(self, mesh: Mesh, *, z_up_to_y_up: bool = True) -> dict[str, Any]:
+    def mesh(self, mesh: Mesh, *, z_up_to_y_up: bool = True) -> GltfMesh:
         """The glTF mesh of ``mesh`` (its materials added to the file): positions converted to
         glTF's y up ((x, y, z) -> (x, z, -y), exact in float32) unless they are in a frame of
         their own (an arm link's), one primitive per run of faces of one material, leaf
@@ -175,41 +202,75 @@ class _GlbWriter:
             starts = np.flatnonzero(np.diff(face_material)) + 1
         bounds = [0, *starts.tolist(), len(faces)]
         primitives = []
-        for a, b in zip(bounds[:-1], bounds[1:]):
-            prim: dict[str, Any] = {
-                "attributes": dict(attributes),
-                "indices": self.accessor(faces[a:b].astype("<u4").reshape(-1, 1), 34963),
-                "material": material_index[int(face_material[a])],
-                "mode": 4,
-            }
+        for a, b in itertools.pairwise(bounds):
+            prim = Primitive(
+                attributes=Attributes(**attributes),
+                indices=self.accessor(faces[a:b].astype("<u4").reshape(-1, 1), 34963),
+                material=material_index[int(face_material[a])],
+                mode=4,
+            )
             if face_instance is not None:
-                prim["extras"] = {"agrisim": {"face_instance": self.accessor(face_instance[a:b].astype("<u2").reshape(-1, 1))}}
+                prim.extras = {
+                    "agrisim": {"face_instance": self.accessor(face_instance[a:b].astype("<u2").reshape(-1, 1))}
+                }
             primitives.append(prim)
-        return {"name": mesh.name, "primitives": primitives}
+        return GltfMesh(name=mesh.name, primitives=primitives)
 
     def finish(self, gltf: dict[str, Any]) -> bytes:
-        if self.materials:
-            gltf["materials"] = self.materials
+        """The binary glTF of ``gltf`` (its asset, scene, scenes and nodes as JSON objects, its
+        meshes from :meth:`mesh`) with everything this writer collected."""
         self.blob += b"\0" * (-len(self.blob) % 4)
-        gltf["buffers"] = [{"byteLength": len(self.blob)}]
-        gltf["bufferViews"] = self.views
-        gltf["accessors"] = self.accessors
-        if self.images:
-            gltf["images"] = self.images
-            gltf["textures"] = self.textures
-            gltf["samplers"] = [
-                {"wrapS": 10497, "wrapT": 10497},
-                {"magFilter": 9728, "minFilter": 9728, "wrapS": 10497, "wrapT": 10497},  # labels: nearest
+        doc = GLTF2(
+            asset=Asset(**gltf["asset"]),
+            scene=gltf.get("scene"),
+            scenes=[Scene(**s) for s in gltf.get("scenes", [])],
+            nodes=[Node(**n) for n in gltf["nodes"]],
+            meshes=list(gltf["meshes"]),
+            materials=self.materials,
+            accessors=self.accessors,
+            bufferViews=self.views,
+            buffers=[Buffer(byteLength=len(self.blob))],
+            images=self.images,
+            textures=self.textures,
+            samplers=[
+                Sampler(wrapS=10497, wrapT=10497),
+                Sampler(magFilter=9728, minFilter=9728, wrapS=10497, wrapT=10497),  # labels: nearest
             ]
-        doc = json.dumps(gltf, separators=(",", ":"), allow_nan=False).encode()
-        doc += b" " * (-len(doc) % 4)
-        total = 12 + 8 + len(doc) + 8 + len(self.blob)
-        return b"".join(
-            [
-                struct.pack("<4sII", GLB_MAGIC, 2, total),
-                struct.pack("<II", len(doc), CHUNK_JSON),
-                doc,
-                struct.pack("<II", len(self.blob), CHUNK_BIN),
-                bytes(self.blob),
-            ]
+            if self.images
+            else [],
         )
+        for where, extras in _extras(doc):
+            lost = _pruned(extras)
+            if lost:
+                # pygltflib's JSON writer deletes None and empty lists, objects and strings at any
+                # depth of extras (its delete_empty_keys); agrisim's reader needs every key back.
+                raise ValueError(f"{where}: extras key {lost!r} is empty, which the glTF writer (pygltflib) would drop")
+        doc.set_binary_blob(bytes(self.blob))
+        return b"".join(doc.save_to_bytes())
+
+
+def _extras(doc: GLTF2) -> list[tuple[str, Any]]:
+    """(where, extras) of every part of ``doc`` agrisim writes extras into."""
+    parts = [("asset", doc.asset.extras)]
+    parts += [(f"node {n.name!r}", n.extras) for n in doc.nodes]
+    parts += [(f"material {m.name!r}", m.extras) for m in doc.materials]
+    parts += [(f"mesh {m.name!r}", p.extras) for m in doc.meshes for p in m.primitives]
+    return parts
+
+
+def _pruned(value: Any, path: str = "") -> str | None:
+    """The first key under ``value`` that pygltflib's JSON writer would delete, or None."""
+    if isinstance(value, dict):
+        for k, v in value.items():
+            here = f"{path}.{k}" if path else str(k)
+            if v is None or (hasattr(v, "__len__") and len(v) == 0):
+                return here
+            found = _pruned(v, here)
+            if found:
+                return found
+    elif isinstance(value, list):
+        for i, v in enumerate(value):
+            found = _pruned(v, f"{path}[{i}]") if isinstance(v, dict) else None
+            if found:
+                return found
+    return None

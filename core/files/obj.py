@@ -1,5 +1,13 @@
 """The Wavefront OBJ + MTL reader: positions, UVs, faces and materials with their textures and
-opacity maps, into a :class:`RawMesh`. :mod:`agrisim.files.plant_asset` documents what is honoured."""
+opacity maps, into a :class:`RawMesh`. :mod:`agrisim.files.plant_asset` documents what is honoured.
+
+By hand, not trimesh's OBJ loader (``bench/gltf_equality.py --why-not-trimesh`` shows the
+first, the indices and the split): it takes a ``map_Kd``'s options as part of the file name and
+then drops the texture without a word, ignores ``map_d`` and ``-imfchan``/``-o``/``-s``, reads
+only the first ``mtllib``, resolves negative indices against the whole file instead of the
+vertices before the face, and splits the faces into one mesh per material (reordered), where
+agrisim keeps one mesh in file order and refuses what it cannot read with a message that names
+the file and line."""
 
 from __future__ import annotations
 
@@ -10,9 +18,8 @@ from pathlib import Path
 import numpy as np
 from PIL import Image
 
-from agrisim.scene.model import Material
-
 from agrisim.files.asset_reading import AssetError, RawMesh, decode_image, locate, read_bytes_of, rgba_array
+from agrisim.scene.model import Material
 
 # --------------------------------------------------------------------------------------------
 
@@ -136,7 +143,7 @@ def read_obj(path: Path, shown: str, root: Path | None) -> RawMesh:
     tf_ids = {t: i for i, t in enumerate(dict.fromkeys(t for t in transforms if t is not None), 1)}
     corner_tf = np.array([tf_ids.get(t, 0) if t else 0 for t in transforms], np.int64)[fm]
     keys = (cv * (len(texcoords) + 1) + (ct + 1)) * (len(tf_ids) + 1) + corner_tf
-    uniq, first, inverse = np.unique(keys, return_index=True, return_inverse=True)
+    _, first, inverse = np.unique(keys, return_index=True, return_inverse=True)
     order = np.argsort(first, kind="stable")  # vertices in order of first use
     rank = np.empty_like(order)
     rank[order] = np.arange(len(order))
@@ -216,7 +223,7 @@ def _texture_statement(rest: str) -> tuple[dict[str, list[str]], str]:
         opt = tokens[i].group().lower()
         n = _MTL_OPTION_ARGS[opt]
         i += 1
-        vals = []
+        vals: list[str] = []
         while len(vals) < n and i < len(tokens) - 1:  # never eat the file name
             tok = tokens[i].group()
             if n == 3 and vals and not _is_number(tok):
@@ -261,7 +268,7 @@ def _obj_material(
             transform = _mtl_uv_transform(opts)
         elif alpha.shape != albedo.shape[:2]:
             h, w = albedo.shape[:2]
-            alpha = np.asarray(Image.fromarray(alpha, "L").resize((w, h), Image.NEAREST))
+            alpha = np.asarray(Image.fromarray(alpha, "L").resize((w, h), Image.Resampling.NEAREST))
         albedo[..., 3] = alpha
         mode = "MASK"
     d = float(m.d)
