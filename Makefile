@@ -2,7 +2,7 @@
 VENV ?= .venv
 ARGS ?=
 
-.PHONY: setup run test bench lock clean
+.PHONY: setup run test lint bench lock clean
 
 setup:
 	bash scripts/setup.sh
@@ -12,7 +12,12 @@ run: setup
 
 test: setup
 	bash scripts/test-deps.sh
+	VENV=$(VENV) bash scripts/lint.sh
 	$(VENV)/bin/python -m pytest -q tests
+
+# ruff's lint rules and formatting, and mypy on the core (also the first step of `make test`)
+lint: setup
+	VENV=$(VENV) bash scripts/lint.sh
 
 bench: setup
 	$(VENV)/bin/python bench/robot_episode.py

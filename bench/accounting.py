@@ -36,10 +36,16 @@ from machine import cpu_model  # noqa: E402
 #: (category, test on one frame of the stack) tried from the innermost frame outwards; the
 #: first frame that matches any rule decides. Native frames come before Python ones.
 RULES: list[tuple[str, re.Pattern[str]]] = [
-    ("render: Dr.Jit kernels (ray casts, walks, shading)", re.compile(r"embree|nanothread|drjit|libdrjit|jit_llvm|jitc_", re.I)),
+    (
+        "render: Dr.Jit kernels (ray casts, walks, shading)",
+        re.compile(r"embree|nanothread|drjit|libdrjit|jit_llvm|jitc_", re.I),
+    ),
     ("PNG encoding", re.compile(r"ImagingZip|PngImagePlugin|ZipEncode|write_png|encode_png|isal")),
     ("render: posing the arms (BVH build)", re.compile(r"Engine\.place_arms|SceneTracer\.place_arms")),
-    ("render: building a view's kernels (Python)", re.compile(r"Engine\.|SceneTracer\.|Shader\.|MaterialArrays\.|RaycastRenderer\.")),
+    (
+        "render: building a view's kernels (Python)",
+        re.compile(r"Engine\.|SceneTracer\.|Shader\.|MaterialArrays\.|RaycastRenderer\."),
+    ),
     ("depth to millimetres", re.compile(r"depth_to_mm")),
     ("Rerun logging (Python side)", re.compile(r"rerun_sink|/rerun/|rerun_bindings")),
     ("run.json, cameras.json, trajectories", re.compile(r"write_json|_write_pretty|json_text|_run_json|json/encoder")),
@@ -51,11 +57,16 @@ RULES: list[tuple[str, re.Pattern[str]]] = [
     ("physics set-up", re.compile(r"BulletPhysics\.__init__|_World\.__init__")),
     ("reconstruction", re.compile(r"/recon/|write_reconstruction|backproject")),
     ("metrics", re.compile(r"evaluation/metrics|SurfaceDistance|GroundTruth")),
-    ("scene and plant building", re.compile(r"build_scene|resolve_plant|build_cell|arm_link_meshes|export_glb|write_scene")),
+    (
+        "scene and plant building",
+        re.compile(r"build_scene|resolve_plant|build_cell|arm_link_meshes|export_glb|write_scene"),
+    ),
     ("imports", re.compile(r"importlib\._bootstrap|<module>")),
 ]
 #: a thread blocked here is idle, not working
-IDLE = re.compile(r"Condition\.wait|_queue_SimpleQueue_get|PyThread_acquire_lock_timed|Thread\.join|epoll_wait|select \(|sleep")
+IDLE = re.compile(
+    r"Condition\.wait|_queue_SimpleQueue_get|PyThread_acquire_lock_timed|Thread\.join|epoll_wait|select \(|sleep"
+)
 #: the innermost native frame of a thread waiting for the GIL (CPython's take_gil, inlined)
 GIL_WAIT = re.compile(r"pthread_cond_timedwait|take_gil")
 
@@ -91,7 +102,9 @@ def profile(cmd: list[str], rate: int, out_raw: Path) -> tuple[float, float]:
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
     subprocess.run(
         [spy, "record", "--native", "--threads", "-r", str(rate), "-f", "raw", "-o", str(out_raw), "--", *cmd],
-        check=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+        check=True,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
     )
     wall = time.perf_counter() - t0
     after = resource.getrusage(resource.RUSAGE_CHILDREN)
@@ -148,7 +161,9 @@ def main() -> None:
     for name, n in sorted(busy.items(), key=lambda kv: -kv[1]):
         kinds = ", ".join(f"{k} {c[name] / rate:.1f}" for k, c in sorted(by_thread.items()) if c[name])
         print(f"    {name:40s} {n / rate:7.1f} s  ({kinds})")
-    print(f"    {'native threads (TBB, Rerun), unsampled':40s} {max(cpu - sampled_cpu, 0.0):7.1f} s  (process CPU less sampled CPU)")
+    print(
+        f"    {'native threads (TBB, Rerun), unsampled':40s} {max(cpu - sampled_cpu, 0.0):7.1f} s  (process CPU less sampled CPU)"
+    )
     if args.top:
         print("  busiest Python lines (innermost, s):")
         for frame, n in lines.most_common(args.top):
@@ -156,11 +171,22 @@ def main() -> None:
             src = linecache.getline(m.group(1), int(m.group(2))).strip()[:70] if m else ""
             print(f"    {n / rate:6.2f}  {frame.split(' (')[0]:40s} {src}")
     if args.json:
-        args.json.write_text(json.dumps({
-            "cpu_model": cpu_model(), "args": what, "frames": frames_done, "wall_s": wall, "cpu_s": cpu,
-            "stages_s": stages, "categories_s": {k: v / rate for k, v in busy.items()},
-            "native_unsampled_s": max(cpu - sampled_cpu, 0.0), "recording_mb": rrd_mb,
-        }, indent=1))
+        args.json.write_text(
+            json.dumps(
+                {
+                    "cpu_model": cpu_model(),
+                    "args": what,
+                    "frames": frames_done,
+                    "wall_s": wall,
+                    "cpu_s": cpu,
+                    "stages_s": stages,
+                    "categories_s": {k: v / rate for k, v in busy.items()},
+                    "native_unsampled_s": max(cpu - sampled_cpu, 0.0),
+                    "recording_mb": rrd_mb,
+                },
+                indent=1,
+            )
+        )
 
 
 if __name__ == "__main__":

@@ -43,7 +43,10 @@ def main() -> None:
     mi = use_variant(args.variant)
     print(f"CPU: {cpu_model()}; GPU: {gpu_name()}; variant {mi.variant()}")
     box = grid(4)
-    links = [(f"l{i}", Mesh(f"l{i}", box.vertices, box.faces, [Material("a")], np.zeros(len(box.faces), np.int32))) for i in range(16)]
+    links = [
+        (f"l{i}", Mesh(f"l{i}", box.vertices, box.faces, [Material("a")], np.zeros(len(box.faces), np.int32)))
+        for i in range(16)
+    ]
     for n in args.grids:
         static = grid(n)
         engine = Engine(mi, Scene([static], [], LabelTable()), {"arm": links})
@@ -55,7 +58,9 @@ def main() -> None:
             engine.place_arms({"arm": {f"l{i}": T for i in range(16)}})
             dr.sync_thread()
             times.append(time.perf_counter() - t0)
-        print(f"  {len(static.faces):>7,} static triangles: posing 16 links {1e3 * np.median(times[1:]):.1f} ms (median of 15)")
+        print(
+            f"  {len(static.faces):>7,} static triangles: posing 16 links {1e3 * np.median(times[1:]):.1f} ms (median of 15)"
+        )
 
 
 if __name__ == "__main__":

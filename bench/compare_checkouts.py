@@ -89,7 +89,7 @@ def _same_values(a: object, b: object) -> bool:
     if isinstance(a, dict) and isinstance(b, dict):
         return all(_same_values(a[k], b[k]) for k in a.keys() & b.keys())
     if isinstance(a, list) and isinstance(b, list):
-        return len(a) == len(b) and all(_same_values(x, y) for x, y in zip(a, b))
+        return len(a) == len(b) and all(_same_values(x, y) for x, y in zip(a, b, strict=True))
     if isinstance(a, float) and isinstance(b, float) and a != b:
         places = min(_decimals(a), _decimals(b))
         return round(a, places) == round(b, places)
@@ -107,7 +107,9 @@ def same_outputs(a: Path, b: Path) -> list[str]:
             if not np.array_equal(np.asarray(Image.open(pa)), np.asarray(Image.open(pb))):
                 problems.append(f"pixels differ: {rel}")
         elif rel.suffix == ".json":
-            if pa.read_bytes() != pb.read_bytes() and not _same_values(_strip(json.loads(pa.read_text())), _strip(json.loads(pb.read_text()))):
+            if pa.read_bytes() != pb.read_bytes() and not _same_values(
+                _strip(json.loads(pa.read_text())), _strip(json.loads(pb.read_text()))
+            ):
                 problems.append(f"values differ: {rel}")
         elif rel.suffix == ".rrd":
             continue  # the recording's chunking may change on purpose (its size is reported)
@@ -138,9 +140,11 @@ def image_agreement(a: Path, b: Path) -> str:
             psnr.append(10 * np.log10(255.0**2 / mse) if mse > 0 else float("inf"))
     if not labels:
         return "no images"
-    return (f"labels equal on {100 * min(labels):.4f}% of the pixels of the worst view (mean {100 * np.mean(labels):.4f}%); "
-            f"depth (mm) differs on {max(depth)} pixels of the worst view where both see something; "
-            f"RGB PSNR {min(psnr):.1f} dB worst view, {np.mean(psnr):.1f} mean")
+    return (
+        f"labels equal on {100 * min(labels):.4f}% of the pixels of the worst view (mean {100 * np.mean(labels):.4f}%); "
+        f"depth (mm) differs on {max(depth)} pixels of the worst view where both see something; "
+        f"RGB PSNR {min(psnr):.1f} dB worst view, {np.mean(psnr):.1f} mean"
+    )
 
 
 def rrd_chunks(python: str, rrd: Path) -> tuple[int, int]:
@@ -164,7 +168,12 @@ def main() -> None:
     args = parser.parse_args()
     sides = {"before": args.before.resolve(), "after": args.after.resolve()}
     pythons = {k: python_of(v) for k, v in sides.items()}
-    commits = {k: subprocess.run(["git", "-C", str(v), "rev-parse", "--short", "HEAD"], capture_output=True, text=True).stdout.strip() for k, v in sides.items()}
+    commits = {
+        k: subprocess.run(
+            ["git", "-C", str(v), "rev-parse", "--short", "HEAD"], capture_output=True, text=True
+        ).stdout.strip()
+        for k, v in sides.items()
+    }
     print(f"{cpu_model()}; before {commits['before']} ({sides['before']}), after {commits['after']} ({sides['after']})")
     runs = {"default": [], "robot": ["--renderer", "none"]}
     if args.setpoints:
@@ -181,15 +190,19 @@ def main() -> None:
             for i in range(args.repeat):
                 for side in ("before", "after"):
                     out = Path(tmp) / f"{name}-{side}-{i}"
-                    wall, peak, _ = timed([pythons[side], "-m", "agrisim", "run", "--out", str(out), *extra], sides[side])
+                    wall, peak, _ = timed(
+                        [pythons[side], "-m", "agrisim", "run", "--out", str(out), *extra], sides[side]
+                    )
                     walls[side].append(wall)
                     peaks[side].append(peak)
                     print(f"  {name} run, {side}: {wall:.1f} s, peak RSS {peak:.0f} MB", flush=True)
             problems = same_outputs(Path(tmp) / f"{name}-before-0", Path(tmp) / f"{name}-after-0")
             b, a = min(walls["before"]), min(walls["after"])
-            print(f"{name} run: before {b:.1f} s, after {a:.1f} s (best of {args.repeat}): {a / b:.2f}x; "
-                  f"peak RSS {max(peaks['before']):.0f} -> {max(peaks['after']):.0f} MB; "
-                  f"outputs {'identical' if not problems else 'DIFFER: ' + '; '.join(problems[:8])} in the files both write")
+            print(
+                f"{name} run: before {b:.1f} s, after {a:.1f} s (best of {args.repeat}): {a / b:.2f}x; "
+                f"peak RSS {max(peaks['before']):.0f} -> {max(peaks['after']):.0f} MB; "
+                f"outputs {'identical' if not problems else 'DIFFER: ' + '; '.join(problems[:8])} in the files both write"
+            )
             extra = one_sided(Path(tmp) / f"{name}-before-0", Path(tmp) / f"{name}-after-0")
             if extra:
                 print(f"  {'; '.join(extra)}")
@@ -199,7 +212,9 @@ def main() -> None:
             if all(p.exists() for p in rrd.values()):
                 for s in sides:
                     chunks, bound = rrd_chunks(pythons["after"], rrd[s])
-                    print(f"  recording {s}: {rrd[s].stat().st_size / 1e6:.0f} MB, {chunks} chunks (lower bound {bound})")
+                    print(
+                        f"  recording {s}: {rrd[s].stat().st_size / 1e6:.0f} MB, {chunks} chunks (lower bound {bound})"
+                    )
 
 
 def recording_cost(pythons: dict[str, str], sides: dict[str, Path], extra: list[str], repeat: int, tmp: Path) -> None:
@@ -211,15 +226,23 @@ def recording_cost(pythons: dict[str, str], sides: dict[str, Path], extra: list[
         for side in ("before", "after"):
             for rrd in (True, False):
                 out = tmp / f"rec-{side}-{rrd}-{i}"
-                wall, _, cpu = timed([pythons[side], "-m", "agrisim", "run", "--out", str(out), *extra, *([] if rrd else ["--no-rrd"])], sides[side])
+                wall, _, cpu = timed(
+                    [pythons[side], "-m", "agrisim", "run", "--out", str(out), *extra, *([] if rrd else ["--no-rrd"])],
+                    sides[side],
+                )
                 figures.setdefault((side, rrd), []).append((wall, cpu))
                 size = (out / "recording.rrd").stat().st_size / 1e6 if rrd else 0.0
-                print(f"  {side}, {'with the recording' if rrd else '--no-rrd'}: {wall:.1f} s wall, {cpu:.1f} s CPU"
-                      + (f", recording {size:.0f} MB" if rrd else ""), flush=True)
+                print(
+                    f"  {side}, {'with the recording' if rrd else '--no-rrd'}: {wall:.1f} s wall, {cpu:.1f} s CPU"
+                    + (f", recording {size:.0f} MB" if rrd else ""),
+                    flush=True,
+                )
     for side in ("before", "after"):
         with_, without = (min(figures[(side, r)]) for r in (True, False))
         cpu_with, cpu_without = (min(c for _, c in figures[(side, r)]) for r in (True, False))
-        print(f"recording cost, {side}: {with_[0] - without[0]:+.1f} s wall, {cpu_with - cpu_without:+.1f} s CPU (best of {repeat})")
+        print(
+            f"recording cost, {side}: {with_[0] - without[0]:+.1f} s wall, {cpu_with - cpu_without:+.1f} s CPU (best of {repeat})"
+        )
 
 
 if __name__ == "__main__":

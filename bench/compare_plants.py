@@ -64,20 +64,28 @@ def main() -> None:
     episodes = sorted((e for e in report["episodes"] if "finished_s" in e), key=lambda e: e["finished_s"])
     ray = report.get("ray") or {}
     print()
-    print(f"agrisim compare {' '.join(cmd[4:])}: {wall:.1f} s wall for {len(report['episodes'])} episodes "
-          f"(exit {proc.returncode}, status {report['status']})")
-    print(f"  Ray: start {ray.get('startup_s', 0):.1f} s, shutdown {ray.get('shutdown_s', 0):.1f} s, "
-          f"{ray.get('cluster_cpus')} CPUs, Ray {ray.get('ray')}")
+    print(
+        f"agrisim compare {' '.join(cmd[4:])}: {wall:.1f} s wall for {len(report['episodes'])} episodes "
+        f"(exit {proc.returncode}, status {report['status']})"
+    )
+    print(
+        f"  Ray: start {ray.get('startup_s', 0):.1f} s, shutdown {ray.get('shutdown_s', 0):.1f} s, "
+        f"{ray.get('cluster_cpus')} CPUs, Ray {ray.get('ray')}"
+    )
     if not episodes:
         return
     walls = [e["wall_s"] for e in episodes]
-    print(f"  per episode (in its worker): mean {sum(walls) / len(walls):.1f} s, min {min(walls):.1f} s, "
-          f"max {max(walls):.1f} s; imports {sum(e.get('import_s', 0) for e in episodes) / len(episodes):.1f} s each")
+    print(
+        f"  per episode (in its worker): mean {sum(walls) / len(walls):.1f} s, min {min(walls):.1f} s, "
+        f"max {max(walls):.1f} s; imports {sum(e.get('import_s', 0) for e in episodes) / len(episodes):.1f} s each"
+    )
     for name, key in (("episode peak RSS", "rss_peak_mb"), ("driver RSS", "driver_rss_mb")):
         series = [e[key] for e in episodes if e.get(key) is not None]
         if series:
-            print(f"  {name} (MB, in finishing order): first {series[0]:.0f}, last {series[-1]:.0f}, "
-                  f"max {max(series):.0f}, min {min(series):.0f}")
+            print(
+                f"  {name} (MB, in finishing order): first {series[0]:.0f}, last {series[-1]:.0f}, "
+                f"max {max(series):.0f}, min {min(series):.0f}"
+            )
     print(f"  {'plant':<18} {'mode':<8} {'wall s':>7} {'peak MB':>8} {'pid':>7}")
     for e in episodes:
         peak = e.get("rss_peak_mb") or 0

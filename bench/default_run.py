@@ -38,8 +38,10 @@ def main() -> None:
     stages = ", ".join(f"{k} {v:.1f}" for k, v in s["wall_s"].items())
     frames = len(run["frames_complete"])
     what = f"--setpoints {args.setpoints}" if args.setpoints else "(defaults)"
-    print(f"agrisim run {what}: {wall:.1f} s wall, "
-          f"{frames} frames ({wall / max(frames, 1):.2f} s per frame), peak RSS {peak_mb:.0f} MB")
+    print(
+        f"agrisim run {what}: {wall:.1f} s wall, "
+        f"{frames} frames ({wall / max(frames, 1):.2f} s per frame), peak RSS {peak_mb:.0f} MB"
+    )
     print(f"  reached {s['reached']}/{s['setpoints']}, collisions {s['collisions']}; stages (s): {stages}")
     print(f"  images on disk {data_mb:.0f} MB, recording {rrd_mb:.0f} MB")
 

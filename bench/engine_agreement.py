@@ -63,7 +63,9 @@ np.savez(out, **images)
 """
 
 
-def render(checkout: Path, plant: str, resolution: str, samples: int, seeds: list[int], seg_mode: str, out: Path) -> dict:
+def render(
+    checkout: Path, plant: str, resolution: str, samples: int, seeds: list[int], seg_mode: str, out: Path
+) -> dict:
     python = checkout / ".venv" / "bin" / "python"
     if not python.exists():
         raise SystemExit(f"{checkout} has no .venv: run `make setup` there first")
@@ -88,15 +90,24 @@ def figure(path: Path, found: list[tuple[str, int, np.ndarray, np.ndarray, np.nd
     rows = []
     for _, _, rgb, lab_b, lab_a, y, x in found[:6]:
         y0, x0 = max(0, y - half), max(0, x - half)
-        crops = [rgb[y0 : y + half + 1, x0 : x + half + 1], palette[lab_b[y0 : y + half + 1, x0 : x + half + 1]],
-                 palette[lab_a[y0 : y + half + 1, x0 : x + half + 1]]]
+        crops = [
+            rgb[y0 : y + half + 1, x0 : x + half + 1],
+            palette[lab_b[y0 : y + half + 1, x0 : x + half + 1]],
+            palette[lab_a[y0 : y + half + 1, x0 : x + half + 1]],
+        ]
         tiles = []
         for c in crops:
             img = Image.fromarray(np.ascontiguousarray(c)).resize((c.shape[1] * zoom, c.shape[0] * zoom), Image.NEAREST)
-            ImageDraw.Draw(img).rectangle([(x - x0) * zoom, (y - y0) * zoom, (x - x0 + 1) * zoom - 1, (y - y0 + 1) * zoom - 1], outline=(255, 0, 255), width=2)
+            ImageDraw.Draw(img).rectangle(
+                [(x - x0) * zoom, (y - y0) * zoom, (x - x0 + 1) * zoom - 1, (y - y0 + 1) * zoom - 1],
+                outline=(255, 0, 255),
+                width=2,
+            )
             tiles.append(np.asarray(img))
         h = max(t.shape[0] for t in tiles)
-        rows.append(np.concatenate([np.pad(t, ((0, h - t.shape[0]), (0, 4), (0, 0)), constant_values=255) for t in tiles], 1))
+        rows.append(
+            np.concatenate([np.pad(t, ((0, h - t.shape[0]), (0, 4), (0, 0)), constant_values=255) for t in tiles], 1)
+        )
     if not rows:
         print(f"no label differs: {path} not drawn")
         return
@@ -118,21 +129,32 @@ def main() -> None:
     parser.add_argument("--figure", type=Path, default=None, help="draw close-ups of pixels whose labels differ")
     args = parser.parse_args()
     found = []
-    print(f"{cpu_model()}; before {args.before}, after {args.after}; {args.resolution}, 5 views a plant, {args.seg_mode} labels")
+    print(
+        f"{cpu_model()}; before {args.before}, after {args.after}; {args.resolution}, 5 views a plant, {args.seg_mode} labels"
+    )
     with tempfile.TemporaryDirectory() as tmp:
         for plant in args.plants:
             for samples in args.shadow_samples:
                 k = args.seeds if samples else 1
                 seeds = list(range(k))
-                b = render(args.before, plant, args.resolution, samples, seeds + [s + 1000 for s in seeds] if samples and k > 1 else seeds,
-                           args.seg_mode, Path(tmp) / "b.npz")
+                b = render(
+                    args.before,
+                    plant,
+                    args.resolution,
+                    samples,
+                    seeds + [s + 1000 for s in seeds] if samples and k > 1 else seeds,
+                    args.seg_mode,
+                    Path(tmp) / "b.npz",
+                )
                 a = render(args.after, plant, args.resolution, samples, seeds, args.seg_mode, Path(tmp) / "a.npz")
                 rows = []
                 for v in range(5):
                     lab = float((a[f"labels_{v}"] == b[f"labels_{v}"]).mean())
                     if samples == args.shadow_samples[0]:
-                        for y, x in zip(*np.nonzero(a[f"labels_{v}"] != b[f"labels_{v}"])):
-                            found.append((plant, v, a[f"rgb_0_{v}"], b[f"labels_{v}"], a[f"labels_{v}"], int(y), int(x)))
+                        for y, x in zip(*np.nonzero(a[f"labels_{v}"] != b[f"labels_{v}"]), strict=True):
+                            found.append(
+                                (plant, v, a[f"rgb_0_{v}"], b[f"labels_{v}"], a[f"labels_{v}"], int(y), int(x))
+                            )
                     da, db = a[f"depth_{v}"], b[f"depth_{v}"]
                     both = (da > 0) & (db > 0)
                     far = int((both & (np.abs(da - db) > 1e-5)).sum())

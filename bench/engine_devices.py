@@ -61,7 +61,19 @@ def main() -> None:
             out = {}
             for variant in ("llvm", "cuda"):
                 out[variant] = Path(tmp) / f"{variant}.npz"
-                subprocess.run([sys.executable, "-c", WORKER, str(args.run_dir), variant, str(args.views), str(samples), str(out[variant])], check=True)
+                subprocess.run(
+                    [
+                        sys.executable,
+                        "-c",
+                        WORKER,
+                        str(args.run_dir),
+                        variant,
+                        str(args.views),
+                        str(samples),
+                        str(out[variant]),
+                    ],
+                    check=True,
+                )
             cpu, gpu = np.load(out["llvm"]), np.load(out["cuda"])
             frames = sorted({k.rsplit("_", 1)[0] for k in cpu.files})
             labels = [float((cpu[f + "_labels"] == gpu[f + "_labels"]).mean()) for f in frames]
@@ -71,9 +83,11 @@ def main() -> None:
                 both = (a > 0) & (b > 0)
                 depth.append((int((both & (np.abs(a - b) > 1e-5)).sum()), float(np.abs(a - b)[both].max())))
             rgb = [psnr(cpu[f + "_rgb"], gpu[f + "_rgb"]) for f in frames]
-            print(f"{samples} shadow sample(s), {len(frames)} views: labels equal on {100 * min(labels):.4f}% of the pixels of the "
-                  f"worst view; depth beyond 1e-5 m on at most {max(d[0] for d in depth)} pixels a view (largest difference "
-                  f"{max(d[1] for d in depth):.1e} m); RGB PSNR {min(rgb):.1f} dB worst view, {np.mean(rgb):.1f} mean")
+            print(
+                f"{samples} shadow sample(s), {len(frames)} views: labels equal on {100 * min(labels):.4f}% of the pixels of the "
+                f"worst view; depth beyond 1e-5 m on at most {max(d[0] for d in depth)} pixels a view (largest difference "
+                f"{max(d[1] for d in depth):.1e} m); RGB PSNR {min(rgb):.1f} dB worst view, {np.mean(rgb):.1f} mean"
+            )
 
 
 if __name__ == "__main__":

@@ -26,8 +26,8 @@ from machine import cpu_model, gpu_name  # noqa: E402
 
 from agrisim.config import RenderConfig  # noqa: E402
 from agrisim.files import layout  # noqa: E402
-from agrisim.files.scene_glb import read_scene  # noqa: E402
 from agrisim.files.rundir import camera_from_json  # noqa: E402
+from agrisim.files.scene_glb import read_scene  # noqa: E402
 
 
 def compiled(dr, history: list[dict]) -> str:  # noqa: ANN001
@@ -55,14 +55,19 @@ def main() -> None:
     camera = camera_from_json(cameras["intrinsics"])
     frames = list(cameras["frames"])[: args.views]
     poses = [
-        {r: {k: np.asarray(T) for k, T in links.items()} for r, links in json.loads(layout.link_poses(args.run_dir, f).read_text()).items()}
+        {
+            r: {k: np.asarray(T) for k, T in links.items()}
+            for r, links in json.loads(layout.link_poses(args.run_dir, f).read_text()).items()
+        }
         for f in frames
     ]
     views = [np.asarray(cameras["frames"][f]["world_T_camera"], np.float64) for f in frames]
     t0 = time.perf_counter()
     scene = read_scene(args.run_dir / "scene" / "lab.glb")
-    print(f"CPU: {cpu_model()}; GPU: {gpu_name()}; scene read in {time.perf_counter() - t0:.1f} s: "
-          f"{sum(len(m.faces) for m in scene.meshes):,} static triangles, arms {sorted(scene.arms)}")
+    print(
+        f"CPU: {cpu_model()}; GPU: {gpu_name()}; scene read in {time.perf_counter() - t0:.1f} s: "
+        f"{sum(len(m.faces) for m in scene.meshes):,} static triangles, arms {sorted(scene.arms)}"
+    )
     options = RaycastOptions(variant=args.variant, shadow_samples=args.shadow_samples)
     lmap = label_map("organs")
 
@@ -70,7 +75,9 @@ def main() -> None:
     tracer = SceneTracer(scene, None, options, arms=scene.arms)
     import mitsuba
 
-    print(f"{camera.width}x{camera.height}, variant {mitsuba.variant()}, {len(views)} views; exact pass built in {time.perf_counter() - t0:.2f} s")
+    print(
+        f"{camera.width}x{camera.height}, variant {mitsuba.variant()}, {len(views)} views; exact pass built in {time.perf_counter() - t0:.2f} s"
+    )
 
     def exact_kernels(T, p):  # noqa: ANN001, ANN202 - the pass without the copy to the host
         tracer.place_arms(p)
@@ -82,7 +89,10 @@ def main() -> None:
 
     for name, step in (
         ("exact pass, kernels only", exact_kernels),
-        ("exact pass, images in host memory", lambda T, p: (tracer.place_arms(p), tracer.exact(camera, T, seg_mode=args.seg_mode, label_map=lmap))),
+        (
+            "exact pass, images in host memory",
+            lambda T, p: (tracer.place_arms(p), tracer.exact(camera, T, seg_mode=args.seg_mode, label_map=lmap)),
+        ),
     ):
         dr.kernel_history()
         with dr.scoped_set_flag(dr.JitFlag.KernelHistory):
@@ -91,11 +101,13 @@ def main() -> None:
             first = time.perf_counter() - t0
             counts = compiled(dr, dr.kernel_history())
             t0 = time.perf_counter()
-            for T, p in zip(views[1:], poses[1:]):
+            for T, p in zip(views[1:], poses[1:], strict=True):
                 step(T, p)
             per = (time.perf_counter() - t0) / max(len(views) - 1, 1)
             later = compiled(dr, dr.kernel_history())
-        print(f"  {name}: first view {first * 1e3:.0f} ms ({counts}); then {per * 1e3:.1f} ms a view ({later} over {len(views) - 1} views)")
+        print(
+            f"  {name}: first view {first * 1e3:.0f} ms ({counts}); then {per * 1e3:.1f} ms a view ({later} over {len(views) - 1} views)"
+        )
     tracer.close()
 
     t0 = time.perf_counter()
@@ -108,12 +120,14 @@ def main() -> None:
         first = time.perf_counter() - t0
         counts = compiled(dr, dr.kernel_history())
         t0 = time.perf_counter()
-        for T, p in zip(views[1:], poses[1:]):
+        for T, p in zip(views[1:], poses[1:], strict=True):
             frame = renderer.render(camera, T, p)
         rate = (len(views) - 1) / (time.perf_counter() - t0)
         later = compiled(dr, dr.kernel_history())
-    print(f"  raycast, {args.shadow_samples} shadow sample(s), RGB + labels + depth in host memory: built in {built:.2f} s, "
-          f"first view {first:.2f} s ({counts}); then {rate:.1f} views/s ({later}); mean RGB {frame.rgb.mean():.1f}")
+    print(
+        f"  raycast, {args.shadow_samples} shadow sample(s), RGB + labels + depth in host memory: built in {built:.2f} s, "
+        f"first view {first:.2f} s ({counts}); then {rate:.1f} views/s ({later}); mean RGB {frame.rgb.mean():.1f}"
+    )
 
 
 if __name__ == "__main__":

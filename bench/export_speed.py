@@ -47,7 +47,11 @@ def main() -> None:
     t = time.perf_counter()
     bag = write_rosbag(run_dir, overwrite=True)
     seconds = time.perf_counter() - t
-    images = size_mb(sorted((run_dir / "rgb").glob("*.png")) + sorted((run_dir / "labels").glob("*.png")) + sorted((run_dir / "depth").glob("*.png")))
+    images = size_mb(
+        sorted((run_dir / "rgb").glob("*.png"))
+        + sorted((run_dir / "labels").glob("*.png"))
+        + sorted((run_dir / "depth").glob("*.png"))
+    )
     print(
         f"agrisim export rosbag: {seconds:.1f} s, {size_mb(sorted(bag.iterdir())):.0f} MB "
         f"(the run's rgb, labels and depth PNGs: {images:.0f} MB)"

@@ -16,10 +16,10 @@ import numpy as np  # noqa: E402
 import trimesh  # noqa: E402
 from mpl_toolkits.mplot3d.art3d import Poly3DCollection  # noqa: E402
 
-from agrisim.scene.cell import Box, Cylinder  # noqa: E402
 from agrisim.config import build_config  # noqa: E402
 from agrisim.episode import Episode  # noqa: E402
 from agrisim.registry import hookimpl  # noqa: E402
+from agrisim.scene.cell import Box, Cylinder  # noqa: E402
 
 COLORS = {"r1": "#e07828", "r2": "#2882e6"}
 
@@ -62,7 +62,9 @@ def draw_cylinder(ax, r, h, T, color, alpha) -> None:
 
 def main(out: Path) -> None:
     with tempfile.TemporaryDirectory() as tmp:
-        episode = Episode(build_config({"renderer": {"backend": "none"}, "output": {"out": f"{tmp}/run", "no_rrd": True}}))
+        episode = Episode(
+            build_config({"renderer": {"backend": "none"}, "output": {"out": f"{tmp}/run", "no_rrd": True}})
+        )
         paths = Paths()
         episode.pm.register(paths)
         run, summary = episode.run()

@@ -30,7 +30,9 @@ def main(out: Path) -> None:
         T = views.pose(robot, index)
         counts = {}
         for col, mode in enumerate(("texture", "repopa")):
-            r = spec.factory(scene, cell, RenderConfig(seg_mode=mode, labels=labels), spec.options_model(shadow_samples=8))
+            r = spec.factory(
+                scene, cell, RenderConfig(seg_mode=mode, labels=labels), spec.options_model(shadow_samples=8)
+            )
             frame = r.render(camera, T, poses)
             r.close()
             if col == 0:

@@ -17,17 +17,17 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from agrisim.scene.camera import preset  # noqa: E402
-from agrisim.scene.cell import build_cell  # noqa: E402
 from agrisim.config import CellConfig, RenderConfig, RoutineConfig, build_config  # noqa: E402
 from agrisim.episode import resolve_plant  # noqa: E402
-from agrisim.lab.room import build_scene  # noqa: E402
 from agrisim.evaluation.metrics import GroundTruth, SurfaceDistance  # noqa: E402
-from agrisim.plugins.recon.pointcloud import PointCloudReconstructor  # noqa: E402
 from agrisim.evaluation.session import ReconSession  # noqa: E402
+from agrisim.evaluation.views import View  # noqa: E402
+from agrisim.lab.room import build_scene  # noqa: E402
+from agrisim.plugins.recon.pointcloud import PointCloudReconstructor  # noqa: E402
 from agrisim.registry import Registry, make_plugin_manager  # noqa: E402
 from agrisim.robot.setpoints import hemisphere  # noqa: E402
-from agrisim.evaluation.views import View  # noqa: E402
+from agrisim.scene.camera import preset  # noqa: E402
+from agrisim.scene.cell import build_cell  # noqa: E402
 
 MAX_MM = 10.0  # colour scale: distances beyond this are drawn as this
 
@@ -50,7 +50,9 @@ def main() -> None:
 
     fig = plt.figure(figsize=(12, 5.6), dpi=110)
     for k, mode in enumerate(("texture", "repopa")):
-        renderer = spec.factory(scene, cell, RenderConfig(hide_robots=True, seg_mode=mode), spec.options_model(shadow_samples=0))
+        renderer = spec.factory(
+            scene, cell, RenderConfig(hide_robots=True, seg_mode=mode), spec.options_model(shadow_samples=0)
+        )
         session = ReconSession(PointCloudReconstructor(scene.labels), scene.labels, truth, [2.0])
         for i, T in enumerate(poses):
             f = renderer.render(camera, T, {})
@@ -67,7 +69,17 @@ def main() -> None:
         keep = keep[np.argsort(d_mm[keep])]  # far points drawn last, on top
         ax = fig.add_subplot(1, 2, k + 1, projection="3d")
         p = points[keep]
-        sc = ax.scatter(p[:, 0], p[:, 1], p[:, 2], c=np.minimum(d_mm[keep], MAX_MM), cmap="turbo", vmin=0, vmax=MAX_MM, s=0.4, linewidths=0)
+        sc = ax.scatter(
+            p[:, 0],
+            p[:, 1],
+            p[:, 2],
+            c=np.minimum(d_mm[keep], MAX_MM),
+            cmap="turbo",
+            vmin=0,
+            vmax=MAX_MM,
+            s=0.4,
+            linewidths=0,
+        )
         ax.view_init(elev=18, azim=-60)
         ax.set_xlim(lo[0], hi[0])
         ax.set_ylim(lo[1], hi[1])
@@ -82,7 +94,10 @@ def main() -> None:
         )
     cbar = fig.colorbar(sc, ax=fig.axes, shrink=0.6, pad=0.02)
     cbar.set_label(f"distance to the true opaque surface, mm (clipped at {MAX_MM:g})")
-    fig.suptitle(f"{args.plant.replace('_', ' ')}: 100 views at {camera.width}x{camera.height} merged on a 1 mm grid", fontsize=12)
+    fig.suptitle(
+        f"{args.plant.replace('_', ' ')}: 100 views at {camera.width}x{camera.height} merged on a 1 mm grid",
+        fontsize=12,
+    )
     args.out.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(args.out, bbox_inches="tight")
     print(f"wrote {args.out}")

@@ -18,8 +18,8 @@ from agrisim.episode import Episode
 
 TESTS = Path(__file__).resolve().parent.parent / "tests"
 sys.path[:0] = [str(TESTS), str(TESTS / "e2e")]
-from browser import Page
-from test_web_view import TIMELINE_NOTICE, shows_photographs, shows_views
+from browser import Page  # noqa: E402 - found through the sys.path set above
+from test_web_view import TIMELINE_NOTICE, shows_photographs, shows_views  # noqa: E402
 
 #: the page as the test sees it, then scaled down for the README
 PAGE = (1600, 900)

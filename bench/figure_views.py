@@ -42,4 +42,6 @@ def figure_views(width: int, height: int) -> FigureViews:
     registry = Registry(make_plugin_manager())
     cell = build_cell(CellConfig())
     poses = {a.name: ArmKinematics(a).link_poses(np.array(a.home)) for a in cell.arms}
-    return FigureViews(registry, cell, poses, preset("rpi3-wide-1080p", f"{width}x{height}"), hemisphere(cell, RoutineConfig()))
+    return FigureViews(
+        registry, cell, poses, preset("rpi3-wide-1080p", f"{width}x{height}"), hemisphere(cell, RoutineConfig())
+    )

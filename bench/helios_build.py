@@ -13,8 +13,8 @@ import argparse
 import statistics
 import time
 
-from agrisim.plugins.plants.helios import convert as hc
 from agrisim.plugins.plants.helios import HeliosPlantOptions, grow, helios_plant
+from agrisim.plugins.plants.helios import convert as hc
 
 
 def main() -> None:
@@ -38,7 +38,7 @@ def main() -> None:
             t3 = time.perf_counter()
             mesh = hc.to_mesh(ctx, prims, labels, instances, f"helios:{args.model}")
             t4 = time.perf_counter()
-        for name, dt in zip(stages, (t1 - t0, t2 - t1, t3 - t2, t4 - t3)):
+        for name, dt in zip(stages, (t1 - t0, t2 - t1, t3 - t2, t4 - t3), strict=True):
             stages[name].append(dt)
         # the whole public path (grow + convert + fit), as `agrisim run --plant helios:...` calls it
         hc._texture.cache_clear()

@@ -31,8 +31,21 @@ def frames_complete(out: Path) -> int:
 
 def one(resolution: str, root: Path) -> float:
     out = root / "run"
-    cmd = [sys.executable, "-m", "agrisim", "run", "--physics", "kinematic", "--setpoints", "2x5",
-           "--resolution", resolution, "--no-rrd", "--out", str(out)]
+    cmd = [
+        sys.executable,
+        "-m",
+        "agrisim",
+        "run",
+        "--physics",
+        "kinematic",
+        "--setpoints",
+        "2x5",
+        "--resolution",
+        resolution,
+        "--no-rrd",
+        "--out",
+        str(out),
+    ]
     proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, env={**os.environ})
     while frames_complete(out) < 2:
         if proc.poll() is not None:
@@ -57,8 +70,10 @@ def main() -> None:
     for _ in range(args.repeats):
         with tempfile.TemporaryDirectory() as tmp:
             times.append(one(args.resolution, Path(tmp)))
-    print(f"SIGINT to exit at {args.resolution}: median {statistics.median(times):.2f} s, "
-          f"max {max(times):.2f} s over {len(times)} runs")
+    print(
+        f"SIGINT to exit at {args.resolution}: median {statistics.median(times):.2f} s, "
+        f"max {max(times):.2f} s over {len(times)} runs"
+    )
 
 
 if __name__ == "__main__":

@@ -20,7 +20,9 @@ def cpu_model() -> str:
 def gpu_name() -> str:
     """The first NVIDIA GPU's name from ``nvidia-smi`` (``no GPU`` without one)."""
     try:
-        out = subprocess.run(["nvidia-smi", "--query-gpu=name", "--format=csv,noheader"], capture_output=True, text=True, timeout=20)
+        out = subprocess.run(
+            ["nvidia-smi", "--query-gpu=name", "--format=csv,noheader"], capture_output=True, text=True, timeout=20
+        )
         return out.stdout.strip().splitlines()[0] if out.returncode == 0 and out.stdout.strip() else "no GPU"
     except (OSError, subprocess.SubprocessError):
         return "no GPU"

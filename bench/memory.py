@@ -41,14 +41,18 @@ def main() -> None:
             cmd = [sys.executable, "-m", "agrisim", "run", "--out", str(Path(tmp) / "default")]
             subprocess.run(cmd, check=True, stdout=subprocess.DEVNULL)
             peak = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024
-            print(f"default run (100 views at 1920x1080, recording + reconstruction): peak RSS {peak:,.0f} MB, "
-                  f"{time.perf_counter() - t0:.0f} s")
+            print(
+                f"default run (100 views at 1920x1080, recording + reconstruction): peak RSS {peak:,.0f} MB, "
+                f"{time.perf_counter() - t0:.0f} s"
+            )
 
         from agrisim.config import build_config
         from agrisim.episode import Episode
 
         plants = ["indian_cress", "boston_fern", "hydrangea", "coltsfoot", "basket_grass"]
-        print(f"{args.episodes} consecutive episodes in one process ({args.setpoints} setpoints per arm, {args.resolution}):")
+        print(
+            f"{args.episodes} consecutive episodes in one process ({args.setpoints} setpoints per arm, {args.resolution}):"
+        )
         start = rss_mb()
         for i in range(args.episodes):
             config = build_config(
@@ -63,8 +67,10 @@ def main() -> None:
             t0 = time.perf_counter()
             Episode(config).run()
             gc.collect()
-            print(f"  episode {i + 1:2d} ({config.plant}, {config.render.seg_mode}): RSS {rss_mb():,.0f} MB "
-                  f"({time.perf_counter() - t0:.0f} s)")
+            print(
+                f"  episode {i + 1:2d} ({config.plant}, {config.render.seg_mode}): RSS {rss_mb():,.0f} MB "
+                f"({time.perf_counter() - t0:.0f} s)"
+            )
         print(f"  RSS grew {rss_mb() - start:+,.0f} MB over the episodes (from {start:,.0f} MB before the first)")
 
 

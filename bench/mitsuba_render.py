@@ -57,8 +57,10 @@ def main() -> None:
     views = [setpoints[i].world_T_camera for i in np.linspace(0, len(setpoints) - 1, args.views + 2).astype(int)[1:-1]]
     settings = RenderConfig(labels="organs")
     defaults = MitsubaOptions()
-    print(f"CPU: {cpu_model()}; plant {args.plant} ({len(plant.mesh.faces):,} triangles); mitsuba defaults: "
-          f"{defaults.spp} spp, {defaults.integrator}, max depth {defaults.max_depth}, denoise {defaults.denoise}")
+    print(
+        f"CPU: {cpu_model()}; plant {args.plant} ({len(plant.mesh.faces):,} triangles); mitsuba defaults: "
+        f"{defaults.spp} spp, {defaults.integrator}, max depth {defaults.max_depth}, denoise {defaults.denoise}"
+    )
 
     if not args.skip_quality:
         quality(scene, cell, settings, views, poses, args.reference_spp)

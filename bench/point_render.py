@@ -85,7 +85,9 @@ def main() -> None:
     counts = [int(c) for c in args.counts.split(",")]
     sizes = [float(s) for s in args.sizes.split(",")]
     print(f"{args.plant} at {args.resolution}, {args.views} views, raycast with 1 shadow sample; {cpu_model()}")
-    print(f"{'plant':>16} {'size':>8} {'prepare s':>10} {'build s':>8} {'s/view':>7} {'labelled px':>12} {'peak MB':>8}")
+    print(
+        f"{'plant':>16} {'size':>8} {'prepare s':>10} {'build s':>8} {'s/view':>7} {'labelled px':>12} {'peak MB':>8}"
+    )
     cases = [(0, 0.0)] + [(n, s) for n in counts for s in sizes]
     for count, size in cases:
         res = subprocess.run(

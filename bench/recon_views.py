@@ -17,18 +17,18 @@ import time
 import numpy as np
 import open3d as o3d
 
-from agrisim.scene.camera import preset
-from agrisim.scene.cell import build_cell
 from agrisim.config import CellConfig, RenderConfig, RoutineConfig, build_config
 from agrisim.episode import resolve_plant
-from agrisim.lab.room import build_scene
 from agrisim.evaluation.metrics import GroundTruth
+from agrisim.evaluation.session import ReconSession
+from agrisim.evaluation.views import View, backproject
+from agrisim.lab.room import build_scene
 from agrisim.plugins.recon.pointcloud import PointCloudReconstructor
 from agrisim.plugins.recon.tsdf import TsdfReconstructor
-from agrisim.evaluation.session import ReconSession
 from agrisim.registry import Registry, make_plugin_manager
 from agrisim.robot.setpoints import hemisphere
-from agrisim.evaluation.views import View, backproject
+from agrisim.scene.camera import preset
+from agrisim.scene.cell import build_cell
 
 
 def _pcd(points: np.ndarray) -> o3d.geometry.PointCloud:
@@ -54,7 +54,9 @@ def main() -> None:
     for i, T in enumerate(poses):
         f = renderer.render(camera, T, {})
         views.append(View(f"v{i:03d}", camera, T, f.stored()))
-    print(f"{args.plant}, {len(views)} views at {camera.width}x{camera.height}: rendered in {time.perf_counter() - t0:.1f} s")
+    print(
+        f"{args.plant}, {len(views)} views at {camera.width}x{camera.height}: rendered in {time.perf_counter() - t0:.1f} s"
+    )
 
     t0 = time.perf_counter()
     per_view = [backproject(v, v.images.labels != 0, 1.0) for v in views]
@@ -86,11 +88,18 @@ def main() -> None:
     t_once = time.perf_counter() - t0 + t_bp
 
     print(f"  pointcloud (incremental grid): {t_ours:6.1f} s  {len(ours):,} points")
-    print(f"  paper's re-downsampling:       {t_paper:6.1f} s  {len(paper.points):,} points  ({t_paper / t_ours:.1f}x ours)")
-    print(f"  one downsample at the end:     {t_once:6.1f} s  {len(once.points):,} points  ({t_once / t_ours:.1f}x ours)")
+    print(
+        f"  paper's re-downsampling:       {t_paper:6.1f} s  {len(paper.points):,} points  ({t_paper / t_ours:.1f}x ours)"
+    )
+    print(
+        f"  one downsample at the end:     {t_once:6.1f} s  {len(once.points):,} points  ({t_once / t_ours:.1f}x ours)"
+    )
 
     truth = GroundTruth.sample(scene.mesh(scene.plant), 500_000)
-    for name, make in (("pointcloud", lambda: PointCloudReconstructor(scene.labels)), ("tsdf", lambda: TsdfReconstructor(scene.labels))):
+    for name, make in (
+        ("pointcloud", lambda: PointCloudReconstructor(scene.labels)),
+        ("tsdf", lambda: TsdfReconstructor(scene.labels)),
+    ):
         session = ReconSession(make(), scene.labels, truth, [1.0, 2.0, 5.0])
         t0 = time.perf_counter()
         for v in views:

@@ -12,15 +12,14 @@ import time
 
 import numpy as np
 
-from agrisim.scene.camera import preset
-from agrisim.scene.cell import build_cell
-from agrisim.config import CellConfig, RenderConfig, RoutineConfig
+from agrisim.config import CellConfig, RenderConfig, RoutineConfig, build_config
 from agrisim.episode import resolve_plant
-from agrisim.config import build_config
-from agrisim.robot.kinematics import ArmKinematics
 from agrisim.lab.room import build_scene
 from agrisim.registry import Registry, make_plugin_manager
+from agrisim.robot.kinematics import ArmKinematics
 from agrisim.robot.setpoints import hemisphere
+from agrisim.scene.camera import preset
+from agrisim.scene.cell import build_cell
 
 
 def main() -> None:
@@ -41,8 +40,10 @@ def main() -> None:
     setpoints = hemisphere(cell, RoutineConfig())["r1"]
     views = [setpoints[i].world_T_camera for i in np.linspace(0, len(setpoints) - 1, args.views).astype(int)]
     settings = RenderConfig()
-    print(f"{args.plant}: {len(plant.mesh.faces):,} plant triangles, {sum(len(m.faces) for m in scene.meshes):,} in the scene; "
-          f"{camera.width}x{camera.height}, {len(scene.lights)} lights, {args.shadow_samples} shadow sample(s)")
+    print(
+        f"{args.plant}: {len(plant.mesh.faces):,} plant triangles, {sum(len(m.faces) for m in scene.meshes):,} in the scene; "
+        f"{camera.width}x{camera.height}, {len(scene.lights)} lights, {args.shadow_samples} shadow sample(s)"
+    )
     per_view = {}
     for name in ("raycast", "pybullet"):
         spec = registry.get("renderer", name)

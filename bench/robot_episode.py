@@ -15,18 +15,18 @@ from pathlib import Path
 
 import numpy as np
 
-from agrisim.scene.cell import build_cell
 from agrisim.config import CellConfig, build_config
 from agrisim.episode import Episode
-from agrisim.scene.transforms import look_at
-from agrisim.robot.kinematics import ArmKinematics
-from agrisim.plugins.physics.pybullet_physics import BulletOptions
-from agrisim.plugins.physics.pybullet_physics.backend import BulletPhysics
 from agrisim.plugins.physics.kinematic import KinematicOptions
 from agrisim.plugins.physics.kinematic.backend import KinematicPhysics
+from agrisim.plugins.physics.pybullet_physics import BulletOptions
+from agrisim.plugins.physics.pybullet_physics.backend import BulletPhysics
 from agrisim.plugins.planners.ompl_planner import OmplOptions
 from agrisim.plugins.planners.ompl_planner.backend import OmplPlanner
+from agrisim.robot.kinematics import ArmKinematics
 from agrisim.robot.trajectory import Limits, time_parametrize
+from agrisim.scene.cell import build_cell
+from agrisim.scene.transforms import look_at
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from machine import cpu_model  # noqa: E402
@@ -45,12 +45,16 @@ def bench_components() -> None:
     rng = np.random.default_rng(0)
     home = np.array(cell.arms[0].home)
     c = cell.plant_center
-    targets = [look_at(c + 0.5 * np.array([np.sin(p) * np.cos(a), np.sin(p) * np.sin(a), np.cos(p)]), c)
-               for p, a in zip(rng.uniform(0.6, 1.3, 50), rng.uniform(-1.2, 1.2, 50), strict=True)]
+    targets = [
+        look_at(c + 0.5 * np.array([np.sin(p) * np.cos(a), np.sin(p) * np.sin(a), np.cos(p)]), c)
+        for p, a in zip(rng.uniform(0.6, 1.3, 50), rng.uniform(-1.2, 1.2, 50), strict=True)
+    ]
     q_warm = [k.ik(T, home, rng=rng).q for T in targets]
     t_cold = per_call(lambda: k._solve(k._base.actInv(__import__("pinocchio").SE3(targets[0])), home, 200, 1e-7), 50)
     t_warm = per_call(lambda: k.ik(k.fk(q_warm[1] + 0.01), q_warm[1], rng=rng), 200)
-    print(f"IK (damped least squares, Pinocchio): one cold solve {t_cold * 1e3:.2f} ms; warm, near the current joints {t_warm * 1e3:.2f} ms")
+    print(
+        f"IK (damped least squares, Pinocchio): one cold solve {t_cold * 1e3:.2f} ms; warm, near the current joints {t_warm * 1e3:.2f} ms"
+    )
 
     bullet = BulletPhysics(cell, BulletOptions())
     coal = KinematicPhysics(cell, KinematicOptions())
@@ -73,29 +77,35 @@ def bench_components() -> None:
         t0 = time.perf_counter()
         path = planner.plan(start, goal, valid, k.lower, k.upper, seed, 0.02)
         times.append(time.perf_counter() - t0)
-    print(f"OMPL RRTConnect around the plant (straight line blocked), simplified and re-checked: "
-          f"median {np.median(times) * 1e3:.0f} ms over 5 plans, {len(path)} waypoints")
+    print(
+        f"OMPL RRTConnect around the plant (straight line blocked), simplified and re-checked: "
+        f"median {np.median(times) * 1e3:.0f} ms over 5 plans, {len(path)} waypoints"
+    )
     bullet.close()
     coal.close()
 
 
 def bench_episode(physics: str, planner: str) -> None:
     with tempfile.TemporaryDirectory() as tmp:
-        cfg = build_config({
-            "physics": {"backend": physics},
-            "planner": {"backend": planner},
-            "renderer": {"backend": "none"},
-            "output": {"out": str(Path(tmp) / "run"), "no_rrd": True},
-        })
+        cfg = build_config(
+            {
+                "physics": {"backend": physics},
+                "planner": {"backend": planner},
+                "renderer": {"backend": "none"},
+                "output": {"out": str(Path(tmp) / "run"), "no_rrd": True},
+            }
+        )
         t0 = time.perf_counter()
         episode = Episode(cfg)
         run, summary = episode.run()
         wall = time.perf_counter() - t0
     worst = max(r.ee_error_mm for r in run.results if r.reached)
     stages = ", ".join(f"{k} {v:.2f}" for k, v in summary.wall_s.items())
-    print(f"episode {physics:9s} + {planner:6s}: {wall:5.1f} s wall for {summary.setpoints} setpoints; "
-          f"reached {summary.reached}, collisions {summary.collisions}, worst error {worst:.4f} mm, "
-          f"simulated {summary.sim_time:.1f} s  [{stages}]")
+    print(
+        f"episode {physics:9s} + {planner:6s}: {wall:5.1f} s wall for {summary.setpoints} setpoints; "
+        f"reached {summary.reached}, collisions {summary.collisions}, worst error {worst:.4f} mm, "
+        f"simulated {summary.sim_time:.1f} s  [{stages}]"
+    )
 
 
 def main() -> None:

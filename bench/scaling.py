@@ -30,7 +30,9 @@ def run(args: list[str]) -> tuple[float, int, dict[str, float]]:
     with tempfile.TemporaryDirectory() as tmp:
         out = Path(tmp) / "run"
         t0 = time.perf_counter()
-        subprocess.run([sys.executable, "-m", "agrisim", "run", "--out", str(out), *args], check=True, stdout=subprocess.DEVNULL)
+        subprocess.run(
+            [sys.executable, "-m", "agrisim", "run", "--out", str(out), *args], check=True, stdout=subprocess.DEVNULL
+        )
         wall = time.perf_counter() - t0
         doc = json.loads((out / "run.json").read_text())
     return wall, len(doc["frames_complete"]), doc["summary"]["wall_s"]
@@ -58,7 +60,10 @@ def main() -> None:
         wall, n, _ = run(["--setpoints", "2x5", "--resolution", "960x540", "--shadow-samples", str(k)])
         results["shadow samples"].append((str(k), wall, n))
         print(f"  shadow samples {k} (20 views, 960x540): {wall:.1f} s", flush=True)
-    (n0, w0), (n1, w1) = [(n, w) for _, w, n in results["setpoints"]][0], [(n, w) for _, w, n in results["setpoints"]][-1]
+    (n0, w0), (n1, w1) = (
+        [(n, w) for _, w, n in results["setpoints"]][0],
+        [(n, w) for _, w, n in results["setpoints"]][-1],
+    )
     per_view = (w1 - w0) / max(n1 - n0, 1)
     print(f"  fit at 480x270: {w0 - per_view * n0:.1f} s fixed + {per_view:.2f} s per view")
     plot(results, args.plot)
@@ -82,10 +87,10 @@ def plot(results: dict[str, list[tuple[str, float, int]]], path: Path) -> None:
         "setpoints": ("views (480x270)", "setpoints"),
         "shadow samples": ("shadow samples per pixel (20 views, 960x540)", "shadow samples"),
     }
-    for ax, (key, rows) in zip(axes, results.items()):
+    for ax, (key, rows) in zip(axes, results.items(), strict=False):
         xs = [x_of[key](label) if x_of[key] else n for label, _, n in rows]
         ax.plot(xs, [w for _, w, _ in rows], "o-", color="#2a7")
-        for x, (label, w, _) in zip(xs, rows):
+        for x, (label, w, _) in zip(xs, rows, strict=True):
             ax.annotate(label, (x, w), textcoords="offset points", xytext=(4, -10), fontsize=7)
         ax.set_xlabel(titles[key][0])
         ax.set_ylabel("wall time of the run, s")

@@ -83,11 +83,17 @@ def gpu(root: Path, work: Path, species: list[str], step: str) -> None:
             agrisim("recon", str(out), "--recon", "splat", "--overwrite")
             shutil.copy2(out / "metrics.json", work / "metrics" / f"{s}.json")
             m = json.loads((out / "metrics.json").read_text())["splat"]
-            print(s, json.dumps({k: m[k] for k in ("psnr", "ssim", "psnr_plant", "gaussians", "train_seconds")}), flush=True)
+            print(
+                s,
+                json.dumps({k: m[k] for k in ("psnr", "ssim", "psnr_plant", "gaussians", "train_seconds")}),
+                flush=True,
+            )
 
 
 def table(folder: Path) -> None:
-    print("| plant | PSNR | SSIM | paper PSNR | paper SSIM | plant PSNR | depth error median / p90, mm | centres precision / recall @2mm | Gaussians | training s |")
+    print(
+        "| plant | PSNR | SSIM | paper PSNR | paper SSIM | plant PSNR | depth error median / p90, mm | centres precision / recall @2mm | Gaussians | training s |"
+    )
     print("|---|---|---|---|---|---|---|---|---|---|")
     for s in SPECIES:
         path = folder / f"{s}.json"

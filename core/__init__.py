@@ -43,4 +43,19 @@ def __getattr__(name: str) -> Any:
     raise AttributeError(f"module 'agrisim' has no attribute {name!r}")
 
 
-__all__ = ["BackendSpec", "Options", "hookimpl", "make_plugin_manager", "__version__", *_LAZY]
+__all__ = [  # spelt out (not built from _LAZY) so that linters and type checkers read it
+    "BackendSpec",
+    "Episode",
+    "Options",
+    "Run",
+    "RunConfig",
+    "RunSummary",
+    "SetpointResult",
+    "__version__",
+    "build_config",
+    "hookimpl",
+    "load_toml",
+    "make_plugin_manager",
+    "run_episode",
+]
+assert set(__all__) == {"BackendSpec", "Options", "hookimpl", "make_plugin_manager", "__version__", *_LAZY}

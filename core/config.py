@@ -27,6 +27,9 @@ else:  # pragma: no cover
     import tomli as tomllib
 
 
+# Defaults are given as Field(default=...), never Field(value, ...): type checkers learn a model's
+# constructor from pydantic's dataclass_transform, which counts only the keyword as a default (a
+# positional one makes every such field look required).
 class _Model(Options):
     # agrisim's own sections are Options too, and also re-validate on assignment.
     model_config = ConfigDict(validate_assignment=True)
@@ -80,16 +83,16 @@ class RendererChoice(BackendChoice):
 class ReconChoice(BackendChoice):
     backend: str = "pointcloud"
     """Reconstructor (``--recon``): pointcloud or tsdf, or a plugin's; none: no reconstruction."""
-    merged_every: int = Field(10, ge=1, le=10_000)
+    merged_every: int = Field(default=10, ge=1, le=10_000)
     """Announce the merged clouds (to Rerun) every this many views, and at the end."""
 
 
 class MetricsConfig(_Model):
     """How reconstructions are measured against the ground-truth plant."""
 
-    thresholds_mm: list[float] = Field([1.0, 2.0, 5.0], min_length=1, max_length=8)
+    thresholds_mm: list[float] = Field(default=[1.0, 2.0, 5.0], min_length=1, max_length=8)
     """Distances at which precision, recall and F-score are reported, mm."""
-    truth_samples: int = Field(500_000, ge=1_000, le=20_000_000)
+    truth_samples: int = Field(default=500_000, ge=1_000, le=20_000_000)
     """Points sampled uniformly on the true plant surface (those on cut-away texels dropped)."""
 
     @field_validator("thresholds_mm")
@@ -103,25 +106,25 @@ class MetricsConfig(_Model):
 class CellConfig(_Model):
     """The robot cell: two arms on stands either side of the plant table."""
 
-    arm_distance: float = Field(1.0, gt=0.3, le=3.0)
+    arm_distance: float = Field(default=1.0, gt=0.3, le=3.0)
     """Horizontal distance from the plant centre to each arm's base, m (paper: 1.0)."""
-    stand_height: float = Field(0.95, ge=0.0, le=3.0)
+    stand_height: float = Field(default=0.95, ge=0.0, le=3.0)
     """Height of the arms' stands (their bases sit on top), m (paper: 0.95)."""
-    stand_size: float = Field(0.4, gt=0.0, le=2.0)
+    stand_size: float = Field(default=0.4, gt=0.0, le=2.0)
     """Side of the square robot stands, m."""
-    table_height: float = Field(0.80, ge=0.0, le=3.0)
+    table_height: float = Field(default=0.80, ge=0.0, le=3.0)
     """Height of the plant table's top, m; the pot stands on it."""
-    table_size: float = Field(0.5, gt=0.0, le=3.0)
+    table_size: float = Field(default=0.5, gt=0.0, le=3.0)
     """Side of the square plant table, m."""
-    pot_radius: float = Field(0.09, gt=0.0, le=0.5)
+    pot_radius: float = Field(default=0.09, gt=0.0, le=0.5)
     """Pot radius, m."""
-    pot_height: float = Field(0.14, gt=0.0, le=1.0)
+    pot_height: float = Field(default=0.14, gt=0.0, le=1.0)
     """Pot height, m."""
-    keepout_radius: float = Field(0.16, ge=0.0, le=1.0)
+    keepout_radius: float = Field(default=0.16, ge=0.0, le=1.0)
     """Radius of a cylinder around the plant that arms must not enter, m (0 disables)."""
-    keepout_height: float = Field(0.35, ge=0.0, le=2.0)
+    keepout_height: float = Field(default=0.35, ge=0.0, le=2.0)
     """Height of that cylinder above the table, m."""
-    arms: int = Field(2, ge=1, le=2)
+    arms: int = Field(default=2, ge=1, le=2)
     """Number of arms: 2 as in the paper, or 1 (the arm on the +x side)."""
 
 
@@ -130,13 +133,13 @@ class RoutineConfig(_Model):
 
     setpoints: str = "5x10"
     """``LxC``: L elevation levels x C azimuth columns per arm (paper: 5x10)."""
-    radius: float = Field(0.5, gt=0.05, le=1.5)
+    radius: float = Field(default=0.5, gt=0.05, le=1.5)
     """Hemisphere radius around the plant centre, m (paper: 0.5)."""
     phi_deg: tuple[float, float] = (36.0, 540.0 / 7.0)
     """Polar angle range from the zenith, degrees (paper: pi/5 .. 3pi/7)."""
     theta_deg: tuple[float, float] = (180.0 / 19.0, 18.0 * 180.0 / 19.0)
     """Azimuth range of each arm's half, degrees (paper: pi/19 .. 18pi/19)."""
-    aim_height: float = Field(0.2, ge=-0.5, le=1.0)
+    aim_height: float = Field(default=0.2, ge=-0.5, le=1.0)
     """Cameras look at this point above the hemisphere centre, m: the plant's middle rather
     than the pot's centre, so plants up to 0.4 m stay in view (0: the pot's centre)."""
     csv: Path | None = None
@@ -166,27 +169,27 @@ class RoutineConfig(_Model):
 class MotionConfig(_Model):
     """IK, time-parametrisation and the reach check."""
 
-    velocity_scale: float = Field(1.0, gt=0.0, le=1.0)
+    velocity_scale: float = Field(default=1.0, gt=0.0, le=1.0)
     """Fraction of the URDF's joint velocity limits used."""
-    max_acceleration: float = Field(4.0, gt=0.0, le=100.0)
+    max_acceleration: float = Field(default=4.0, gt=0.0, le=100.0)
     """Joint acceleration limit, rad/s^2."""
-    max_jerk: float = Field(40.0, gt=0.0, le=10000.0)
+    max_jerk: float = Field(default=40.0, gt=0.0, le=10000.0)
     """Joint jerk limit, rad/s^3."""
-    reach_tolerance_mm: float = Field(0.05, gt=0.0, le=100.0)
+    reach_tolerance_mm: float = Field(default=0.05, gt=0.0, le=100.0)
     """A setpoint is reached when the camera is this close to it, mm (paper: 0.05)."""
-    reach_tolerance_rad: float = Field(1e-4, gt=0.0, le=1.0)
+    reach_tolerance_rad: float = Field(default=1e-4, gt=0.0, le=1.0)
     """... and its orientation this close, rad."""
-    reach_timeout: float = Field(5.0, gt=0.0, le=600.0)
+    reach_timeout: float = Field(default=5.0, gt=0.0, le=600.0)
     """Simulated seconds to settle after the trajectory ends before giving up (paper: 5)."""
-    ik_restarts: int = Field(16, ge=0, le=1000)
+    ik_restarts: int = Field(default=16, ge=0, le=1000)
     """Random restarts of IK besides the warm start from the current joints."""
-    ik_max_restarts: int = Field(100, ge=0, le=100000)
+    ik_max_restarts: int = Field(default=100, ge=0, le=100000)
     """Random restarts allowed while no collision-free solution has been found."""
-    ik_candidates: int = Field(3, ge=1, le=100)
+    ik_candidates: int = Field(default=3, ge=1, le=100)
     """IK solutions (nearest first) the planner tries before a setpoint is given up."""
-    ik_max_iterations: int = Field(200, ge=1, le=100000)
+    ik_max_iterations: int = Field(default=200, ge=1, le=100000)
     """Iterations per IK attempt."""
-    collision_check_step: float = Field(0.02, gt=0.0, le=1.0)
+    collision_check_step: float = Field(default=0.02, gt=0.0, le=1.0)
     """Joint-space resolution of edge and trajectory collision checks, rad."""
 
 
@@ -248,11 +251,11 @@ class PlantFileConfig(_Model):
     """PNG of label ids or label colours at the albedo's UVs."""
     material_labels: dict[str, str] | None = None
     """Material-name pattern -> organ name (``{"Leaf*" = "leaf", "Bark" = "stem"}``)."""
-    alpha_cutoff: float | None = Field(None, ge=0.0, le=1.0)
+    alpha_cutoff: float | None = Field(default=None, ge=0.0, le=1.0)
     """Cutoff for every MASK/BLEND material instead of the file's."""
     up: Literal["y", "z"] | None = None
     """The asset's up axis (glTF and OBJ default to y)."""
-    scale: float = Field(1.0, gt=0.0, le=1000.0)
+    scale: float = Field(default=1.0, gt=0.0, le=1000.0)
     """Multiplies the coordinates (0.01 for an asset in centimetres)."""
     root: Path | None = None
     """Directory the asset and the files it names must lie in (no escaping it)."""
@@ -275,7 +278,7 @@ class PointsConfig(_Model):
 class RunConfig(_Model):
     """Everything one episode needs. Defaults reproduce the paper's experiment."""
 
-    seed: int = Field(0, ge=0, le=2**32 - 1)
+    seed: int = Field(default=0, ge=0, le=2**32 - 1)
     """Seed for IK restarts and sampling planners."""
     plant: str = "indian_cress"
     """Plant species (``agrisim plants``) or a glTF/GLB/OBJ file (``--plant``)."""
@@ -285,7 +288,7 @@ class RunConfig(_Model):
     """The plant as points (``--as-points``, ``--point-size``)."""
     plants: dict[str, dict[str, Any]] = {}
     """Options per plant species (``[plants.boxwood]``), validated by the species' own model."""
-    pcg_seed: int = Field(42, ge=0, le=2**32 - 1)
+    pcg_seed: int = Field(default=42, ge=0, le=2**32 - 1)
     """Seed of the lab's clutter randomizer (the paper's PCG Seed, 42)."""
     physics: PhysicsChoice = PhysicsChoice()
     """Physics backend and per-backend options (``[physics.pybullet]``)."""
@@ -444,5 +447,3 @@ def backend_options(model: type[BaseModel], table: Mapping[str, Any], what: str)
         return model.model_validate(dict(table))
     except ValidationError as exc:
         raise ConfigError(f"{what}: {_describe(exc)}") from None
-
-

@@ -9,7 +9,6 @@ reason and the run goes on.
 from __future__ import annotations
 
 import dataclasses
-
 import datetime as _dt
 import time
 from collections.abc import Callable, Iterator
@@ -20,13 +19,15 @@ import numpy as np
 import pluggy
 from pydantic import BaseModel
 
-from agrisim.files.atomic import remove_partial
-from agrisim.files.dataset import DatasetWriter
-from agrisim.scene.camera import preset
-from agrisim.scene.cell import build_cell
+from agrisim.capabilities import check_reconstructor, check_renderer
 from agrisim.config import BackendChoice, RunConfig, backend_options
 from agrisim.errors import BackendFailure, ConfigError
-from agrisim.scene.transforms import pose_error
+from agrisim.evaluation.metrics import GroundTruth
+from agrisim.evaluation.session import ReconSession, summary_metrics
+from agrisim.evaluation.views import View, load_view, view_from_capture
+from agrisim.files.atomic import remove_partial
+from agrisim.files.dataset import DatasetWriter
+from agrisim.files.rundir import prepare_out_dir, resolve_out_dir, saved_run
 from agrisim.interfaces import (
     Capture,
     JointTrajectory,
@@ -37,21 +38,19 @@ from agrisim.interfaces import (
     Renderer,
     Trajectory,
 )
-from agrisim.robot.kinematics import ArmKinematics
-from agrisim.lab.room import build_scene
-from agrisim.evaluation.metrics import GroundTruth
-from agrisim.robot.segments import segment_is_valid
-from agrisim.evaluation.session import ReconSession, summary_metrics
-from agrisim.files.rundir import prepare_out_dir, resolve_out_dir, saved_run
-from agrisim.scene.model import Scene
-from agrisim.capabilities import check_reconstructor, check_renderer
-from agrisim.records import Run, RunSummary, SetpointResult
 from agrisim.kinds import KINDS
+from agrisim.lab.room import build_scene
+from agrisim.records import Run, RunSummary, SetpointResult
 from agrisim.registry import BackendSpec, Registry, blame, loads_everything, make_plugin_manager
-from agrisim.scene.plant_choice import check_plant_name, draws_points, resolve_plant
+from agrisim.robot.kinematics import ArmKinematics
+from agrisim.robot.segments import segment_is_valid
 from agrisim.robot.setpoints import Setpoint, routine
 from agrisim.robot.trajectory import Limits, TimedPath, time_parametrize
-from agrisim.evaluation.views import View, load_view, view_from_capture
+from agrisim.scene.camera import preset
+from agrisim.scene.cell import build_cell
+from agrisim.scene.model import Scene
+from agrisim.scene.plant_choice import check_plant_name, draws_points, resolve_plant
+from agrisim.scene.transforms import pose_error
 
 #: rate at which planned trajectories are sampled for physics and sinks, Hz
 TRAJECTORY_RATE = 240.0
@@ -109,9 +108,7 @@ class Episode:
             with _timed(self._prep_wall, "plant"):
                 self.plant = resolve_plant(self.registry, config)
             with _timed(self._prep_wall, "scene"):
-                self.scene = build_scene(
-                    self.cell, self.plant, pcg_seed=config.pcg_seed, labels=config.render.labels
-                )
+                self.scene = build_scene(self.cell, self.plant, pcg_seed=config.pcg_seed, labels=config.render.labels)
             # Reconstruction fuses rendered views; without a renderer there is nothing to fuse.
             if config.recon.backend != "none":
                 check_reconstructor(self.registry.get("reconstructor", config.recon.backend), config.render.hide_robots)
@@ -139,7 +136,9 @@ class Episode:
     def _backend(self, kind: str, choice: BackendChoice) -> tuple[BackendSpec, BaseModel]:
         """The chosen backend of ``kind`` and its options, validated by its own model."""
         spec = self.registry.get(kind, choice.backend)
-        choice.check_tables(KINDS[kind].section, self.registry.specs(kind))
+        section = KINDS[kind].section
+        assert section is not None  # only a kind that a setting chooses has a BackendChoice
+        choice.check_tables(section, self.registry.specs(kind))
         options = backend_options(spec.options_model, choice.options_for(spec.name), f"{kind} backend {spec.name!r}")
         if spec.preflight is not None:  # e.g. a GPU it needs, a file it reads
             with blame(kind, spec, " checking its settings"):
@@ -165,6 +164,7 @@ class Episode:
                     )
             recon: Reconstructor | None = None
             if self.recon_spec is not None:
+                assert self.scene is not None  # a reconstructor is chosen only with a renderer, which has a scene
                 with blame("reconstructor", self.recon_spec, " to start"):
                     recon = self.registry.build("reconstructor", self.recon_spec, self.scene.labels, self.recon_options)
             prepare_out_dir(self.out_dir, self.config)
@@ -190,7 +190,11 @@ class Episode:
             },
             started_at=_dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
             # the scene as drawn, arms included: saved with the run for agrisim render
-            scene=dataclasses.replace(self.scene, arms=renderer.arm_meshes()) if renderer is not None else self.scene,
+            scene=(
+                dataclasses.replace(self.scene, arms=renderer.arm_meshes())
+                if renderer is not None and self.scene is not None
+                else self.scene
+            ),
             labels=self.scene.labels if self.scene is not None else None,
             wall_s=dict(self._prep_wall),
             plant_notes=list(self.plant.notes) if self.scene is not None else [],
@@ -320,7 +324,7 @@ class Episode:
                 rotation_tolerance=m.reach_tolerance_rad,
             )
         result.ik_s += time.perf_counter() - t0
-        if not ik.ok:
+        if ik.q is None:  # not ik.ok, spelt so that ik.q is known to be set below
             result.reason = ik.reason
             return None
         # The nearest IK branch may be unreachable without a long detour (an elbow flip the
@@ -445,7 +449,9 @@ class Episode:
             self.pm.hook.agrisim_trajectory(
                 run=self._run,
                 robot=robot,
-                trajectory=Trajectory(robot, targets[robot].index, moves[robot][0], plans[robot].shifted(t_start), ex.executed),
+                trajectory=Trajectory(
+                    robot, targets[robot].index, moves[robot][0], plans[robot].shifted(t_start), ex.executed
+                ),
             )
             if res.reached:
                 capture = Capture(
@@ -474,7 +480,6 @@ class Episode:
                 if self._session is not None and view is not None and self.recon_spec is not None:
                     with self._stage("recon"), blame("reconstructor", self.recon_spec, f" integrating {capture.frame}"):
                         self._session.add(view)
-
 
     def _metrics_meta(self) -> dict[str, Any]:
         c = self.config

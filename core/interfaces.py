@@ -149,9 +149,7 @@ class PhysicsBackend(ABC):
         against the cell; this is the cheaper question asked along simultaneous motions.)
         Backends with a faster arm-against-arm test override this."""
         names = list(configs)
-        return any(
-            self.in_collision(a, configs[a], {b: configs[b] for b in names if b != a}) for a in names[:1]
-        )
+        return any(self.in_collision(a, configs[a], {b: configs[b] for b in names if b != a}) for a in names[:1])
 
     @abstractmethod
     def joint_positions(self, robot: str) -> np.ndarray:

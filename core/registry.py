@@ -13,9 +13,9 @@ from __future__ import annotations
 import importlib
 import os
 import sys
-from importlib import metadata
 from collections.abc import Iterator
 from contextlib import contextmanager
+from importlib import metadata
 from typing import Any
 
 import pluggy
@@ -27,9 +27,20 @@ from agrisim.errors import BackendFailure, PluginError, UserError
 from agrisim.interfaces import PlanningFailed
 from agrisim.kinds import KINDS, PROVIDER_HOOKS, BackendSpec, Kind, NoOptions
 
-__all__ = ["KINDS", "PROVIDER_HOOKS", "BackendSpec", "Kind", "NoOptions", "Registry", "blame", "hookimpl", "make_plugin_manager"]
+__all__ = [
+    "KINDS",
+    "PROVIDER_HOOKS",
+    "BackendSpec",
+    "Kind",
+    "NoOptions",
+    "Registry",
+    "blame",
+    "hookimpl",
+    "make_plugin_manager",
+]
 
 hookimpl = pluggy.HookimplMarker(hookspecs.PROJECT)
+
 
 def make_plugin_manager(*, autoload: bool | None = None) -> pluggy.PluginManager:
     """A fresh plugin manager with agrisim's hookspecs and the installed plugins.
@@ -51,7 +62,9 @@ def make_plugin_manager(*, autoload: bool | None = None) -> pluggy.PluginManager
             dist = f"{ep.dist.name} {ep.dist.version}" if ep.dist else "?"
             if ep.name in seen and seen[ep.name] != dist:
                 # pluggy would silently keep whichever it met first
-                raise PluginError(f"entry point {ep.name!r} in group 'agrisim' is declared by both {seen[ep.name]} and {dist}")
+                raise PluginError(
+                    f"entry point {ep.name!r} in group 'agrisim' is declared by both {seen[ep.name]} and {dist}"
+                )
             seen[ep.name] = dist
             if only and ep.name not in only:
                 pm.set_blocked(ep.name)
@@ -175,4 +188,6 @@ def blame(kind: str, spec: BackendSpec, doing: str = "") -> Iterator[None]:
         raise
     except Exception as exc:
         origin = f" (from {spec.distribution})" if spec.distribution else ""
-        raise BackendFailure(f"{kind} backend {spec.name!r}{origin} failed{doing}: {type(exc).__name__}: {exc}") from exc
+        raise BackendFailure(
+            f"{kind} backend {spec.name!r}{origin} failed{doing}: {type(exc).__name__}: {exc}"
+        ) from exc

@@ -42,8 +42,16 @@ class Page:
             os.dup2(to_us, 4)
 
         self.process = subprocess.Popen(
-            [exe, "--headless", "--no-sandbox", "--remote-debugging-pipe", "--use-angle=swiftshader",
-             "--enable-unsafe-swiftshader", f"--window-size={width},{height}", "about:blank"],
+            [
+                exe,
+                "--headless",
+                "--no-sandbox",
+                "--remote-debugging-pipe",
+                "--use-angle=swiftshader",
+                "--enable-unsafe-swiftshader",
+                f"--window-size={width},{height}",
+                "about:blank",
+            ],
             pass_fds=(3, 4),  # kept open once preexec_fn has put the pipes there
             preexec_fn=descriptors,
             stdout=subprocess.DEVNULL,

@@ -6,11 +6,11 @@ from __future__ import annotations
 
 import pytest
 
-from agrisim.scene.cell import Cell, build_cell
 from agrisim.config import CellConfig
-from agrisim.robot.kinematics import ArmKinematics
-from agrisim.registry import hookimpl
 from agrisim.interfaces import Frame
+from agrisim.registry import hookimpl
+from agrisim.robot.kinematics import ArmKinematics
+from agrisim.scene.cell import Cell, build_cell
 
 
 def _cuda_usable() -> bool:

@@ -74,7 +74,15 @@ class ReferenceTracer:
     def trace(self, rays: np.ndarray, max_layers: int = 16, eps: float = 1e-4) -> Trace:
         """Walk each ray (K x 6) past cut-out texels and culled back faces."""
         k = len(rays)
-        out = Trace(np.full(k, np.inf), np.full(k, -1), np.full(k, -1), np.zeros((k, 2)), np.full(k, -1), np.full(k, -1), np.zeros((k, 2)))
+        out = Trace(
+            np.full(k, np.inf),
+            np.full(k, -1),
+            np.full(k, -1),
+            np.zeros((k, 2)),
+            np.full(k, -1),
+            np.full(k, -1),
+            np.zeros((k, 2)),
+        )
         o, d = rays[:, :3].astype(np.float64), rays[:, 3:].astype(np.float64)
         t_acc = np.zeros(k)
         todo = np.arange(k)
@@ -97,7 +105,11 @@ class ReferenceTracer:
                     passes[these] = cut | back
             hit = mesh >= 0
             first = hit & ~culled & (out.raw_mesh[todo] < 0)
-            out.raw_mesh[todo[first]], out.raw_face[todo[first]], out.raw_bary[todo[first]] = mesh[first], face[first], bary[first]
+            out.raw_mesh[todo[first]], out.raw_face[todo[first]], out.raw_bary[todo[first]] = (
+                mesh[first],
+                face[first],
+                bary[first],
+            )
             stop = hit & ~passes
             j = todo[stop]
             out.t[j], out.mesh[j], out.face[j], out.bary[j] = t_acc[j] + t[stop], mesh[stop], face[stop], bary[stop]
@@ -107,11 +119,20 @@ class ReferenceTracer:
             todo = todo_go
         return out
 
-    def pixels(self, camera: CameraModel, world_T_camera: np.ndarray, u: np.ndarray, v: np.ndarray, seg_mode: str,
-               near: float = 1e-3) -> dict[str, np.ndarray]:
+    def pixels(
+        self,
+        camera: CameraModel,
+        world_T_camera: np.ndarray,
+        u: np.ndarray,
+        v: np.ndarray,
+        seg_mode: str,
+        near: float = 1e-3,
+    ) -> dict[str, np.ndarray]:
         """Labels (organ ids), planar depth (0: miss) and leaf instances seen through image points
         (``u``, ``v``: pixel coordinates, centres at integers) by rays from the near plane."""
-        d_cam = np.stack([(u - camera.cx) / camera.fx, (v - camera.cy) / camera.fy, np.ones(np.shape(u))], -1).reshape(-1, 3)
+        d_cam = np.stack([(u - camera.cx) / camera.fx, (v - camera.cy) / camera.fy, np.ones(np.shape(u))], -1).reshape(
+            -1, 3
+        )
         T = np.asarray(world_T_camera, np.float64)
         d = d_cam @ T[:3, :3].T
         tr = self.trace(np.hstack([T[:3, 3] + near * d, d]))
@@ -134,7 +155,9 @@ class ReferenceTracer:
                     instances[these] = np.where(lab > 0, plant.face_instance[face[these]], 0)
         return {"labels": labels, "depth": depth.astype(np.float32), "instances": instances}
 
-    def exact(self, camera: CameraModel, world_T_camera: np.ndarray, seg_mode: str, near: float = 1e-3) -> dict[str, np.ndarray]:
+    def exact(
+        self, camera: CameraModel, world_T_camera: np.ndarray, seg_mode: str, near: float = 1e-3
+    ) -> dict[str, np.ndarray]:
         """:meth:`pixels` of every pixel centre, as images."""
         u, v = np.meshgrid(np.arange(camera.width, dtype=float), np.arange(camera.height, dtype=float))
         out = self.pixels(camera, world_T_camera, u.ravel(), v.ravel(), seg_mode, near)

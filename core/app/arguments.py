@@ -45,13 +45,23 @@ def build_parser() -> argparse.ArgumentParser:
 
     run = sub.add_parser("run", help="run one episode of the routine", description="Run one episode of the routine.")
     run.add_argument("--config", type=Path, metavar="TOML", help="configuration file; flags override it")
-    run.add_argument("--plant", metavar="NAME|PATH", help="species (agrisim plants), a .glb/.gltf/.obj mesh or a .ply/.pcd point cloud")
+    run.add_argument(
+        "--plant",
+        metavar="NAME|PATH",
+        help="species (agrisim plants), a .glb/.gltf/.obj mesh or a .ply/.pcd point cloud",
+    )
     run.add_argument("--plant-age", type=float, metavar="DAYS", help="age of a growing plant (helios:*), days")
     run.add_argument(
-        "--as-points", type=int, metavar="N", help="draw the plant as N points sampled on its opaque surface (the paper's Table 3)"
+        "--as-points",
+        type=int,
+        metavar="N",
+        help="draw the plant as N points sampled on its opaque surface (the paper's Table 3)",
     )
     run.add_argument(
-        "--point-size", type=float, metavar="M", help="diameter of each point of a point plant, metres (default: one that covers its surface)"
+        "--point-size",
+        type=float,
+        metavar="M",
+        help="diameter of each point of a point plant, metres (default: one that covers its surface)",
     )
     run.add_argument("--seg-mode", choices=["texture", "repopa"], help="segmentation mode (default: texture)")
     run.add_argument("--labels", choices=["plant", "organs"], help="one plant label, or one per organ (default: plant)")
@@ -60,7 +70,9 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--supersample", type=int, metavar="S", help="S x S RGB rays per pixel, 1..4 (default: 1)")
     run.add_argument("--hide-robots", action="store_true", default=None, help="render without the arms")
     run.add_argument(
-        "--depth-format", choices=["png16", "exr", "both"], help="depth as uint16 mm PNG, float32 m EXR, or both (default: png16)"
+        "--depth-format",
+        choices=["png16", "exr", "both"],
+        help="depth as uint16 mm PNG, float32 m EXR, or both (default: png16)",
     )
     run.add_argument("--pcg-seed", type=int, metavar="N", help="seed of the lab clutter (default: 42)")
     run.add_argument("--physics", metavar="NAME", help="physics backend (default: pybullet)")
@@ -126,13 +138,21 @@ def build_parser() -> argparse.ArgumentParser:
     )
     render.add_argument("run_dirs", type=Path, nargs="+", metavar="RUN_DIR", help="complete runs' output directories")
     render.add_argument("--renderer", default="mitsuba", metavar="NAME", help="a renderer that can re-render (mitsuba)")
-    render.add_argument("--out", type=Path, metavar="DIR", help="output directory of one run (default: RUN_DIR-<renderer>)")
     render.add_argument(
-        "--ray-address", metavar="ADDR", help="several runs: join this Ray cluster (default: a local one), one GPU a run"
+        "--out", type=Path, metavar="DIR", help="output directory of one run (default: RUN_DIR-<renderer>)"
+    )
+    render.add_argument(
+        "--ray-address",
+        metavar="ADDR",
+        help="several runs: join this Ray cluster (default: a local one), one GPU a run",
     )
     render.add_argument("--overwrite", action="store_true", help="replace an existing --out (or RUN_DIR's own RGB)")
     render.add_argument(
-        "--set", action="append", default=[], metavar="KEY=VALUE", help="renderer.* settings, e.g. renderer.mitsuba.spp=64"
+        "--set",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="renderer.* settings, e.g. renderer.mitsuba.spp=64",
     )
     export = sub.add_parser(
         "export",
@@ -142,7 +162,9 @@ def build_parser() -> argparse.ArgumentParser:
         "(a ROS 2 bag in MCAP: TF, joint states, planned trajectories, camera images, depth, labels, clouds).",
     )
     export.add_argument(
-        "format", choices=["nerfstudio", "coco", "rosbag"], help="the format: nerfstudio (transforms.json), coco or rosbag"
+        "format",
+        choices=["nerfstudio", "coco", "rosbag"],
+        help="the format: nerfstudio (transforms.json), coco or rosbag",
     )
     export.add_argument("run_dir", type=Path, metavar="RUN_DIR", help="a run's output directory (agrisim run --out)")
     export.add_argument("--overwrite", action="store_true", help="replace an existing export (coco, rosbag)")
@@ -230,8 +252,17 @@ def _web_flags(parser: argparse.ArgumentParser) -> None:
     from agrisim.app.web import DEFAULT_BIND, DEFAULT_GRPC_PORT, DEFAULT_WEB_PORT
 
     parser.add_argument("--web-port", type=int, metavar="N", help=f"port of the web page (default: {DEFAULT_WEB_PORT})")
-    parser.add_argument("--grpc-port", type=int, metavar="N", help=f"port the page reads the recording from (default: {DEFAULT_GRPC_PORT})")
-    parser.add_argument("--bind", metavar="ADDR", help=f"address to serve on (default: {DEFAULT_BIND}, this machine only; 0.0.0.0: every interface)")
+    parser.add_argument(
+        "--grpc-port",
+        type=int,
+        metavar="N",
+        help=f"port the page reads the recording from (default: {DEFAULT_GRPC_PORT})",
+    )
+    parser.add_argument(
+        "--bind",
+        metavar="ADDR",
+        help=f"address to serve on (default: {DEFAULT_BIND}, this machine only; 0.0.0.0: every interface)",
+    )
 
 
 def web_address(args: argparse.Namespace) -> tuple[str, int, int]:

@@ -15,15 +15,24 @@ import traceback
 from collections.abc import Sequence
 from typing import Any
 
-from agrisim.app.arguments import COMPARE_EPISODE_FLAGS, PROG, apply_sets, build_parser, fail, overrides_from_args, set_dotted, web_address
-from agrisim.files import layout
+from agrisim.app.arguments import (
+    COMPARE_EPISODE_FLAGS,
+    PROG,
+    apply_sets,
+    build_parser,
+    fail,
+    overrides_from_args,
+    set_dotted,
+    web_address,
+)
 from agrisim.config import RunConfig, build_config, first_difference, load_toml, outcome_settings
 from agrisim.errors import BackendFailure, UserError
+from agrisim.files import layout
 
 
 def _cmd_run(args: argparse.Namespace) -> int:
-    from agrisim.episode import Episode
     from agrisim.app.progress import EpisodeProgress
+    from agrisim.episode import Episode
 
     overrides = overrides_from_args(args)
     web = None
@@ -53,7 +62,10 @@ def _cmd_run(args: argparse.Namespace) -> int:
             run, summary = episode.run(progress=progress.update)
         _report_run(run, summary)
         if viewer is not None:
-            print(f"the run is over; still serving it at {viewer.url} (Ctrl-C to stop; agrisim view {run.out_dir} serves it again)", flush=True)
+            print(
+                f"the run is over; still serving it at {viewer.url} (Ctrl-C to stop; agrisim view {run.out_dir} serves it again)",
+                flush=True,
+            )
             viewer.wait()
     finally:
         if viewer is not None:
@@ -102,7 +114,9 @@ def _cmd_recon(args: argparse.Namespace) -> int:
         line = f"  {name}: {row['pixels']:,} labelled pixels, {row['points']:,} points"
         if "fscore" in row:
             scores = ", ".join(f"F@{t}mm {v:.3f}" for t, v in row["fscore"].items())
-            line += f", {scores}, Chamfer {row['chamfer_mm']:.2f} mm" if row["chamfer_mm"] is not None else f", {scores}"
+            line += (
+                f", {scores}, Chamfer {row['chamfer_mm']:.2f} mm" if row["chamfer_mm"] is not None else f", {scores}"
+            )
         print(line)
     print(f"output: {out / layout.CLOUDS}  {out / layout.METRICS_JSON}")
     return 0
@@ -164,7 +178,9 @@ def _resume_config(args: argparse.Namespace, overrides: dict[str, Any]) -> RunCo
     # This command's settings layered over the saved ones: what it leaves out is the run's own,
     # what it gives must agree (aliases such as --shadow-samples resolved against the saved
     # plant and renderer). Where it goes and who watches may change.
-    resumed = build_config(saved_doc, base, overrides, {"output": {"out": str(args.out), "resume": True, "overwrite": False}})
+    resumed = build_config(
+        saved_doc, base, overrides, {"output": {"out": str(args.out), "resume": True, "overwrite": False}}
+    )
     diff = first_difference(outcome_settings(build_config(saved_doc)), outcome_settings(resumed))
     if diff is not None:
         key, was, now = diff
@@ -247,8 +263,8 @@ def _cmd_compare(args: argparse.Namespace) -> int:
     from agrisim.app.compare import SEG_MODES, compare, default_out, markdown_table, parse_names, plan_compare
     from agrisim.app.compare_plan import parse_sizes
     from agrisim.app.point_table import point_markdown
-    from agrisim.config import merge
     from agrisim.app.progress import EpisodeProgress
+    from agrisim.config import merge
 
     if args.workers is not None and args.workers < 1:
         raise UserError(f"--workers must be 1 or more, got {args.workers}")
@@ -291,10 +307,15 @@ def _cmd_compare(args: argparse.Namespace) -> int:
         print(f"all {kept} episodes were complete already: the table is rebuilt from their run directories")
     print(f"output: {result.paths['md']}  {result.paths['csv']}  {result.paths['png']}")
     for r in result.failed:
-        sys.stderr.write(f"{PROG}: {r['plant']} ({r.get('variant') or r['seg_mode']}) {r['status']}: {r.get('error', '')}\n")
+        sys.stderr.write(
+            f"{PROG}: {r['plant']} ({r.get('variant') or r['seg_mode']}) {r['status']}: {r.get('error', '')}\n"
+        )
     if result.failed or result.missing:
-        fail(f"{len(result.failed)} of {len(result.records)} episodes did not complete; "
-              f"the table lacks {', '.join(result.missing) or 'nothing'}; --resume continues", status=1)
+        fail(
+            f"{len(result.failed)} of {len(result.records)} episodes did not complete; "
+            f"the table lacks {', '.join(result.missing) or 'nothing'}; --resume continues",
+            status=1,
+        )
     return 0
 
 

@@ -36,27 +36,6 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from agrisim.files.atomic import write_bytes, write_json
-from agrisim.config import build_config
-from agrisim.errors import OutputError, UserError
-from agrisim.app.table import (  # noqa: F401 - the table is part of compare's API
-    is_file_plant,
-    plant_key,
-    SEG_MODES,
-    MODE_TITLES,
-    THRESHOLD_METRICS,
-    TABLE_LABEL,
-    read_metrics,
-    percent_increase,
-    table_rows,
-    thresholds_of,
-    table_threshold,
-    plant_title,
-    markdown_table,
-    csv_table,
-    chart_png,
-)
-from agrisim.app.point_table import point_chart_png, point_csv, point_markdown, point_rows
 from agrisim.app.compare_plan import (  # noqa: F401 - planning is part of compare's API
     PAPER_PLANTS,
     ComparePlan,
@@ -66,7 +45,27 @@ from agrisim.app.compare_plan import (  # noqa: F401 - planning is part of compa
     plan_compare,
     run_dir_state,
 )
-
+from agrisim.app.point_table import point_chart_png, point_csv, point_markdown, point_rows
+from agrisim.app.table import (  # noqa: F401 - the table is part of compare's API
+    MODE_TITLES,
+    SEG_MODES,
+    TABLE_LABEL,
+    THRESHOLD_METRICS,
+    chart_png,
+    csv_table,
+    is_file_plant,
+    markdown_table,
+    percent_increase,
+    plant_key,
+    plant_title,
+    read_metrics,
+    table_rows,
+    table_threshold,
+    thresholds_of,
+)
+from agrisim.config import build_config
+from agrisim.errors import OutputError, UserError
+from agrisim.files.atomic import write_bytes, write_json
 
 # ---------------------------------------------------------------------------------- running
 
@@ -143,8 +142,14 @@ def start_ray(*, workers: int | None, address: str | None) -> dict[str, Any]:
     import ray
 
     if ray.is_initialized():  # e.g. compare called from a notebook that has its own Ray
-        return {"address": "existing", "cluster_cpus": ray.cluster_resources().get("CPU"),
-                "nodes": len(ray.nodes()), "startup_s": 0.0, "ray": ray.__version__, "owned": False}
+        return {
+            "address": "existing",
+            "cluster_cpus": ray.cluster_resources().get("CPU"),
+            "nodes": len(ray.nodes()),
+            "startup_s": 0.0,
+            "ray": ray.__version__,
+            "owned": False,
+        }
     if address not in (None, "auto", "local") and not address.startswith("ray://"):
         _probe(address)
     common: dict[str, Any] = dict(
@@ -231,14 +236,29 @@ def execute(
 
     def _collect() -> None:
         result.records = [
-            records.get(i, {"plant": e.plant, "seg_mode": e.seg_mode, **_variant(e), "run_dir": str(e.run_dir), "status": "not run"})
+            records.get(
+                i,
+                {
+                    "plant": e.plant,
+                    "seg_mode": e.seg_mode,
+                    **_variant(e),
+                    "run_dir": str(e.run_dir),
+                    "status": "not run",
+                },
+            )
             for i, e in enumerate(plan.episodes)
         ]
 
     for i, e in enumerate(plan.episodes):
         if e.action == "skip":
-            records[i] = {"plant": e.plant, "seg_mode": e.seg_mode, **_variant(e), "run_dir": str(e.run_dir),
-                          "status": "skipped", "action": "skip"}
+            records[i] = {
+                "plant": e.plant,
+                "seg_mode": e.seg_mode,
+                **_variant(e),
+                "run_dir": str(e.run_dir),
+                "status": "skipped",
+                "action": "skip",
+            }
     queue = [(i, e) for i, e in enumerate(plan.episodes) if e.action != "skip"]
     total, done = len(plan.episodes), len(records)
     if progress:
@@ -266,8 +286,14 @@ def execute(
                     rec = ray.get(ref)
                 except ray.exceptions.RayError as exc:  # the worker died (OOM killer, segfault)
                     first = (str(exc).strip().splitlines() or [""])[0]
-                    rec = {"plant": e.plant, "seg_mode": e.seg_mode, **_variant(e), "run_dir": str(e.run_dir),
-                           "status": "failed", "error": f"{type(exc).__name__}: {first}"}
+                    rec = {
+                        "plant": e.plant,
+                        "seg_mode": e.seg_mode,
+                        **_variant(e),
+                        "run_dir": str(e.run_dir),
+                        "status": "failed",
+                        "error": f"{type(exc).__name__}: {first}",
+                    }
                 rec["action"] = e.action
                 rec["submitted_s"] = round(submitted, 3)
                 rec["finished_s"] = round(time.perf_counter() - t0, 3)
@@ -281,8 +307,14 @@ def execute(
         result.interrupted = True
         for ref, (i, e, _) in pending.items():
             ray.cancel(ref, force=True)
-            records[i] = {"plant": e.plant, "seg_mode": e.seg_mode, **_variant(e), "run_dir": str(e.run_dir),
-                          "status": "cancelled", "action": e.action}
+            records[i] = {
+                "plant": e.plant,
+                "seg_mode": e.seg_mode,
+                **_variant(e),
+                "run_dir": str(e.run_dir),
+                "status": "cancelled",
+                "action": e.action,
+            }
         raise
     finally:
         _collect()
@@ -313,9 +345,7 @@ def _variant(e: EpisodePlan) -> dict[str, str]:
     return {"variant": e.variant} if e.variant else {}
 
 
-def write_outputs(
-    plan: ComparePlan, rows: Sequence[Mapping[str, Any]], report: Mapping[str, Any]
-) -> dict[str, Path]:
+def write_outputs(plan: ComparePlan, rows: Sequence[Mapping[str, Any]], report: Mapping[str, Any]) -> dict[str, Path]:
     """Write ``table.md``, ``table.csv``, ``chart.png`` and ``compare.json`` under the plan's
     ``out`` (each atomically); returns their paths by kind."""
     out = plan.out
@@ -402,8 +432,9 @@ def compare(
         if status == "complete" and (missing or unfinished):
             status = "incomplete"
         wall = time.perf_counter() - t0
-        report.update(status=status, wall_s=round(wall, 3), ray=executed.ray, episodes=executed.records,
-                      missing_metrics=missing)
+        report.update(
+            status=status, wall_s=round(wall, 3), ray=executed.ray, episodes=executed.records, missing_metrics=missing
+        )
         paths = write_outputs(plan, rows, report)
     return CompareResult(plan, rows, executed.records, missing, paths, wall, executed.ray)
 

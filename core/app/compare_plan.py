@@ -100,7 +100,13 @@ class ComparePlan:
             "as_points": self.as_points,
             "point_sizes": list(self.point_sizes),
             "episodes": [
-                {"plant": e.plant, "seg_mode": e.seg_mode, "variant": e.variant, "run_dir": str(e.run_dir), "action": e.action}
+                {
+                    "plant": e.plant,
+                    "seg_mode": e.seg_mode,
+                    "variant": e.variant,
+                    "run_dir": str(e.run_dir),
+                    "action": e.action,
+                }
                 for e in self.episodes
             ],
         }
@@ -122,7 +128,9 @@ def parse_sizes(text: str | None) -> list[float] | None:
         try:
             value = float(item)
         except ValueError:
-            raise UserError(f"--point-sizes expects comma-separated sizes in metres (e.g. 0.001,0.002), got {item.strip()!r}") from None
+            raise UserError(
+                f"--point-sizes expects comma-separated sizes in metres (e.g. 0.001,0.002), got {item.strip()!r}"
+            ) from None
         check_size(value, "--point-sizes")
         sizes.append(value)
     keys = [size_key(v) for v in sizes]
@@ -190,7 +198,9 @@ def plan_compare(
 
         check_count(as_points)
         if seg_modes and tuple(seg_modes) != ("texture",):
-            raise UserError("--point-sizes compares point sizes in the paper's segmentation mode: leave out --seg-modes")
+            raise UserError(
+                "--point-sizes compares point sizes in the paper's segmentation mode: leave out --seg-modes"
+            )
         seg_modes = ("texture",)
     elif as_points is not None:
         raise UserError("--as-points in a compare needs --point-sizes (one episode per size)")
@@ -250,7 +260,8 @@ def plan_compare(
     variants: list[tuple[str, str, str, dict[str, Any]]] = [(m, "", m, {}) for m in seg_modes]
     if sizes:
         variants = [("texture", "mesh", "mesh", {})] + [
-            ("texture", size_key(s), f"points-{size_key(s)}", {"points": {"count": as_points, "size": s}}) for s in sizes
+            ("texture", size_key(s), f"points-{size_key(s)}", {"points": {"count": as_points, "size": s}})
+            for s in sizes
         ]
     for plant in plants:
         for mode, variant, folder, extra in variants:

@@ -124,10 +124,10 @@ def point_chart_png(rows: Sequence[Mapping[str, Any]]) -> bytes:
     fig = Figure(figsize=(4.2 * ncols, 3.2 * nrows + 0.5), layout="constrained")
     FigureCanvasAgg(fig)
     axes = fig.subplots(nrows, ncols, squeeze=False).ravel()
-    for ax in axes[len(panels):]:
+    for ax in axes[len(panels) :]:
         ax.set_visible(False)
     colours = ["#3a923a", "#d1495b", "#2e86ab", "#edae49", "#66462c"]
-    for ax, (title, get) in zip(axes, panels):
+    for ax, (title, get) in zip(axes, panels, strict=False):  # the grid may have an axis spare
         for k, plant in enumerate(plants):
             colour = colours[k % len(colours)]
             mine = [r for r in rows if r["plant"] == plant]

@@ -32,8 +32,8 @@ from agrisim.files import layout
 from agrisim.files.atomic import write_json
 from agrisim.files.dataset import write_png
 from agrisim.files.exr import write_exr
-from agrisim.files.rundir import camera_from_json, read_json, read_run
 from agrisim.files.point_cloud import load_point_plant
+from agrisim.files.rundir import camera_from_json, read_json, read_run
 from agrisim.files.scene_glb import read_scene
 
 RENDER_JSON = "render.json"
@@ -71,7 +71,9 @@ class RenderPlan:
     """A checked re-render of one run: the renderer, its options, the frames, the output (the
     constructor refuses bad input before anything is written)."""
 
-    def __init__(self, run_dir: Path, renderer: str, overrides: dict[str, Any], out: Path | None, overwrite: bool) -> None:
+    def __init__(
+        self, run_dir: Path, renderer: str, overrides: dict[str, Any], out: Path | None, overwrite: bool
+    ) -> None:
         from agrisim.config import backend_options, build_config
         from agrisim.registry import Registry, make_plugin_manager
 
@@ -94,7 +96,9 @@ class RenderPlan:
                 f"renderers that can: {', '.join(able) or 'none installed'}"
             )
         self.config.renderer.check_tables("renderer", registry.specs("renderer"))
-        self.options = backend_options(self.spec.options_model, self.config.renderer.options_for(renderer), f"renderer {renderer!r}")
+        self.options = backend_options(
+            self.spec.options_model, self.config.renderer.options_for(renderer), f"renderer {renderer!r}"
+        )
         scene_path = self.run_dir / layout.SCENE_GLB
         if not scene_path.is_file():
             raise UserError(
@@ -105,7 +109,8 @@ class RenderPlan:
         self.points_path = self.run_dir / layout.PLANT_POINTS
         if self.points_path.is_file() and not getattr(self.spec.capabilities, "points", False):
             able = [
-                n for n, sp in registry.specs("renderer").items()
+                n
+                for n, sp in registry.specs("renderer").items()
                 if getattr(sp.capabilities, "rerender", False) and getattr(sp.capabilities, "points", False)
             ]
             raise UserError(
@@ -122,7 +127,9 @@ class RenderPlan:
                     f"the run in {self.run_dir} saved no arm link poses for {len(lacking)} frames "
                     f"({lacking[0]}, ...): it was made by an older agrisim; run it again to re-render it"
                 )
-        self.out = Path(out).expanduser() if out is not None else self.run_dir.with_name(f"{self.run_dir.name}-{renderer}")
+        self.out = (
+            Path(out).expanduser() if out is not None else self.run_dir.with_name(f"{self.run_dir.name}-{renderer}")
+        )
         self.in_place = self.out.resolve() == self.run_dir.resolve()
         self.record = {
             "source": str(self.run_dir.resolve()),
@@ -149,7 +156,9 @@ class RenderPlan:
                 return [f for f in doc.get("frames_done") or [] if f in self.frames]
         if self.in_place:
             if not overwrite:
-                raise OutputError("re-rendering into the run itself replaces its RGB; pass --overwrite to do so, or --out DIR")
+                raise OutputError(
+                    "re-rendering into the run itself replaces its RGB; pass --overwrite to do so, or --out DIR"
+                )
             return []
         if out.exists() and any(out.iterdir()) and not overwrite:
             raise OutputError(f"--out {out} already exists; pass --overwrite to replace it")
@@ -163,7 +172,7 @@ class RenderPlan:
                 shutil.rmtree(out)
             out.mkdir(parents=True, exist_ok=True)
             _carry(self.run_dir, out)
-        record = dict(self.record, status="running", frames_done=list(self.done))
+        record: dict[str, Any] = dict(self.record, status="running", frames_done=list(self.done))
         write_json(out / RENDER_JSON, record)
         scene = read_scene(self.scene_path)
         if self.points_path.is_file():  # the plant as drawn: points, saved beside the scene
@@ -186,7 +195,7 @@ class RenderPlan:
         # The PNG of one frame is encoded while the next renders (on a GPU, encoding a 1080p
         # PNG takes about as long as path tracing it).
         with ThreadPoolExecutor(1) as writer:
-            pending: list[Future] = []
+            pending: list[Future[None]] = []
             try:
                 for frame in todo:
                     T = np.asarray(self.cameras["frames"][frame]["world_T_camera"], np.float64)
@@ -241,7 +250,10 @@ def render_runs(
             try:
                 records[i] = ray.get(ready[0])
             except ray.exceptions.RayTaskError as exc:
-                records[i] = {"run": str(plans[i].run_dir), "error": str(exc.cause if exc.cause else exc).splitlines()[0]}
+                records[i] = {
+                    "run": str(plans[i].run_dir),
+                    "error": str(exc.cause if exc.cause else exc).splitlines()[0],
+                }
             if progress is not None:
                 progress(len(plans) - len(pending), len(plans))
         return records

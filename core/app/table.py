@@ -17,8 +17,8 @@ from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-from agrisim.files import layout
 from agrisim.capabilities import SEG_MODES
+from agrisim.files import layout
 
 #: how the table names the modes (the paper's column heads)
 MODE_TITLES: dict[str, str] = {"texture": "Ours", "repopa": "RepOpa"}
@@ -26,6 +26,7 @@ MODE_TITLES: dict[str, str] = {"texture": "Ours", "repopa": "RepOpa"}
 THRESHOLD_METRICS: tuple[str, ...] = ("precision", "recall", "recall_visible", "fscore")
 #: the label whose figures make the table's rows: every labelled pixel, the merged cloud
 TABLE_LABEL = "all"
+
 
 def read_metrics(run_dir: Path) -> dict[str, Any] | None:
     """A run directory's ``metrics.json``, or None when it is missing or unreadable."""
@@ -130,7 +131,7 @@ def markdown_table(rows: Sequence[Mapping[str, Any]], seg_modes: Sequence[str] =
     thr = table_threshold(thresholds_of(rows))
     both = all(m in seg_modes for m in SEG_MODES)
     heads = ["Plant"]
-    for measure, title in (("pixels", "Pixels (10^6)"), ("points", "Points")):
+    for title in ("Pixels (10^6)", "Points"):
         heads += [f"{title} {MODE_TITLES[m]}" for m in seg_modes] + (["%"] if both else [])
     extra = [("precision", "Precision"), ("recall", "Recall"), ("fscore", "F-score")] if thr else []
     for _, title in extra:
@@ -192,8 +193,11 @@ def chart_png(rows: Sequence[Mapping[str, Any]], seg_modes: Sequence[str] = SEG_
     width = 0.8 / max(len(seg_modes), 1)
     panels: list[tuple[str, Callable[[Mapping[str, Any], str], Any], str | None]] = [
         ("Labelled pixels (10^6)", lambda r, m: None if r["pixels"][m] is None else r["pixels"][m] / 1e6, "pixels_pct"),
-        ("Points in the merged cloud (10^3)",
-         lambda r, m: None if r["points"][m] is None else r["points"][m] / 1e3, "points_pct"),
+        (
+            "Points in the merged cloud (10^3)",
+            lambda r, m: None if r["points"][m] is None else r["points"][m] / 1e3,
+            "points_pct",
+        ),
     ]
     if thr:
         panels += [
@@ -205,20 +209,32 @@ def chart_png(rows: Sequence[Mapping[str, Any]], seg_modes: Sequence[str] = SEG_
     fig = Figure(figsize=(ncols * max(6.0, 0.7 * len(rows) + 2.0), 3.4 * nrows + 0.6), layout="constrained")
     FigureCanvasAgg(fig)
     axes = fig.subplots(nrows, ncols, sharex=True, squeeze=False).ravel()
-    for ax in axes[len(panels):]:
+    for ax in axes[len(panels) :]:
         ax.set_visible(False)
-    for ax, (label, get, pct) in zip(axes, panels):
+    for ax, (label, get, pct) in zip(axes, panels, strict=False):  # the grid may have an axis spare
         tops = np.zeros(len(rows))
         for k, mode in enumerate(seg_modes):
             values = np.array([np.nan if get(r, mode) is None else float(get(r, mode)) for r in rows])
-            ax.bar(x + (k - (len(seg_modes) - 1) / 2) * width, values, width, label=MODE_TITLES[mode],
-                   color=colours.get(mode))
+            ax.bar(
+                x + (k - (len(seg_modes) - 1) / 2) * width,
+                values,
+                width,
+                label=MODE_TITLES[mode],
+                color=colours.get(mode),
+            )
             tops = np.fmax(tops, np.nan_to_num(values))
         if pct and all(m in seg_modes for m in SEG_MODES):
-            for xi, r, top in zip(x, rows, tops):
+            for xi, r, top in zip(x, rows, tops, strict=True):
                 if r[pct] is not None:
-                    ax.annotate(f"{r[pct]:+.1f}%", (xi, top), textcoords="offset points", xytext=(0, 2),
-                                ha="center", va="bottom", fontsize=8)
+                    ax.annotate(
+                        f"{r[pct]:+.1f}%",
+                        (xi, top),
+                        textcoords="offset points",
+                        xytext=(0, 2),
+                        ha="center",
+                        va="bottom",
+                        fontsize=8,
+                    )
             ax.margins(y=0.15)
         if label.startswith(("Precision", "F-score")):
             ax.set_ylim(0, 1.05)

@@ -34,7 +34,9 @@ def check_address(bind: str, ports: dict[str, int]) -> None:
     try:
         ip = ipaddress.ip_address(bind)
     except ValueError:
-        raise UserError(f"--bind {bind!r} is not an IP address (127.0.0.1 for this machine only, 0.0.0.0 for every interface)") from None
+        raise UserError(
+            f"--bind {bind!r} is not an IP address (127.0.0.1 for this machine only, 0.0.0.0 for every interface)"
+        ) from None
     for flag, port in ports.items():
         if not 1 <= port <= 65535:
             raise UserError(f"{flag} {port} is not a port number (1..65535)")
@@ -42,7 +44,9 @@ def check_address(bind: str, ports: dict[str, int]) -> None:
             try:
                 s.bind((bind, port))
             except OSError as exc:
-                raise UserError(f"{flag} {port} on {bind} cannot be used ({exc.strerror}); choose another port") from None
+                raise UserError(
+                    f"{flag} {port} on {bind} cannot be used ({exc.strerror}); choose another port"
+                ) from None
 
 
 def _accepting(host: str, port: int) -> bool:
@@ -105,7 +109,9 @@ def rerun_executable() -> str:
     spec = importlib.util.find_spec("rerun_cli")
     if spec is None or not spec.submodule_search_locations:
         raise UserError("the Rerun SDK's command line (rerun_cli, part of rerun-sdk) is not installed")
-    exe = Path(next(iter(spec.submodule_search_locations))) / ("rerun.exe" if sys.platform.startswith("win") else "rerun")
+    exe = Path(next(iter(spec.submodule_search_locations))) / (
+        "rerun.exe" if sys.platform.startswith("win") else "rerun"
+    )
     if not exe.is_file():
         raise UserError(f"the Rerun SDK's viewer binary is missing ({exe}); reinstall rerun-sdk")
     return str(exe)
@@ -135,7 +141,16 @@ def serve_web(
     url = grpc_url(bind, grpc_port)
     tmp = tempfile.TemporaryDirectory(prefix="agrisim-web-")
     log = Path(tmp.name) / "rerun.log"
-    args = [rerun_executable(), "--serve-web", "--bind", bind, "--port", str(grpc_port), "--web-viewer-port", str(web_port)]
+    args = [
+        rerun_executable(),
+        "--serve-web",
+        "--bind",
+        bind,
+        "--port",
+        str(grpc_port),
+        "--web-viewer-port",
+        str(web_port),
+    ]
     if recording is not None:
         args.append(str(recording))
     with open(log, "wb") as out:
@@ -162,5 +177,7 @@ def recording_of(target: Path) -> Path:
         rrd = target / layout.RECORDING
         if rrd.is_file():
             return rrd
-        raise UserError(f"{target} holds no {layout.RECORDING} (made with --no-rrd, or --rrd elsewhere: give that file)")
+        raise UserError(
+            f"{target} holds no {layout.RECORDING} (made with --no-rrd, or --rrd elsewhere: give that file)"
+        )
     raise UserError(f"{target} is neither a run directory nor an .rrd recording")

@@ -29,11 +29,11 @@ from typing import Any
 
 import numpy as np
 
+from agrisim.evaluation.views import View
 from agrisim.files.encoding import depth_to_mm
 from agrisim.interfaces import ALL, Reconstruction
 from agrisim.scene.model import LabelTable, Mesh, PointSet, Scene
 from agrisim.scene.texturing import labels_at_samples, opaque_samples, sample_surface, sample_triangles
-from agrisim.evaluation.views import View
 
 #: how densely reconstructed meshes are sampled to be measured, points per square metre
 MESH_SAMPLES_PER_M2 = 4.0e6  # 0.5 mm spacing
@@ -163,8 +163,10 @@ class SurfaceDistance:
         if mesh is None:
             return
         self.scene = o3d.t.geometry.RaycastingScene()
+        # Open3D's stub gives Tensor(np_array, dtype, device) no defaults; the binding has them
         self.scene.add_triangles(
-            o3d.core.Tensor(mesh.vertices.astype(np.float32)), o3d.core.Tensor(mesh.faces.astype(np.uint32))
+            o3d.core.Tensor(mesh.vertices.astype(np.float32)),  # type: ignore[call-overload]
+            o3d.core.Tensor(mesh.faces.astype(np.uint32)),  # type: ignore[call-overload]
         )
         self._o3d = o3d
 
@@ -173,7 +175,8 @@ class SurfaceDistance:
         double precision from its barycentrics (the query runs in float32)."""
         mesh = self.truth.mesh
         assert mesh is not None
-        ans = self.scene.compute_closest_points(self._o3d.core.Tensor(points.astype(np.float32)))
+        # Tensor's stub: see __init__
+        ans = self.scene.compute_closest_points(self._o3d.core.Tensor(points.astype(np.float32)))  # type: ignore[call-overload]
         faces = ans["primitive_ids"].numpy().astype(np.int64)
         bary = ans["primitive_uvs"].numpy().astype(np.float64)
         tri = mesh.vertices[mesh.faces[faces]]

@@ -15,15 +15,15 @@ from typing import Any
 
 import numpy as np
 
-from agrisim.files import layout
-from agrisim.files.atomic import write_bytes, write_json, write_through
 from agrisim.capabilities import check_reconstructor
 from agrisim.errors import OutputError, UserError
-from agrisim.interfaces import ALL, Cloud, Reconstruction, Reconstructor, SurfaceMesh
-from agrisim.files.rundir import camera_from_json, read_run
 from agrisim.evaluation.metrics import GroundTruth, ViewStats, evaluate
-from agrisim.scene.model import LabelTable
 from agrisim.evaluation.views import View, load_view
+from agrisim.files import layout
+from agrisim.files.atomic import write_bytes, write_json, write_through
+from agrisim.files.rundir import camera_from_json, read_run
+from agrisim.interfaces import ALL, Cloud, Reconstruction, Reconstructor, SurfaceMesh
+from agrisim.scene.model import LabelTable
 
 CloudCallback = Callable[[str, Cloud, bool], None]
 
@@ -165,7 +165,12 @@ def write_reconstruction(out_dir: Path, result: Reconstruction, metrics: dict[st
             o3d.utility.Vector3dVector(mesh.vertices), o3d.utility.Vector3iVector(mesh.triangles)
         )
         tm.vertex_colors = o3d.utility.Vector3dVector(_vertex_colors(mesh).astype(np.float64) / 255.0)
-        write_through(layout.surface(out_dir, name), lambda tmp, g=tm: o3d.io.write_triangle_mesh(tmp, g, write_ascii=False))
+
+        def write(tmp: str, g: o3d.geometry.TriangleMesh = tm) -> bool:
+            # Open3D's stub asks for an os.PathLike; its binding takes a str as well
+            return o3d.io.write_triangle_mesh(tmp, g, write_ascii=False)  # type: ignore[arg-type]
+
+        write_through(layout.surface(out_dir, name), write)
     write_json(out_dir / layout.METRICS_JSON, metrics)
 
 
@@ -230,7 +235,9 @@ def check_writable(out_dir: Path, labels: LabelTable, overwrite: bool, folder: s
         candidates.insert(0, out_dir / folder)
     existing = [p for p in candidates if p.exists()]
     if existing and not overwrite:
-        raise OutputError(f"{existing[0]} already exists; pass --overwrite to replace it or --out DIR to write elsewhere")
+        raise OutputError(
+            f"{existing[0]} already exists; pass --overwrite to replace it or --out DIR to write elsewhere"
+        )
 
 
 __all__ = ["ReconSession", "rebuild", "read_run", "write_reconstruction", "summary_metrics", "check_writable"]
@@ -277,7 +284,16 @@ def reconstruct_saved_run(
     # minimal install reconstructs without it and says so in metrics.json.
     measurable = importlib.util.find_spec("open3d") is not None
     truth = truth_from_run(run_dir, config.metrics.truth_samples) if measurable else None
-    session = rebuild(run_dir, registry.build("reconstructor", spec, labels, options), labels, run, cameras, truth, config.metrics.thresholds_mm, progress)
+    session = rebuild(
+        run_dir,
+        registry.build("reconstructor", spec, labels, options),
+        labels,
+        run,
+        cameras,
+        truth,
+        config.metrics.thresholds_mm,
+        progress,
+    )
     meta = {
         "plant": config.plant,
         "seg_mode": config.render.seg_mode,

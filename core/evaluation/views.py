@@ -14,10 +14,10 @@ from pathlib import Path
 import numpy as np
 from PIL import Image
 
+from agrisim.errors import UserError
 from agrisim.files import layout
 from agrisim.files.encoding import mm_to_depth
 from agrisim.files.exr import read_exr
-from agrisim.errors import UserError
 from agrisim.interfaces import CameraModel, Capture, Frame, View
 
 
@@ -25,7 +25,9 @@ def view_from_capture(capture: Capture, exact_depth: bool = False) -> View:
     """The view of a freshly rendered capture, with depth as the dataset stores it: rounded to
     millimetres, or exact where the run keeps EXR depth."""
     assert capture.images is not None, "a capture without images has no view"
-    return View(capture.frame, capture.camera, np.asarray(capture.world_T_camera, float), capture.images.stored(exact_depth))
+    return View(
+        capture.frame, capture.camera, np.asarray(capture.world_T_camera, float), capture.images.stored(exact_depth)
+    )
 
 
 def _read_png(path: Path, what: str) -> np.ndarray:

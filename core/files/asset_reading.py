@@ -51,7 +51,9 @@ def locate(path: Path, root: Path | None, shown: str, base: Path | None, must_ex
     if root is not None:
         lexical = Path(os.path.normpath(full if full.is_absolute() else Path.cwd() / full))
         if not lexical.is_relative_to(root):
-            raise AssetError(f"{shown}: outside the asset root {root} (paths may not leave it with '..' or absolute paths)")
+            raise AssetError(
+                f"{shown}: outside the asset root {root} (paths may not leave it with '..' or absolute paths)"
+            )
         real = lexical.resolve()
         if not real.is_relative_to(root):
             raise AssetError(f"{shown}: a symlink out of the asset root {root} (to {real})")
@@ -114,7 +116,11 @@ def rgba_array(img: Image.Image) -> np.ndarray:
     """H x W x 4 uint8 of any Pillow image (16-bit grey scaled to 8 bits)."""
     if img.mode in ("I;16", "I;16B", "I;16L", "I", "F"):
         a = np.asarray(img).astype(np.float64)
-        a = a / 257.0 if img.mode.startswith("I") and a.size and a.max() > 255 else a * (255.0 if img.mode == "F" else 1.0)
+        a = (
+            a / 257.0
+            if img.mode.startswith("I") and a.size and a.max() > 255
+            else a * (255.0 if img.mode == "F" else 1.0)
+        )
         g = np.clip(np.rint(a), 0, 255).astype(np.uint8)
         return np.dstack([g, g, g, np.full_like(g, 255)])
     return np.asarray(img.convert("RGBA")).copy()

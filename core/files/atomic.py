@@ -76,7 +76,11 @@ def remove_partial(root: Path) -> int:
 def write_json(path: Path, obj: Any, compact: bool = False) -> None:
     """Pretty JSON (``compact``: without spaces or line breaks, for long number arrays),
     written atomically."""
-    text = json.dumps(obj, separators=(",", ":"), default=to_json) if compact else json.dumps(obj, indent=2, default=to_json)
+    text = (
+        json.dumps(obj, separators=(",", ":"), default=to_json)
+        if compact
+        else json.dumps(obj, indent=2, default=to_json)
+    )
     write_bytes(path, (text + "\n").encode())
 
 

@@ -66,8 +66,11 @@ def coco_document(run_dir: Path) -> dict[str, Any]:
     if not frames:
         raise UserError(f"the run in {run_dir} has no rendered frames to annotate (was it made with --renderer none?)")
     width, height = int(cameras["intrinsics"]["width"]), int(cameras["intrinsics"]["height"])
-    categories = [{"id": int(r["id"]), "name": r["name"], "supercategory": "plant"} for r in run["labels"] if int(r["id"]) != 0]
-    images, annotations = [], []
+    categories = [
+        {"id": int(r["id"]), "name": r["name"], "supercategory": "plant"} for r in run["labels"] if int(r["id"]) != 0
+    ]
+    images: list[dict[str, Any]] = []
+    annotations: list[dict[str, Any]] = []
     for image_id, frame in enumerate(frames, start=1):
         images.append({"id": image_id, "file_name": f"rgb/{frame}.png", "width": width, "height": height})
         labels = _png(layout.image(run_dir, "labels", frame))

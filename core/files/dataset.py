@@ -28,15 +28,15 @@ from typing import Any
 
 import numpy as np
 
-from agrisim.files import json_text, layout
 from agrisim.evaluation.session import write_reconstruction
+from agrisim.files import json_text, layout
 from agrisim.files.atomic import to_json, write_bytes, write_json
 from agrisim.files.exr import write_exr
 from agrisim.files.glb import export_glb
-from agrisim.files.point_cloud import write_points_ply
-from agrisim.files.scene_glb import write_scene
 from agrisim.files.nerfstudio import write_nerfstudio
 from agrisim.files.png import encode_png
+from agrisim.files.point_cloud import write_points_ply
+from agrisim.files.scene_glb import write_scene
 from agrisim.interfaces import CameraModel, Capture, Frame, JointTrajectory, Trajectory
 from agrisim.records import Run, RunSummary, SetpointResult
 from agrisim.registry import hookimpl
@@ -184,7 +184,11 @@ class DatasetWriter:
             # the whole scene as drawn, for agrisim render (arms shown at home in viewers):
             # encoding its textures takes most of a second, so the writer thread does it while
             # the robot starts moving
-            home = {a.name: run.kinematics[a.name].link_poses(np.asarray(a.home)) for a in run.cell.arms if a.name in run.kinematics}
+            home = {
+                a.name: run.kinematics[a.name].link_poses(np.asarray(a.home))
+                for a in run.cell.arms
+                if a.name in run.kinematics
+            }
             self._scene_written = self._writer.submit(write_scene, self.out / layout.SCENE_GLB, run.scene, home)
         self._write(run)
 
@@ -214,7 +218,13 @@ class DatasetWriter:
             self._write_cameras()
             return
         future = self._writer.submit(
-            write_frame, self.out, capture.frame, capture.images, palette, capture.link_poses, run.config.render.depth_format
+            write_frame,
+            self.out,
+            capture.frame,
+            capture.images,
+            palette,
+            capture.link_poses,
+            run.config.render.depth_format,
         )
         self._pending.append((future, capture.frame, entry))
         self._collect()
@@ -272,7 +282,10 @@ def write_frame(
     if images is None:
         return
     if link_poses is not None:
-        write_json(layout.link_poses(out, frame), {r: {k: np.asarray(T).tolist() for k, T in links.items()} for r, links in link_poses.items()})
+        write_json(
+            layout.link_poses(out, frame),
+            {r: {k: np.asarray(T).tolist() for k, T in links.items()} for r, links in link_poses.items()},
+        )
     if images.radiance is not None:
         write_exr(layout.radiance(out, frame), images.radiance)
     write_png(layout.image(out, "rgb", frame), images.rgb)
@@ -285,4 +298,3 @@ def write_frame(
         write_png(layout.image(out, "depth", frame), images.depth_mm())
     if images.instances is not None:
         write_png(layout.image(out, "instances", frame), images.instances.astype(np.uint16))
-

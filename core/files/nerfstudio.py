@@ -25,17 +25,17 @@ marked ``running``) raises :class:`ExportError` before anything is written.
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeGuard
 
 import numpy as np
 from PIL import Image
 
+from agrisim.errors import UserError
 from agrisim.files import layout
-from agrisim.interfaces import ALL
 from agrisim.files.atomic import write_bytes, write_json
 from agrisim.files.png import encode_png
-from agrisim.errors import UserError
 from agrisim.files.rundir import read_json
+from agrisim.interfaces import ALL
 
 #: OpenCV optical frame -> OpenGL camera frame (negate y and z), as a right factor on camera-to-world
 CV_TO_GL = np.diag([1.0, -1.0, -1.0, 1.0])
@@ -89,7 +89,7 @@ def _read_json(path: Path, what: str) -> dict[str, Any]:
     return read_json(path, what, ExportError)
 
 
-def _valid_intrinsics(intrinsics: Any) -> bool:
+def _valid_intrinsics(intrinsics: Any) -> TypeGuard[dict[str, Any]]:
     """cameras.json's intrinsics: a finite 3 x 3 ``K`` and positive integer ``width``, ``height``."""
     if not isinstance(intrinsics, dict) or not {"K", "width", "height"} <= set(intrinsics):
         return False
@@ -151,7 +151,8 @@ def write_nerfstudio(run_dir: Path) -> Path:
     for name in complete:
         pose = known[name].get("world_T_camera") if isinstance(known[name], dict) else None
         try:
-            ok = np.asarray(pose, np.float64).shape == (4, 4) and bool(np.isfinite(pose).all())
+            # isfinite sees the pose's own dtype: strings that float64 would parse stay refused
+            ok = np.asarray(pose, np.float64).shape == (4, 4) and bool(np.isfinite(np.asarray(pose)).all())
         except (TypeError, ValueError):
             ok = False
         if not ok:

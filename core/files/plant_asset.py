@@ -91,8 +91,8 @@ from agrisim.files.asset_reading import (
 )
 from agrisim.files.gltf import read_gltf
 from agrisim.files.obj import read_obj
-from agrisim.scene.palette import BACKGROUND, PALETTE, PAPER
 from agrisim.scene.model import Label, LabelTable, Material, Mesh, Plant
+from agrisim.scene.palette import BACKGROUND, PALETTE, PAPER
 
 __all__ = ["AssetError", "FORMATS", "MAX_SIZE", "load_plant"]
 
@@ -108,8 +108,6 @@ _MORE_COLORS = [
 ]  # fmt: skip
 
 _MAX_LABEL_COLOURS = 64
-
-
 
 
 # The steps of reading an asset in order (read, orient, scale, labels, place, check), each a call or two.
@@ -193,7 +191,9 @@ def load_plant(
     lo, hi = used.min(axis=0), used.max(axis=0)
     size = float((hi - lo).max())
     if size > max_size:
-        raise AssetError(f"{shown}: the plant is {size:.4g} m across, more than {max_size:g} m{unit_hint(size, max_size)}")
+        raise AssetError(
+            f"{shown}: the plant is {size:.4g} m across, more than {max_size:g} m{unit_hint(size, max_size)}"
+        )
     if place:
         v = v - plant_frame_offset(lo, hi)
 
@@ -218,7 +218,9 @@ def _table(entries: list[tuple[int, str, tuple[int, int, int] | None]]) -> Label
     return LabelTable(labels)
 
 
-def _labels_from_materials(raw: RawMesh, shown: str, material_labels: Mapping[str, str]) -> tuple[list[Material], LabelTable]:
+def _labels_from_materials(
+    raw: RawMesh, shown: str, material_labels: Mapping[str, str]
+) -> tuple[list[Material], LabelTable]:
     if not isinstance(material_labels, Mapping) or not all(
         isinstance(k, str) and isinstance(v, str) and v for k, v in material_labels.items()
     ):
@@ -244,9 +246,13 @@ def _labels_from_materials(raw: RawMesh, shown: str, material_labels: Mapping[st
         out.append(dataclasses.replace(mat, labels=None, label=ids[material_labels[pattern]]))
     unknown = [p for p in material_labels if p not in matched]
     if unknown:
-        raise AssetError(f"{shown}: material labels {unknown} match no material; its materials are {sorted(set(names))}")
+        raise AssetError(
+            f"{shown}: material labels {unknown} match no material; its materials are {sorted(set(names))}"
+        )
     if missing:
-        raise AssetError(f"{shown}: materials {sorted(set(missing))} have no label; give a label for each (patterns allowed)")
+        raise AssetError(
+            f"{shown}: materials {sorted(set(missing))} have no label; give a label for each (patterns allowed)"
+        )
     return out, _table([(ids[o], o, None) for o in organs])
 
 
@@ -264,7 +270,7 @@ def _labels_from_texture(
     if not any(i != 0 for i, _, _ in entries):
         raise AssetError(f"{lshown}: the label texture holds only background (0); it labels nothing as plant")
     out = []
-    for i, mat in enumerate(raw.materials):
+    for mat in raw.materials:
         if mat.albedo is not None and mat.albedo.shape[:2] != ids.shape:
             h, w = mat.albedo.shape[:2]
             raise AssetError(
@@ -280,6 +286,7 @@ def _label_ids(
 ) -> tuple[np.ndarray, list[tuple[int, str, tuple[int, int, int] | None]]]:
     """Label ids of a label texture and its (id, name, colour) entries (module doc)."""
     colour_mode = False
+    ids: np.ndarray
     if img.mode in ("L", "LA", "P", "1", "I;16", "I;16B", "I;16L", "I"):
         ids = label_ids_plain(img, shown)
     elif img.mode in ("RGB", "RGBA"):
@@ -289,21 +296,27 @@ def _label_ids(
         else:
             colour_mode = True
     else:
-        raise AssetError(f"{shown}: a label texture must be an image of label ids (grey or palette) or of flat label colours, not mode {img.mode}")
+        raise AssetError(
+            f"{shown}: a label texture must be an image of label ids (grey or palette) or of flat label colours, not mode {img.mode}"
+        )
 
     if not colour_mode:
         present = [int(i) for i in np.flatnonzero(np.bincount(ids.ravel(), minlength=256)) if i != 0]
         named = [int(k) for k in names if isinstance(k, int)]
         all_ids = sorted(set(present) | {i for i in named if 0 < i < 256})
         palette = None
-        if img.mode == "P" and img.getpalette():
-            palette = np.asarray(img.getpalette()[: 256 * 3], np.uint8).reshape(-1, 3)
-        entries = []
+        raw_palette = img.getpalette() if img.mode == "P" else None
+        if raw_palette:
+            palette = np.asarray(raw_palette[: 256 * 3], np.uint8).reshape(-1, 3)
+        entries: list[tuple[int, str, tuple[int, int, int] | None]] = []
         for i in all_ids:
             default = "plant" if all_ids == [1] else f"label_{i}"
-            colour = tuple(int(c) for c in palette[i]) if palette is not None and i < len(palette) else None
-            entries.append((i, str(names.get(i, default)), colour))  # type: ignore[arg-type]
-        return ids, entries  # type: ignore[return-value]
+            colour = None
+            if palette is not None and i < len(palette):
+                r, g, b = (int(c) for c in palette[i])
+                colour = (r, g, b)
+            entries.append((i, str(names.get(i, default)), colour))
+        return ids, entries
 
     flat = rgb.reshape(-1, 3)
     code = (flat[:, 0].astype(np.int64) << 16) | (flat[:, 1].astype(np.int64) << 8) | flat[:, 2]
@@ -321,7 +334,7 @@ def _label_ids(
     entries = []
     for new_id, (_, code_k, k) in enumerate(non_black, 1):
         colour = ((code_k >> 16) & 255, (code_k >> 8) & 255, code_k & 255)
-        hexname = "#%02x%02x%02x" % colour
+        hexname = "#{:02x}{:02x}{:02x}".format(*colour)
         default = "plant" if len(non_black) == 1 else by_colour.get(colour, f"label_{hexname[1:]}")
         lut[k] = new_id
         entries.append((new_id, lower.get(hexname, default), colour))
@@ -336,7 +349,9 @@ def _label_ids(
 def _check_geometry(shown: str, v: np.ndarray, faces: np.ndarray) -> None:
     bad = ~np.all(np.isfinite(v), axis=1)
     if bad.any():
-        raise AssetError(f"{shown}: {int(bad.sum())} vertices are NaN or infinite (the first is vertex {int(np.argmax(bad))})")
+        raise AssetError(
+            f"{shown}: {int(bad.sum())} vertices are NaN or infinite (the first is vertex {int(np.argmax(bad))})"
+        )
     if len(faces) == 0:
         raise AssetError(f"{shown}: no triangles")
     a, b, c = (v[faces[:, i]] for i in range(3))

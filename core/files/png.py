@@ -58,5 +58,11 @@ def encode_png(image: np.ndarray, palette: np.ndarray | None = None) -> bytes:
     np.subtract(rows[:, bpp:], rows[:, :-bpp], out=lines[:, 1 + bpp :])
     header = struct.pack(">IIBBBBB", w, h, depth, colour, 0, 0, 0)
     return b"".join(
-        [_SIGNATURE, _chunk(b"IHDR", header), *chunks, _chunk(b"IDAT", isal_zlib.compress(lines.data, LEVEL)), _chunk(b"IEND", b"")]
+        [
+            _SIGNATURE,
+            _chunk(b"IHDR", header),
+            *chunks,
+            _chunk(b"IDAT", isal_zlib.compress(lines.data, LEVEL)),
+            _chunk(b"IEND", b""),
+        ]
     )

@@ -29,12 +29,12 @@ import math
 import os
 from collections.abc import Mapping
 from pathlib import Path
-from typing import Literal
+from typing import Any, Literal
 
 import numpy as np
 
-from agrisim.files.atomic import write_bytes
 from agrisim.files.asset_reading import AssetError, check_scale, open_asset, plant_frame_offset, unit_hint, y_up_to_z_up
+from agrisim.files.atomic import write_bytes
 from agrisim.scene.model import Label, LabelTable, Mesh, Plant, PointSet
 from agrisim.scene.palette import BACKGROUND, PALETTE
 
@@ -49,7 +49,7 @@ DEFAULT_COLOR = (70, 120, 40)
 _MAGIC = "agrisim"
 
 
-def _header_comment(real: Path) -> dict | None:
+def _header_comment(real: Path) -> dict[str, Any] | None:
     """The JSON of an agrisim PLY's ``comment agrisim {...}`` header line, if any."""
     with open(real, "rb") as f:
         head = f.read(64 * 1024)
@@ -87,7 +87,10 @@ def _read_ply(real: Path, shown: str) -> dict[str, np.ndarray]:
         if len(getattr(loaded, "vertices", ())) == 0:
             raise AssetError(f"{shown}: the file holds no points")
         raise AssetError(f"{shown}: no vertex element (x, y, z) in this PLY")
-    return {str(k): np.asarray(v).reshape(len(v), -1)[:, 0] if np.asarray(v).ndim > 1 else np.asarray(v) for k, v in raw.items()}
+    return {
+        str(k): np.asarray(v).reshape(len(v), -1)[:, 0] if np.asarray(v).ndim > 1 else np.asarray(v)
+        for k, v in raw.items()
+    }
 
 
 def _read_pcd(real: Path, shown: str) -> dict[str, np.ndarray]:
@@ -96,7 +99,8 @@ def _read_pcd(real: Path, shown: str) -> dict[str, np.ndarray]:
     with native_output_silenced():
         import open3d as o3d
 
-        cloud = o3d.t.io.read_point_cloud(str(real))
+        # Open3D's stub asks for an os.PathLike; its binding takes a str as well
+        cloud = o3d.t.io.read_point_cloud(str(real))  # type: ignore[arg-type]
     out: dict[str, np.ndarray] = {}
     for key in cloud.point:
         value = cloud.point[key].numpy()
@@ -148,7 +152,7 @@ def _ids(props: Mapping[str, np.ndarray], key: str, shown: str, top: int, dtype:
 
 
 def _table(
-    present: np.ndarray, names: Mapping[int | str, str] | None, embedded: list | None, shown: str
+    present: np.ndarray, names: Mapping[int | str, str] | None, embedded: list[Any] | None, shown: str
 ) -> LabelTable:
     """The label table of a cloud whose points carry the ids ``present`` (module doc)."""
     if names:
@@ -222,7 +226,9 @@ def load_point_plant(
     lo, hi = v.min(axis=0), v.max(axis=0)
     size = float((hi - lo).max())
     if size > max_size:
-        raise AssetError(f"{shown}: the cloud is {size:.4g} m across, more than {max_size:g} m{unit_hint(size, max_size)}")
+        raise AssetError(
+            f"{shown}: the cloud is {size:.4g} m across, more than {max_size:g} m{unit_hint(size, max_size)}"
+        )
     if place:
         v = v - plant_frame_offset(lo, hi)
     labels = _ids(props, "label", shown, 255, np.uint8)
@@ -234,7 +240,9 @@ def load_point_plant(
     drawn = header.get("size") if header else None
     if not (isinstance(drawn, (int, float)) and math.isfinite(drawn) and drawn > 0):
         drawn = None
-    points = PointSet(v, _colors(props, shown, n), labels, instances, None if drawn is None else float(drawn) * float(scale))
+    points = PointSet(
+        v, _colors(props, shown, n), labels, instances, None if drawn is None else float(drawn) * float(scale)
+    )
     plant_name = name or Path(path).stem
     empty = Mesh(plant_name, np.zeros((0, 3)), np.zeros((0, 3), np.int32), [], np.zeros(0, np.int32))
     organs = sum(1 for lab in table.labels if lab.id != 0) > 1
@@ -258,7 +266,7 @@ def write_points_ply(path: str | os.PathLike[str], points: PointSet, labels: Lab
     data["label"] = points.labels
     if points.instances is not None:
         data["instance"] = points.instances
-    meta = {"format": 1, "size": points.size}
+    meta: dict[str, Any] = {"format": 1, "size": points.size}
     if labels is not None:
         meta["labels"] = labels.to_json()
     kinds = {"<f8": "double", "u1": "uchar", "<u2": "ushort"}

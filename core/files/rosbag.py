@@ -46,6 +46,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from agrisim.errors import OutputError, UserError
 from agrisim.files import layout
@@ -69,7 +70,7 @@ class ArmTrack:
     qd: np.ndarray
 
 
-def to_ns(t: float | np.ndarray) -> Any:
+def to_ns(t: ArrayLike) -> Any:
     """Seconds to integer nanoseconds (the bag's clock)."""
     return np.rint(np.asarray(t, float) * 1e9).astype(np.int64)
 
@@ -79,7 +80,9 @@ def read_moves(run_dir: Path, run: dict[str, Any], joints: dict[str, list[str]])
     before trajectories were kept, a missing or malformed file is refused, naming it."""
     folder = run_dir / layout.TRAJECTORIES
     if not folder.is_dir() and run.get("results"):
-        raise UserError(f"the run in {run_dir} has no {layout.TRAJECTORIES}/ (it predates them): run it again to export it")
+        raise UserError(
+            f"the run in {run_dir} has no {layout.TRAJECTORIES}/ (it predates them): run it again to export it"
+        )
     for frame in run.get("frames_complete") or []:
         if not layout.trajectory(run_dir, frame).is_file():
             raise UserError(f"missing {layout.trajectory(run_dir, frame)}: the run's trajectories are incomplete")
@@ -131,7 +134,8 @@ def urdf_joints(urdf: str) -> list[UrdfJoint]:
     """The joints of a URDF document, as the TF tree's edges."""
     root = ET.fromstring(urdf)
     return [
-        UrdfJoint(j.get("name", ""), j.get("type", ""), j.find("parent").get("link"), j.find("child").get("link"))  # type: ignore[union-attr]
+        # a joint without <parent link=...> or <child link=...> is no URDF (never one of agrisim's)
+        UrdfJoint(j.get("name", ""), j.get("type", ""), j.find("parent").get("link"), j.find("child").get("link"))  # type: ignore[union-attr, arg-type]
         for j in root.findall("joint")
     ]
 
@@ -174,7 +178,9 @@ class BagMessages:
         self.JointTrajectoryPoint = t["trajectory_msgs/msg/JointTrajectoryPoint"]
 
     def header(self, stamp_ns: int, frame: str) -> Any:
-        return self.Header(stamp=self.Time(sec=int(stamp_ns // 1_000_000_000), nanosec=int(stamp_ns % 1_000_000_000)), frame_id=frame)
+        return self.Header(
+            stamp=self.Time(sec=int(stamp_ns // 1_000_000_000), nanosec=int(stamp_ns % 1_000_000_000)), frame_id=frame
+        )
 
     def transforms(self, stamp_ns: int, edges: list[tuple[str, str]], T: np.ndarray, quat: np.ndarray) -> list[Any]:
         """TransformStamped of each (parent, child) edge with its 4x4 ``T[i]`` and (x, y, z, w)
@@ -253,7 +259,9 @@ class BagMessages:
                 velocities=qd[i] if qd is not None else np.zeros(0),
                 accelerations=np.zeros(0),
                 effort=np.zeros(0),
-                time_from_start=self.Duration(sec=int(offsets[i] // 1_000_000_000), nanosec=int(offsets[i] % 1_000_000_000)),
+                time_from_start=self.Duration(
+                    sec=int(offsets[i] // 1_000_000_000), nanosec=int(offsets[i] % 1_000_000_000)
+                ),
             )
             for i in range(len(t))
         ]
@@ -262,7 +270,9 @@ class BagMessages:
     def cloud(self, stamp_ns: int, points: np.ndarray, colors: np.ndarray, labels: np.ndarray) -> Any:
         """``PointCloud2``: float32 x, y, z, PCL's packed ``rgb`` (0x00RRGGBB as float32 bits)
         and a uint8 ``label``; 20 bytes a point, unorganised."""
-        F = self.PointField
+        # the type store's classes are made at run time; its annotations know only the MsgType
+        # protocol, not PointField's datatype constants
+        F: Any = self.PointField
         rows = np.zeros(len(points), np.dtype([("xyz", "<f4", 3), ("rgb", "<u4"), ("label", "u1"), ("pad", "u1", 3)]))
         rows["xyz"] = points
         c = np.asarray(colors, np.uint32)
@@ -309,7 +319,11 @@ def read_cloud(path: Path) -> tuple[np.ndarray, np.ndarray]:
     cloud = trimesh.load(path, file_type="ply", process=False)
     points = np.asarray(getattr(cloud, "vertices", np.zeros((0, 3))), float).reshape(-1, 3)
     colors = getattr(cloud, "colors", None)
-    colors = np.asarray(colors, np.uint8)[:, :3] if colors is not None and len(colors) == len(points) else np.full((len(points), 3), 200, np.uint8)
+    colors = (
+        np.asarray(colors, np.uint8)[:, :3]
+        if colors is not None and len(colors) == len(points)
+        else np.full((len(points), 3), 200, np.uint8)
+    )
     return points, colors
 
 
@@ -330,14 +344,19 @@ class RosbagExport:
         self.kin = {arm.name: ArmKinematics(arm) for arm in cell.arms}
         self.joints = {arm.name: list(arm.joints) for arm in cell.arms}
         self.moves = read_moves(self.run_dir, self.run, self.joints)
-        self.tracks = {arm.name: arm_track(self.moves[arm.name], np.asarray(arm.home), self.joints[arm.name]) for arm in cell.arms}
+        self.tracks = {
+            arm.name: arm_track(self.moves[arm.name], np.asarray(arm.home), self.joints[arm.name]) for arm in cell.arms
+        }
         self.edges = {arm.name: urdf_joints(arm.urdf) for arm in cell.arms}
         self.frames = dict(sorted((self.cameras.get("frames") or {}).items()))
         self.rendered = bool(self.run.get("frames_complete")) and isinstance(self.run.get("labels"), list)
-        self.labels = self.run.get("labels") if isinstance(self.run.get("labels"), list) else []
+        labels = self.run.get("labels")
+        self.labels: list[Any] = labels if isinstance(labels, list) else []
         captures = to_ns([float(f["sim_time"]) for f in self.frames.values()]) if self.frames else np.zeros(0, np.int64)
         self.capture_ns = dict(zip(self.frames, (int(c) for c in captures), strict=True))
-        self.stamps = np.unique(np.concatenate([np.zeros(1, np.int64), captures, *(tr.t_ns for tr in self.tracks.values())]))
+        self.stamps = np.unique(
+            np.concatenate([np.zeros(1, np.int64), captures, *(tr.t_ns for tr in self.tracks.values())])
+        )
 
     # ------------------------------------------------------------------ the arms
     def arm_samples(self, arm: str) -> np.ndarray:
@@ -385,7 +404,17 @@ def _qos_latched() -> Any:
     from rosbags.interfaces import Qos, QosDurability, QosHistory, QosLiveliness, QosReliability, QosTime
 
     never = QosTime(0, 0)  # rosbag2's "default" (unset) duration
-    return Qos(QosHistory.KEEP_LAST, 1, QosReliability.RELIABLE, QosDurability.TRANSIENT_LOCAL, never, never, QosLiveliness.AUTOMATIC, never, False)
+    return Qos(
+        QosHistory.KEEP_LAST,
+        1,
+        QosReliability.RELIABLE,
+        QosDurability.TRANSIENT_LOCAL,
+        never,
+        never,
+        QosLiveliness.AUTOMATIC,
+        never,
+        False,
+    )
 
 
 def bag_messages(export: RosbagExport, msgs: BagMessages) -> Iterator[tuple[str, str, int, Any]]:
@@ -393,7 +422,12 @@ def bag_messages(export: RosbagExport, msgs: BagMessages) -> Iterator[tuple[str,
     states come before the images taken there. Images are read as they are reached."""
     events: list[tuple[int, int, int, str, Any]] = []  # (stamp, order, sequence, kind, what)
     static_edges, static_T = export.static_transforms()
-    yield "/tf_static", "tf2_msgs/msg/TFMessage", 0, msgs.TFMessage(transforms=msgs.transforms(0, static_edges, static_T, _quaternions(static_T)))
+    yield (
+        "/tf_static",
+        "tf2_msgs/msg/TFMessage",
+        0,
+        msgs.TFMessage(transforms=msgs.transforms(0, static_edges, static_T, _quaternions(static_T))),
+    )
     held = {arm: export.arm_samples(arm) for arm in export.tracks}
     moving = {}
     for arm in export.tracks:
@@ -423,22 +457,53 @@ def bag_messages(export: RosbagExport, msgs: BagMessages) -> Iterator[tuple[str,
                 i = held[arm][what]
                 edges, T, quat = moving[arm]
                 transforms += msgs.transforms(stamp, edges, T[i], quat[i])
-                yield f"/{arm}/joint_states", "sensor_msgs/msg/JointState", stamp, msgs.joint_state(stamp, track.joints, track.q[i], track.qd[i])
+                yield (
+                    f"/{arm}/joint_states",
+                    "sensor_msgs/msg/JointState",
+                    stamp,
+                    msgs.joint_state(stamp, track.joints, track.q[i], track.qd[i]),
+                )
             yield "/tf", "tf2_msgs/msg/TFMessage", stamp, msgs.TFMessage(transforms=transforms)
         elif kind == "plan":
             arm = what["robot"]
             start, message = msgs.trajectory(export.joints[arm], what["planned"])
             yield f"/{arm}/planned_trajectory", "trajectory_msgs/msg/JointTrajectory", start, message
         elif kind == "frame":
+            assert camera is not None  # frames are listed only for a rendered run
             arm = export.frames[what]["robot"]
             optical = f"{arm}/{export.kin[arm].arm.camera_frame}"
             images = load_view(export.run_dir, what, camera, export.frames[what]["world_T_camera"]).images
-            yield f"/{arm}/camera/camera_info", "sensor_msgs/msg/CameraInfo", stamp, msgs.camera_info(stamp, optical, intrinsics)
-            yield f"/{arm}/camera/image_raw", "sensor_msgs/msg/Image", stamp, msgs.image(stamp, optical, images.rgb, "rgb8")
-            yield f"/{arm}/camera/depth", "sensor_msgs/msg/Image", stamp, msgs.image(stamp, optical, rep118(images.depth), "32FC1")
-            yield f"/{arm}/camera/labels", "sensor_msgs/msg/Image", stamp, msgs.image(stamp, optical, images.labels, "mono8")
+            yield (
+                f"/{arm}/camera/camera_info",
+                "sensor_msgs/msg/CameraInfo",
+                stamp,
+                msgs.camera_info(stamp, optical, intrinsics),
+            )
+            yield (
+                f"/{arm}/camera/image_raw",
+                "sensor_msgs/msg/Image",
+                stamp,
+                msgs.image(stamp, optical, images.rgb, "rgb8"),
+            )
+            yield (
+                f"/{arm}/camera/depth",
+                "sensor_msgs/msg/Image",
+                stamp,
+                msgs.image(stamp, optical, rep118(images.depth), "32FC1"),
+            )
+            yield (
+                f"/{arm}/camera/labels",
+                "sensor_msgs/msg/Image",
+                stamp,
+                msgs.image(stamp, optical, images.labels, "mono8"),
+            )
             if images.instances is not None:
-                yield f"/{arm}/camera/instances", "sensor_msgs/msg/Image", stamp, msgs.image(stamp, optical, images.instances, "mono16")
+                yield (
+                    f"/{arm}/camera/instances",
+                    "sensor_msgs/msg/Image",
+                    stamp,
+                    msgs.image(stamp, optical, images.instances, "mono16"),
+                )
         else:
             points, colors, labels = [np.zeros((0, 3))], [np.zeros((0, 3), np.uint8)], [np.zeros(0, np.uint8)]
             for row in export.labels:
@@ -448,7 +513,12 @@ def bag_messages(export: RosbagExport, msgs: BagMessages) -> Iterator[tuple[str,
                     points.append(p)
                     colors.append(c)
                     labels.append(np.full(len(p), int(row["id"]), np.uint8))
-            yield CLOUD_TOPIC, "sensor_msgs/msg/PointCloud2", stamp, msgs.cloud(stamp, np.concatenate(points), np.concatenate(colors), np.concatenate(labels))
+            yield (
+                CLOUD_TOPIC,
+                "sensor_msgs/msg/PointCloud2",
+                stamp,
+                msgs.cloud(stamp, np.concatenate(points), np.concatenate(colors), np.concatenate(labels)),
+            )
 
 
 def write_rosbag(run_dir: Path, overwrite: bool = False, progress: Callable[[int, int], None] | None = None) -> Path:
@@ -478,7 +548,9 @@ def write_rosbag(run_dir: Path, overwrite: bool = False, progress: Callable[[int
             for topic, msgtype, stamp, message in bag_messages(export, msgs):
                 if topic not in connections:
                     qos = [_qos_latched()] if topic == "/tf_static" else []
-                    connections[topic] = writer.add_connection(topic, msgtype, typestore=msgs.store, offered_qos_profiles=qos)
+                    connections[topic] = writer.add_connection(
+                        topic, msgtype, typestore=msgs.store, offered_qos_profiles=qos
+                    )
                 writer.write(connections[topic], stamp, msgs.store.serialize_cdr(message, msgtype))
                 if topic == "/tf" or topic.endswith("/image_raw"):
                     done += 1

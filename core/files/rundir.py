@@ -18,8 +18,8 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from agrisim.files import layout
 from agrisim.errors import OutputError, UserError
+from agrisim.files import layout
 from agrisim.interfaces import CameraModel
 
 if TYPE_CHECKING:
@@ -47,7 +47,10 @@ def read_run(run_dir: Path, rendered: bool = True) -> tuple[dict[str, Any], dict
     run without rendered frames unless ``rendered`` is False."""
     if not run_dir.is_dir():
         raise UserError(f"{run_dir} is not a directory")
-    run, cameras = (read_json(run_dir / name, "not a rendered agrisim run" if rendered else "not an agrisim run") for name in (layout.RUN_JSON, layout.CAMERAS_JSON))
+    run, cameras = (
+        read_json(run_dir / name, "not a rendered agrisim run" if rendered else "not an agrisim run")
+        for name in (layout.RUN_JSON, layout.CAMERAS_JSON)
+    )
     status = run.get("status")
     if status != "complete":
         raise UserError(
@@ -66,7 +69,9 @@ def read_run(run_dir: Path, rendered: bool = True) -> tuple[dict[str, Any], dict
     for name in complete if isinstance(run.get("labels"), list) else []:  # a robot-only run has no images
         for folder in layout.REQUIRED_FOLDERS:
             if not layout.has_image(run_dir, folder, name):
-                raise UserError(f"missing {folder} image {layout.image(run_dir, folder, name)}: the run's frames are incomplete")
+                raise UserError(
+                    f"missing {folder} image {layout.image(run_dir, folder, name)}: the run's frames are incomplete"
+                )
     return run, cameras
 
 

@@ -30,7 +30,7 @@ from agrisim.errors import UserError
 from agrisim.files.atomic import write_bytes
 from agrisim.files.glb import _GlbWriter
 from agrisim.files.gltf import _Gltf
-from agrisim.scene.model import LabelTable, Light, Mesh, Scene
+from agrisim.scene.model import LabelTable, Light, Material, Mesh, Scene
 
 FORMAT = 1
 ARM_PREFIX = "arm:"
@@ -53,7 +53,11 @@ def scene_glb_bytes(scene: Scene, arm_poses: dict[str, dict[str, np.ndarray]] | 
             meshes.append(w.mesh(mesh, z_up_to_y_up=False))
             pose = (arm_poses or {}).get(robot, {}).get(link, np.eye(4))
             matrix = Z_UP_TO_Y_UP @ np.asarray(pose, np.float64)
-            node = {"name": f"{ARM_PREFIX}{robot}/{link}", "mesh": len(meshes) - 1, "extras": {"agrisim": {"robot": robot, "link": link}}}
+            node = {
+                "name": f"{ARM_PREFIX}{robot}/{link}",
+                "mesh": len(meshes) - 1,
+                "extras": {"agrisim": {"robot": robot, "link": link}},
+            }
             if not np.allclose(matrix, np.eye(4)):
                 node["matrix"] = matrix.T.ravel().tolist()  # glTF matrices are column-major
             nodes.append(node)
@@ -74,7 +78,9 @@ def scene_glb_bytes(scene: Scene, arm_poses: dict[str, dict[str, np.ndarray]] | 
     return w.finish(gltf)
 
 
-def write_scene(path: str | os.PathLike[str], scene: Scene, arm_poses: dict[str, dict[str, np.ndarray]] | None = None) -> None:
+def write_scene(
+    path: str | os.PathLike[str], scene: Scene, arm_poses: dict[str, dict[str, np.ndarray]] | None = None
+) -> None:
     """Write ``scene`` (with its arms) as agrisim's scene GLB at ``path``, atomically."""
     write_bytes(Path(path), scene_glb_bytes(scene, arm_poses))
 
@@ -141,7 +147,8 @@ def _read_mesh(doc: _Gltf, node: dict[str, Any]) -> Mesh:
     if not str(node.get("name", "")).startswith(ARM_PREFIX):
         pos = np.column_stack([pos[:, 0], -pos[:, 2], pos[:, 1]])
     uvs = doc.accessor(first["TEXCOORD_0"]).astype(np.float32) if "TEXCOORD_0" in first else None
-    materials, index = [], {}
+    materials: list[Material] = []
+    index: dict[int, int] = {}
     faces, face_material, face_instance, any_instance = [], [], [], False
     for prim in prims:
         mi = int(prim["material"])
@@ -166,4 +173,3 @@ def _read_mesh(doc: _Gltf, node: dict[str, Any]) -> Mesh:
         uvs,
         np.concatenate(face_instance) if any_instance else None,
     )
-

@@ -167,7 +167,7 @@ def sample_clutter(room: Room, seed: int) -> list[Item]:
         ys = rng.uniform(ymin, ymax, n)
         yaws = rng.uniform(0.0, np.pi, n)
         variants = rng.integers(0, kind.variants, n)
-        for x, y, yaw, var in zip(xs, ys, yaws, variants):
+        for x, y, yaw, var in zip(xs, ys, yaws, variants, strict=True):
             items.append(Item(kind.name, float(x), float(y), float(yaw), int(var), len(items)))
     return items
 

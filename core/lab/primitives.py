@@ -6,11 +6,18 @@ from __future__ import annotations
 from collections.abc import Iterable, Sequence
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from agrisim.scene.mesh_builder import Part
 
 
-def quad(center, a, b, uv_span=(1.0, 1.0), uv_offset=(0.0, 0.0)) -> Part:
+def quad(
+    center: ArrayLike,
+    a: ArrayLike,
+    b: ArrayLike,
+    uv_span: tuple[float, float] = (1.0, 1.0),
+    uv_offset: tuple[float, float] = (0.0, 0.0),
+) -> Part:
     """Rectangle ``center +- a +- b`` (half vectors) facing ``a x b``; u runs along a, and the
     image's top edge is on the ``+b`` side."""
     c, a, b = (np.asarray(t, float) for t in (center, a, b))
@@ -47,10 +54,10 @@ def box(
     for name, (n, a, b) in BOX_FACES.items():
         if name in skip:
             continue
-        n, a, b = (np.asarray(t, float) * h for t in (n, a, b))
-        la, lb = 2 * np.linalg.norm(a), 2 * np.linalg.norm(b)
+        hn, ha, hb = (np.asarray(t, float) * h for t in (n, a, b))
+        la, lb = 2 * np.linalg.norm(ha), 2 * np.linalg.norm(hb)
         span = (1.0, 1.0) if repeat is None else (la / repeat[0], lb / repeat[1])
-        out[name] = quad(c0 + n, a, b, span, uv_offset)
+        out[name] = quad(c0 + hn, ha, hb, span, uv_offset)
     return out
 
 
@@ -65,9 +72,7 @@ def ring(radius: float, n: int, seam: bool) -> np.ndarray:
     return xy
 
 
-def cylinder_side(
-    radius: float, z0: float, z1: float, n: int, *, inward: bool = False, u_repeats: float = 1.0
-) -> Part:
+def cylinder_side(radius: float, z0: float, z1: float, n: int, *, inward: bool = False, u_repeats: float = 1.0) -> Part:
     """The side of a z-aligned cylinder; u once (or ``u_repeats`` times) around, v from the top
     (0) to the bottom (1)."""
     xy = ring(radius, n, seam=True)

@@ -24,7 +24,8 @@ the plant keeps its own label table.
 from __future__ import annotations
 
 import dataclasses
-from typing import Literal
+from collections.abc import Callable
+from typing import Any, Literal
 
 import numpy as np
 
@@ -63,14 +64,20 @@ class _Materials:
     """One :class:`Material` per look, made on first use and shared by the meshes of a scene."""
 
     def __init__(self) -> None:
-        self._cache: dict[tuple, Material] = {}
+        self._cache: dict[tuple[Any, ...], Material] = {}
 
-    def get(self, key: tuple, make) -> Material:
+    def get(self, key: tuple[Any, ...], make: Callable[[], Material]) -> Material:
         if key not in self._cache:
             self._cache[key] = make()
         return self._cache[key]
 
-    def textured(self, name: str, albedo: np.ndarray, color=(1.0, 1.0, 1.0, 1.0), roughness: float = 0.8) -> Material:
+    def textured(
+        self,
+        name: str,
+        albedo: np.ndarray,
+        color: tuple[float, float, float, float] = (1.0, 1.0, 1.0, 1.0),
+        roughness: float = 0.8,
+    ) -> Material:
         return self.get((name, color), lambda: Material(name, color=color, albedo=albedo, roughness=roughness))
 
 
@@ -127,7 +134,9 @@ def _obstacle_mesh(ob: Box | Cylinder, mats: _Materials) -> list[Mesh]:
         for name, part in faces.items():
             b.add_part(part, top if name == "+z" else side)
     else:  # stands and anything else: dark powder-coated steel
-        b.add_parts(faces.values(), mats.textured("stand_metal", tex.painted_metal((0.27, 0.28, 0.30), 3), roughness=0.5))
+        b.add_parts(
+            faces.values(), mats.textured("stand_metal", tex.painted_metal((0.27, 0.28, 0.30), 3), roughness=0.5)
+        )
     return [b.build(ob.name, T=ob.world_T)]
 
 
@@ -183,7 +192,9 @@ def _drum(item: Item, mats: _Materials) -> Mesh:
     b = MeshBuilder()
     side = mats.textured(f"drum_side_{item.variant}", tex.drum_side(color), roughness=0.4)
     b.add_part(cylinder_side(r, 0.0, k.height, DRUM_SEGMENTS), side)
-    b.add_part(disc(r, k.height, DRUM_SEGMENTS), mats.textured(f"drum_lid_{item.variant}", tex.drum_lid(color), roughness=0.4))
+    b.add_part(
+        disc(r, k.height, DRUM_SEGMENTS), mats.textured(f"drum_lid_{item.variant}", tex.drum_lid(color), roughness=0.4)
+    )
     return b.build(f"drum_{item.index:03d}", T=item.world_T)
 
 
@@ -244,7 +255,13 @@ def _lights(cell: Cell, room: Room, target: np.ndarray, mats: _Materials) -> tup
         down = np.array([0.0, 0.0, -1.0])
         lights.append(
             Light(
-                f"ceiling_{i}", "area", pos, down, (1.0, 0.97, 0.92), _intensity(CEILING_IRRADIANCE, pos, down, target), radius
+                f"ceiling_{i}",
+                "area",
+                pos,
+                down,
+                (1.0, 0.97, 0.92),
+                _intensity(CEILING_IRRADIANCE, pos, down, target),
+                radius,
             )
         )
         b = MeshBuilder()

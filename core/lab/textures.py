@@ -12,7 +12,7 @@ what its image spans in the world.
 
 from __future__ import annotations
 
-from functools import lru_cache
+from functools import cache
 
 import numpy as np
 
@@ -69,7 +69,7 @@ def _tint(shade: np.ndarray, color: tuple[float, float, float]) -> np.ndarray:
     return shade[..., None] * np.asarray(color, float)[None, None, :]
 
 
-@lru_cache(maxsize=None)
+@cache
 def floor_tiles() -> np.ndarray:
     """512 x 512 spanning 2.4 x 2.4 m: 4 x 4 speckled vinyl tiles of 0.6 m with grout lines."""
     n, tiles = 512, 4
@@ -90,7 +90,7 @@ def floor_tiles() -> np.ndarray:
     return _finish(rgb)
 
 
-@lru_cache(maxsize=None)
+@cache
 def wall_paint() -> np.ndarray:
     """512 rows x 256 cols spanning 3 m of height (top row at the ceiling) and 2 m along the
     wall: matt paint with roller texture, a dark skirting board in the bottom 0.12 m."""
@@ -104,7 +104,7 @@ def wall_paint() -> np.ndarray:
     return _finish(rgb)
 
 
-@lru_cache(maxsize=None)
+@cache
 def ceiling_tiles() -> np.ndarray:
     """256 x 256 spanning 1.2 x 1.2 m: 2 x 2 perforated acoustic tiles in a white T-bar grid."""
     n = 256
@@ -119,7 +119,7 @@ def ceiling_tiles() -> np.ndarray:
     return _finish(rgb)
 
 
-@lru_cache(maxsize=None)
+@cache
 def painted_metal(color: tuple[float, float, float], key: int = 0) -> np.ndarray:
     """256 x 256 spanning 1 x 1 m: powder-coated steel of ``color`` with faint brushing."""
     n = 256
@@ -129,7 +129,7 @@ def painted_metal(color: tuple[float, float, float], key: int = 0) -> np.ndarray
     return _finish(_tint(shade, color))
 
 
-@lru_cache(maxsize=None)
+@cache
 def laminate() -> np.ndarray:
     """256 x 256 spanning 0.5 x 0.5 m: a light grey bench laminate with fine speckle."""
     n = 256
@@ -139,7 +139,7 @@ def laminate() -> np.ndarray:
     return _finish(_tint(shade, (0.80, 0.80, 0.78)))
 
 
-@lru_cache(maxsize=None)
+@cache
 def wood(key: int = 0) -> np.ndarray:
     """256 x 256 spanning 1 x 0.25 m (grain along u): rough pallet pine with knots."""
     n = 256
@@ -159,7 +159,7 @@ def wood(key: int = 0) -> np.ndarray:
     return _finish(_tint(shade, (0.76, 0.61, 0.42)))
 
 
-@lru_cache(maxsize=None)
+@cache
 def terracotta() -> np.ndarray:
     """256 x 256: a clay pot's side, u around the pot, v from the rim (top row) to the base, with
     a thicker rim band over the top 18 %."""
@@ -173,7 +173,7 @@ def terracotta() -> np.ndarray:
     return _finish(_tint(shade, (0.72, 0.40, 0.25)))
 
 
-@lru_cache(maxsize=None)
+@cache
 def soil() -> np.ndarray:
     """256 x 256 spanning the soil disc's diameter: dark moist soil, crumbs and a few pebbles."""
     n = 256
@@ -191,7 +191,7 @@ def soil() -> np.ndarray:
     return _finish(rgb)
 
 
-@lru_cache(maxsize=None)
+@cache
 def cabinet_front(color: tuple[float, float, float]) -> np.ndarray:
     """512 rows x 256 cols spanning a 1.9 m tall, 0.9 m wide cabinet front: two doors with a
     centre gap, frame, louvres, handles, a lock and a label card, a dark plinth."""
@@ -231,7 +231,7 @@ def cabinet_front(color: tuple[float, float, float]) -> np.ndarray:
     return _finish(rgb)
 
 
-@lru_cache(maxsize=None)
+@cache
 def drum_side(color: tuple[float, float, float]) -> np.ndarray:
     """256 rows x 512 cols: a steel drum's side, u once around (1.82 m), v from the top chime
     (row 0) to the bottom (0.88 m): two rolling hoops, chimes, scratches, a hazard label."""
@@ -262,7 +262,7 @@ def drum_side(color: tuple[float, float, float]) -> np.ndarray:
     return _finish(rgb)
 
 
-@lru_cache(maxsize=None)
+@cache
 def drum_lid(color: tuple[float, float, float]) -> np.ndarray:
     """128 x 128 spanning the lid's diameter: pressed rings and two bungs."""
     n = 128

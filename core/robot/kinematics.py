@@ -17,7 +17,6 @@ import pinocchio as pin
 
 from agrisim.scene.cell import Arm
 
-
 #: damped least squares: J J^T + this (6 x 6) is never singular
 _DAMPING = 1e-6 * np.eye(6)
 #: numpy.linalg.solve's own kernel for one right-hand side (LAPACK gesv), without its checks
@@ -90,7 +89,13 @@ class ArmKinematics:
         # they call (the same float operations: the same answers, bit for bit).
         model, data, tip = self.model, self.data, self.tip
         lower, upper = self.lower, self.upper
-        fk, log6, jlog6, jacobian, local = pin.framesForwardKinematics, pin.log6, pin.Jlog6, pin.computeFrameJacobian, pin.ReferenceFrame.LOCAL
+        fk, log6, jlog6, jacobian, local = (
+            pin.framesForwardKinematics,
+            pin.log6,
+            pin.Jlog6,
+            pin.computeFrameJacobian,
+            pin.ReferenceFrame.LOCAL,
+        )
         oMf = data.oMf
         q = q0.copy()
         # A step is a function of q alone, so a q seen before starts a cycle that never

@@ -19,10 +19,10 @@ import os
 import tempfile
 import threading
 import xml.etree.ElementTree as ET
-from importlib import metadata
 from dataclasses import dataclass
+from importlib import metadata
 from pathlib import Path
-from typing import TYPE_CHECKING, Literal
+from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
 
@@ -72,6 +72,11 @@ def _floats(text: str | None, n: int, default: float) -> tuple[float, ...]:
     return tuple(values)
 
 
+def _vec3(text: str | None, default: float) -> tuple[float, float, float]:
+    x, y, z = _floats(text, 3, default)
+    return x, y, z
+
+
 def _origin(element: ET.Element) -> np.ndarray:
     origin = element.find("origin")
     if origin is None:
@@ -113,7 +118,7 @@ def link_visuals(urdf: str) -> dict[str, list[Visual]]:
             if geometry is None or len(geometry) == 0:
                 continue
             shape = geometry[0]
-            common = dict(
+            common: dict[str, Any] = dict(
                 link=name,
                 index=len(visuals),
                 link_T_visual=_origin(visual),
@@ -121,16 +126,21 @@ def link_visuals(urdf: str) -> dict[str, list[Visual]]:
             )
             if shape.tag == "mesh":
                 visuals.append(
-                    Visual(kind="mesh", filename=shape.get("filename"), scale=_floats(shape.get("scale"), 3, 1.0), **common)  # type: ignore[arg-type]
+                    Visual(kind="mesh", filename=shape.get("filename"), scale=_vec3(shape.get("scale"), 1.0), **common)
                 )
             elif shape.tag == "box":
-                visuals.append(Visual(kind="box", size=_floats(shape.get("size"), 3, 0.0), **common))  # type: ignore[arg-type]
+                visuals.append(Visual(kind="box", size=_vec3(shape.get("size"), 0.0), **common))
             elif shape.tag == "cylinder":
                 visuals.append(
-                    Visual(kind="cylinder", radius=float(shape.get("radius", 0)), length=float(shape.get("length", 0)), **common)  # type: ignore[arg-type]
+                    Visual(
+                        kind="cylinder",
+                        radius=float(shape.get("radius", 0)),
+                        length=float(shape.get("length", 0)),
+                        **common,
+                    )
                 )
             elif shape.tag == "sphere":
-                visuals.append(Visual(kind="sphere", radius=float(shape.get("radius", 0)), **common))  # type: ignore[arg-type]
+                visuals.append(Visual(kind="sphere", radius=float(shape.get("radius", 0)), **common))
             else:
                 log.warning("URDF link %r: unsupported visual geometry <%s> skipped", name, shape.tag)
         if visuals:
@@ -163,7 +173,8 @@ def load_scene(path: str | Path) -> trimesh.Scene:
     """The mesh file at ``path`` as a trimesh scene (its own units and axes, node transforms kept)."""
     import trimesh
 
-    return trimesh.load(str(path), force="scene")
+    # force="scene" always returns a Scene; trimesh annotates load for every force (Geometry)
+    return trimesh.load(str(path), force="scene")  # type: ignore[return-value]
 
 
 def _convert(path: Path) -> bytes:

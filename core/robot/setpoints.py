@@ -8,9 +8,9 @@ from pathlib import Path
 
 import numpy as np
 
-from agrisim.scene.cell import Cell
 from agrisim.config import RoutineConfig, parse_grid
 from agrisim.errors import UserError
+from agrisim.scene.cell import Cell
 from agrisim.scene.transforms import look_at, pose, rpy_matrix
 
 

@@ -61,7 +61,9 @@ def robot_data_share() -> Path:
         dist = metadata.distribution(ROBOT_DATA_DIST)
         for f in dist.files or ():
             if str(f).endswith("ur10_robot.urdf"):
-                full = Path(dist.locate_file(f)).resolve()
+                # an installed distribution (a PathDistribution) locates its files as Paths;
+                # typeshed types the base class's locate_file, which returns a SimplePath
+                full = Path(dist.locate_file(f)).resolve()  # type: ignore[arg-type]
                 candidates.append(full.parents[4])  # .../share/example-robot-data/robots/ur_description/urdf
                 break
     except metadata.PackageNotFoundError:
@@ -70,9 +72,7 @@ def robot_data_share() -> Path:
     for share in candidates:
         if (share / UR10_URDF).is_file():
             return share
-    raise UserError(
-        f"the UR10 URDF ({UR10_URDF}) was not found: install the '{ROBOT_DATA_DIST}' package"
-    )
+    raise UserError(f"the UR10 URDF ({UR10_URDF}) was not found: install the '{ROBOT_DATA_DIST}' package")
 
 
 def ur10_urdf_path() -> Path:

@@ -11,6 +11,7 @@ from __future__ import annotations
 import logging
 from dataclasses import dataclass
 from functools import lru_cache
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -18,12 +19,18 @@ from agrisim.robot import meshes as robot_meshes
 from agrisim.scene.colour import srgb_to_linear
 from agrisim.scene.model import Material, Mesh
 
+if TYPE_CHECKING:
+    import trimesh
+
 log = logging.getLogger(__name__)
 
 #: colour of visuals whose files and URDF give none (linear RGBA)
 DEFAULT_COLOR = (0.45, 0.45, 0.47, 1.0)
 #: the camera body added to the flange by agrisim.robot.urdf (linear RGBA)
 CAMERA_COLOR = (0.02, 0.02, 0.02, 1.0)
+
+#: (vertices, faces, linear RGBA) of one sub-mesh of a visual
+_Part = tuple[np.ndarray, np.ndarray, tuple[float, float, float, float]]
 
 
 @dataclass
@@ -34,7 +41,7 @@ class LinkMesh:
     mesh: Mesh
 
 
-def _primitive(visual: robot_meshes.Visual):  # noqa: ANN202 - trimesh types stay lazy
+def _primitive(visual: robot_meshes.Visual) -> trimesh.Trimesh | None:
     import trimesh
 
     if visual.kind == "box" and visual.size:
@@ -46,17 +53,20 @@ def _primitive(visual: robot_meshes.Visual):  # noqa: ANN202 - trimesh types sta
     return None
 
 
-def _parts(visual: robot_meshes.Visual) -> list[tuple[np.ndarray, np.ndarray, tuple[float, float, float, float]]]:
+def _parts(visual: robot_meshes.Visual) -> list[_Part]:
     """(vertices in the visual's frame, faces, linear RGBA) of each sub-mesh of one visual."""
-    urdf_color = tuple(float(x) for x in srgb_to_linear(visual.rgba[:3])) + (1.0,) if visual.rgba else None
+    urdf_color: tuple[float, float, float, float] | None = None
+    if visual.rgba:
+        r, g, b = (float(x) for x in srgb_to_linear(visual.rgba[:3]))
+        urdf_color = (r, g, b, 1.0)
     if visual.kind != "mesh":
         prim = _primitive(visual)
         if prim is None:
             return []
         color = urdf_color or (CAMERA_COLOR if visual.link == "camera_link" else DEFAULT_COLOR)
-        return [(np.asarray(prim.vertices, float), np.asarray(prim.faces, np.int64), color)]  # type: ignore[list-item]
+        return [(np.asarray(prim.vertices, float), np.asarray(prim.faces, np.int64), color)]
     scene = robot_meshes.load_scene(visual.filename)  # type: ignore[arg-type]
-    out = []
+    out: list[_Part] = []
     scale = np.asarray(visual.scale, float)
     for node in scene.graph.nodes_geometry:
         T, name = scene.graph[node]
@@ -74,7 +84,7 @@ def _parts(visual: robot_meshes.Visual) -> list[tuple[np.ndarray, np.ndarray, tu
     return out
 
 
-def _decimate(v: np.ndarray, f: np.ndarray, target: int) -> tuple[np.ndarray, np.ndarray]:
+def _decimate(v: np.ndarray, f: np.ndarray, target: float) -> tuple[np.ndarray, np.ndarray]:
     """Quadric edge-collapse decimation to about ``target`` triangles (Open3D)."""
     import open3d as o3d
 
@@ -94,7 +104,7 @@ def arm_link_meshes(urdf: str, max_triangles: int = 0) -> tuple[LinkMesh, ...]:
     keeping its share (quadric edge collapse keeps the silhouette; parts stay separate, so
     colours keep their borders).
     """
-    loaded: list[tuple[str, robot_meshes.Visual, list]] = []
+    loaded: list[tuple[str, robot_meshes.Visual, list[_Part]]] = []
     for link, visuals in robot_meshes.link_visuals(urdf).items():
         for visual in visuals:
             try:
@@ -105,7 +115,10 @@ def arm_link_meshes(urdf: str, max_triangles: int = 0) -> tuple[LinkMesh, ...]:
     ratio = max_triangles / total if 0 < max_triangles < total else 1.0
     links: list[LinkMesh] = []
     for link in dict.fromkeys(name for name, _, _ in loaded):
-        verts, faces, fmat, materials = [], [], [], []
+        verts: list[np.ndarray] = []
+        faces: list[np.ndarray] = []
+        fmat: list[np.ndarray] = []
+        materials: list[Material] = []
         colors: dict[tuple[float, ...], int] = {}
         n = 0
         for _, visual, parts in (x for x in loaded if x[0] == link):
@@ -115,7 +128,9 @@ def arm_link_meshes(urdf: str, max_triangles: int = 0) -> tuple[LinkMesh, ...]:
                 v = v @ visual.link_T_visual[:3, :3].T + visual.link_T_visual[:3, 3]
                 if color not in colors:
                     colors[color] = len(materials)
-                    materials.append(Material(f"{link}/{len(materials)}", color=color, double_sided=True, roughness=0.45))
+                    materials.append(
+                        Material(f"{link}/{len(materials)}", color=color, double_sided=True, roughness=0.45)
+                    )
                 verts.append(v)
                 faces.append(f + n)
                 fmat.append(np.full(len(f), colors[color], np.int32))

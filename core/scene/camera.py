@@ -34,7 +34,9 @@ class CameraModel:
 def from_fov(hfov_deg: float, width: int, height: int) -> CameraModel:
     """An ideal pinhole from its horizontal field of view (the paper's Eq. 1)."""
     if not (0.0 < hfov_deg < 180.0) or width <= 0 or height <= 0:
-        raise UserError(f"camera: hfov must be in (0, 180) degrees and sizes positive, got {hfov_deg}, {width}x{height}")
+        raise UserError(
+            f"camera: hfov must be in (0, 180) degrees and sizes positive, got {hfov_deg}, {width}x{height}"
+        )
     f = width / (2.0 * math.tan(math.radians(hfov_deg) / 2.0))
     return CameraModel(width, height, f, f, width / 2.0, height / 2.0)
 

@@ -12,8 +12,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from agrisim.config import CellConfig
-from agrisim.scene.transforms import translation, yaw_matrix
 from agrisim.robot.urdf import ARM_JOINTS, CAMERA_FRAME, ur10_with_camera
+from agrisim.scene.transforms import translation, yaw_matrix
 
 
 @dataclass(frozen=True)

@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Literal
+from typing import Any, Literal
 
 import numpy as np
 
@@ -102,7 +102,9 @@ class Material:
         if self.transmission is not None and self.transmittance is not None:
             raise ValueError(f"material {self.name!r}: give transmittance or a transmission texture, not both")
         if not (math.isfinite(self.normal_scale) and self.normal_scale >= 0.0):
-            raise ValueError(f"material {self.name!r}: normal scale must be a finite number >= 0, got {self.normal_scale}")
+            raise ValueError(
+                f"material {self.name!r}: normal scale must be a finite number >= 0, got {self.normal_scale}"
+            )
 
     @property
     def cuts(self) -> bool:
@@ -195,7 +197,9 @@ class PointSet:
         if self.instances is not None:
             self.instances = np.ascontiguousarray(self.instances)
             if self.instances.dtype != np.uint16 or self.instances.shape != (n,):
-                raise ValueError(f"points: instances must be N uint16, got {self.instances.dtype} {self.instances.shape}")
+                raise ValueError(
+                    f"points: instances must be N uint16, got {self.instances.dtype} {self.instances.shape}"
+                )
         if self.size is not None and not (math.isfinite(self.size) and self.size > 0):
             raise ValueError(f"points: size must be a finite number > 0, got {self.size}")
 
@@ -234,12 +238,12 @@ class LabelTable:
                 return lab
         raise KeyError(name)
 
-    def to_json(self) -> list[dict]:
+    def to_json(self) -> list[dict[str, Any]]:
         """The table as JSON rows ``{"id", "name", "color"}`` (run.json, agrisim's GLB extras)."""
         return [{"id": lab.id, "name": lab.name, "color": [int(c) for c in lab.color]} for lab in self.labels]
 
     @classmethod
-    def from_json(cls, rows: list[dict]) -> LabelTable:
+    def from_json(cls, rows: list[dict[str, Any]]) -> LabelTable:
         """The table of :meth:`to_json`'s rows (KeyError, TypeError or ValueError if malformed)."""
         return cls([Label(int(r["id"]), str(r["name"]), tuple(int(c) for c in r["color"])) for r in rows])  # type: ignore[arg-type]
 

@@ -60,11 +60,15 @@ def _read_file(config: RunConfig) -> Plant:
     f = config.plant_file
     if Path(name).suffix.lower() in POINT_FORMATS:
         if f.label_texture is not None or f.material_labels is not None or f.alpha_cutoff is not None:
-            raise UserError(f"{name}: a point cloud has no textures or materials; [plant_file] label_names names its labels")
+            raise UserError(
+                f"{name}: a point cloud has no textures or materials; [plant_file] label_names names its labels"
+            )
         return load_point_plant(Path(name), label_names=_label_names(config), up=f.up, scale=f.scale, root=f.root)
     names = _label_names(config)
     if names is not None and f.label_texture is None:
-        raise UserError(f"{name}: [plant_file] label_names names a label texture's ids or a point cloud's labels; give label_texture too")
+        raise UserError(
+            f"{name}: [plant_file] label_names names a label texture's ids or a point cloud's labels; give label_texture too"
+        )
     return load_plant(
         Path(name),
         label_texture=f.label_texture,
@@ -98,5 +102,7 @@ def resolve_plant(registry: Registry, config: RunConfig) -> Plant:
         if hint:
             raise UserError(hint)
         available = ", ".join(species) or "none installed"
-        raise UserError(f"unknown plant {name!r}; species: {available}; or a .glb/.gltf/.obj mesh or .ply/.pcd point cloud")
+        raise UserError(
+            f"unknown plant {name!r}; species: {available}; or a .glb/.gltf/.obj mesh or .ply/.pcd point cloud"
+        )
     return as_points(plant, config.points.count, config.points.size, seed=config.seed)

@@ -52,7 +52,9 @@ def check_size(size: float, what: str = "--point-size") -> None:
     if isinstance(size, bool) or not isinstance(size, (int, float)) or not math.isfinite(size) or size <= 0:
         raise UserError(f"{what} must be a finite number of metres > 0 (the diameter of each point), got {size!r}")
     if size > 0.5:
-        raise UserError(f"{what} {size:g} m is larger than a plant; it is the diameter of each point, in metres (0.002 is 2 mm)")
+        raise UserError(
+            f"{what} {size:g} m is larger than a plant; it is the diameter of each point, in metres (0.002 is 2 mm)"
+        )
 
 
 def albedo_at_samples(mesh: Mesh, faces: np.ndarray, bary: np.ndarray) -> np.ndarray:

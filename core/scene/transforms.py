@@ -26,7 +26,11 @@ def pose(R: np.ndarray, p: np.ndarray) -> np.ndarray:
     return T
 
 
-def look_at(eye: np.ndarray, target: np.ndarray, up: np.ndarray = np.array([0.0, 0.0, 1.0])) -> np.ndarray:
+#: world up, the default ``up`` of :func:`look_at` (read, never written)
+Z_UP = np.array([0.0, 0.0, 1.0])
+
+
+def look_at(eye: np.ndarray, target: np.ndarray, up: np.ndarray = Z_UP) -> np.ndarray:
     """``world_T_camera`` (OpenCV optical: x right, y down, z forward) at ``eye`` facing ``target``.
 
     The image's up direction follows ``up``; looking straight along ``up`` is ambiguous and

@@ -63,9 +63,7 @@ def check_physics(registry: Registry, spec: BackendSpec, options: Any) -> None:
         s = 3 * t**2 - 2 * t**3  # rest to rest
         plan = JointTrajectory(t, home + np.outer(s, goal - home))
         t0 = physics.sim_time
-        out = physics.execute(
-            {"r1": plan}, lambda robot, q: float(np.max(np.abs(q - goal))) < 1e-3, timeout=5.0
-        )
+        out = physics.execute({"r1": plan}, lambda robot, q: float(np.max(np.abs(q - goal))) < 1e-3, timeout=5.0)
         ex = out["r1"]
         assert ex.settled, f"r1 did not settle within 1e-3 rad of the goal (reached {physics.joint_positions('r1')})"
         assert np.max(np.abs(physics.joint_positions("r1") - goal)) < 1e-3
@@ -139,7 +137,8 @@ def check_renderer(registry: Registry, spec: BackendSpec, options: Any) -> None:
     mode = "texture" if "texture" in caps.seg_modes else sorted(caps.seg_modes)[0]
     labels = "organs" if caps.organ_labels else "plant"
     scene, plant = _plant_scene(registry, cell, labels)
-    settings = RenderConfig(seg_mode=mode, labels=labels, hide_robots=True)
+    # seg_modes are plain strings (a plugin may declare any): the model validates the one taken
+    settings = RenderConfig.model_validate({"seg_mode": mode, "labels": labels, "hide_robots": True})
     renderer = registry.build("renderer", spec, scene, cell, settings, options)
     camera = from_fov(60.0, 160, 120)
     poses: dict[str, dict[str, np.ndarray]] = {}
@@ -147,7 +146,9 @@ def check_renderer(registry: Registry, spec: BackendSpec, options: Any) -> None:
         floor = renderer.render(camera, look_at(np.array([0.0, 1.2, 1.0]), np.array([0.0, 1.2, 0.0])), poses)
         _assert_frame(floor, camera)
         assert not floor.labels.any(), "bare floor labelled as plant"
-        assert np.allclose(floor.depth, 1.0, atol=0.01), f"floor depth {floor.depth.min():.4f}..{floor.depth.max():.4f}, not 1 m"
+        assert np.allclose(floor.depth, 1.0, atol=0.01), (
+            f"floor depth {floor.depth.min():.4f}..{floor.depth.max():.4f}, not 1 m"
+        )
 
         top = cell.plant_center + np.array([0.0, 0.0, 1.0])
         world_T_camera = look_at(top, cell.plant_center)
@@ -195,13 +196,17 @@ def check_reconstructor(registry: Registry, spec: BackendSpec, options: Any) -> 
     labelled leaf and x > 0 stem: the result's merged clouds (per label and ``"all"``) lie on
     the plane in world coordinates, each label on its own half; declared result clouds and
     meshes too. (Twelve: a reconstructor that holds views out for testing has some.)"""
-    table = LabelTable([Label(0, "background", (0, 0, 0)), Label(1, "leaf", (0, 255, 0)), Label(2, "stem", (96, 0, 128))])
+    table = LabelTable(
+        [Label(0, "background", (0, 0, 0)), Label(1, "leaf", (0, 255, 0)), Label(2, "stem", (96, 0, 128))]
+    )
     recon = registry.build("reconstructor", spec, table, options)
     camera = from_fov(60.0, 120, 90)
     plane_z = 1.0  # the plane z = 1 m, seen from 0.5 m above
     for k, x in enumerate(np.arange(12) * 0.01):
         # Image right is world +x; the plane's half x < 0 is leaf, x > 0 stem, in every view.
-        world_T_camera = look_at(np.array([x, 0.0, plane_z + 0.5]), np.array([x, 0.0, plane_z]), up=np.array([0.0, 1.0, 0.0]))
+        world_T_camera = look_at(
+            np.array([x, 0.0, plane_z + 0.5]), np.array([x, 0.0, plane_z]), up=np.array([0.0, 1.0, 0.0])
+        )
         world_x = x + (np.arange(camera.width) - camera.cx) / camera.fx * 0.5
         labels = np.where(world_x < 0.0, 1, 2).astype(np.uint8)[None, :].repeat(camera.height, 0)
         images = Frame(

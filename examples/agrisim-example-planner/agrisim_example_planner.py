@@ -19,6 +19,7 @@ The plugin is registered through the ``agrisim`` entry-point group in its ``pypr
 
 from __future__ import annotations
 
+import itertools
 import math
 
 import numpy as np
@@ -95,7 +96,7 @@ class WaypointPlanner(Planner):
             up_start = self.retracted(start, amount, lower, upper)
             up_goal = self.retracted(goal, amount, lower, upper)
             for path in ([start, mid, goal], [start, up_start, up_goal, goal]):
-                if all(segment_is_valid(a, b, is_valid, resolution) for a, b in zip(path[:-1], path[1:])):
+                if all(segment_is_valid(a, b, is_valid, resolution) for a, b in itertools.pairwise(path)):
                     return np.array(path)
         raise PlanningFailed(
             f"straight line blocked and no retracted detour (up to {o.retract:g} rad in {o.levels} levels) is free"

@@ -6,8 +6,8 @@ import numpy as np
 
 from agrisim import BackendSpec, hookimpl
 from agrisim.interfaces import Planner, PlanningFailed, Validity
-from agrisim.robot.segments import require_within_limits, segment_is_valid
 from agrisim.registry import NoOptions
+from agrisim.robot.segments import require_within_limits, segment_is_valid
 
 
 class DirectPlanner(Planner):

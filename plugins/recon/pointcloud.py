@@ -10,14 +10,13 @@ from __future__ import annotations
 
 from pydantic import Field
 
-from agrisim.capabilities import ReconstructorCapabilities
 from agrisim import BackendSpec, Options, hookimpl
+from agrisim.capabilities import ReconstructorCapabilities
+from agrisim.evaluation.views import View, backproject
 from agrisim.interfaces import ALL, Cloud, Reconstruction, Reconstructor
 from agrisim.scene.model import LabelTable
-from agrisim.evaluation.views import View, backproject
 
 from .voxel_grid import VoxelGrid
-
 
 
 class PointCloudOptions(Options):

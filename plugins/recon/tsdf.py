@@ -13,11 +13,11 @@ from __future__ import annotations
 import numpy as np
 from pydantic import Field, model_validator
 
-from agrisim.capabilities import ReconstructorCapabilities
 from agrisim import BackendSpec, Options, hookimpl
+from agrisim.capabilities import ReconstructorCapabilities
+from agrisim.evaluation.views import View, backproject
 from agrisim.interfaces import ALL, Cloud, Reconstruction, Reconstructor, SurfaceMesh
 from agrisim.scene.model import LabelTable
-from agrisim.evaluation.views import View, backproject
 
 from .voxel_grid import VoxelGrid
 
@@ -91,7 +91,9 @@ class TsdfReconstructor(Reconstructor):
             blocks = grid.compute_unique_block_coordinates(
                 depth, K, extrinsic, 1000.0, o.max_depth, trunc_voxel_multiplier=self._trunc
             )
-            grid.integrate(blocks, depth, color, K, K, extrinsic, 1000.0, o.max_depth, trunc_voxel_multiplier=self._trunc)
+            grid.integrate(
+                blocks, depth, color, K, K, extrinsic, 1000.0, o.max_depth, trunc_voxel_multiplier=self._trunc
+            )
             if name != ALL:
                 points, colors = backproject(view, mask, o.max_depth)
                 if len(points):
@@ -105,7 +107,9 @@ class TsdfReconstructor(Reconstructor):
     def _mesh(self, name: str) -> SurfaceMesh:
         mesh = self._grid(name).extract_triangle_mesh(weight_threshold=self.options.min_weight)
         vertices = mesh.vertex.positions.numpy().astype(np.float64) if "positions" in mesh.vertex else np.zeros((0, 3))
-        triangles = mesh.triangle.indices.numpy().astype(np.int32) if "indices" in mesh.triangle else np.zeros((0, 3), np.int32)
+        triangles = (
+            mesh.triangle.indices.numpy().astype(np.int32) if "indices" in mesh.triangle else np.zeros((0, 3), np.int32)
+        )
         colors = _colors(mesh.vertex.colors.numpy(), len(vertices)) if "colors" in mesh.vertex else None
         return SurfaceMesh(vertices, triangles, colors)
 
@@ -114,7 +118,9 @@ class TsdfReconstructor(Reconstructor):
         clouds = {}
         for name in [*self.names.values(), ALL]:
             mesh = self._mesh(name)
-            clouds[name] = Cloud(mesh.vertices, mesh.colors if mesh.colors is not None else _colors(None, len(mesh.vertices)))
+            clouds[name] = Cloud(
+                mesh.vertices, mesh.colors if mesh.colors is not None else _colors(None, len(mesh.vertices))
+            )
         return clouds
 
     def result(self) -> Reconstruction:
@@ -136,6 +142,8 @@ def agrisim_reconstructors() -> list[BackendSpec]:
             factory=TsdfReconstructor,
             options_model=TsdfOptions,
             description="Open3D TSDF fusion (VoxelBlockGrid) of the labelled depth to a surface mesh, per label",
-            capabilities=ReconstructorCapabilities(clouds=False, meshes=True),  # merged() streams clouds; the result is meshes
+            capabilities=ReconstructorCapabilities(
+                clouds=False, meshes=True
+            ),  # merged() streams clouds; the result is meshes
         )
     ]

@@ -25,6 +25,7 @@ def cuda_usable() -> bool:
         return False
     return bool(dr.has_backend(dr.JitBackend.CUDA))
 
+
 @pytest.fixture
 def workdir(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
     """tmp_path with the input files the cases refer to; the CLI runs from ``tmp_path/cwd`` so
@@ -59,8 +60,6 @@ def snapshot(root: Path) -> dict[str, tuple[bytes | None, int]]:
     }
 
 
-
-
 def assert_one_line_error(code: int, err: str, expected: list[str]) -> None:
     assert code == 2, err
     assert err.count("\n") == 1 and err.endswith("\n"), f"not exactly one line: {err!r}"
@@ -79,9 +78,7 @@ CASES = [
     pytest.param(["--camera", "nope"], ["camera", "'nope'", "rpi3-wide-1080p"], id="unknown-camera"),
     pytest.param(["--config", "{tmp}/broken.toml"], ["malformed TOML", "broken.toml"], id="malformed-toml"),
     pytest.param(["--config", "{tmp}/missing.toml"], ["config file not found", "missing.toml"], id="missing-config"),
-    pytest.param(
-        ["--config", "{tmp}/unknown_key.toml"], ["unknown setting", "routine.bogus"], id="unknown-config-key"
-    ),
+    pytest.param(["--config", "{tmp}/unknown_key.toml"], ["unknown setting", "routine.bogus"], id="unknown-config-key"),
     pytest.param(["--set", "nope=1"], ["unknown setting", "'nope'"], id="unknown-set-key"),
     pytest.param(["--set", "seed"], ["KEY=VALUE", "'seed'"], id="set-without-value"),
     pytest.param(["--setpoints", "0x10"], ["setpoints", "0x10", "between 1 and 100"], id="setpoints-zero"),
@@ -96,9 +93,7 @@ CASES = [
     pytest.param(["--resolution", "10x"], ["resolution", "10x", "WxH"], id="resolution-malformed"),
     pytest.param(["--resolution", "4x4"], ["resolution", "4x4"], id="resolution-too-small"),
     pytest.param(["--arms", "3"], ["cell.arms", "2"], id="three-arms"),
-    pytest.param(
-        ["--setpoints-csv", "{tmp}/missing.csv"], ["setpoint CSV not found", "missing.csv"], id="missing-csv"
-    ),
+    pytest.param(["--setpoints-csv", "{tmp}/missing.csv"], ["setpoint CSV not found", "missing.csv"], id="missing-csv"),
     pytest.param(
         ["--planner", "ompl", "--set", "planner.ompl.algorithm=Nope"],
         ["OMPL", "'Nope'", "RRTConnect"],
@@ -153,7 +148,9 @@ CASES = [
         id="mitsuba-cuda-without-gpu",
         marks=pytest.mark.skipif(cuda_usable(), reason="a usable GPU is here"),
     ),
-    pytest.param(["--renderer", "mitsuba", "--set", "renderer.mitsuba.spp=0"], ["mitsuba", "spp", "1"], id="mitsuba-spp-0"),
+    pytest.param(
+        ["--renderer", "mitsuba", "--set", "renderer.mitsuba.spp=0"], ["mitsuba", "spp", "1"], id="mitsuba-spp-0"
+    ),
     pytest.param(
         ["--renderer", "mitsuba", "--set", "renderer.mitsuba.envmap={tmp}/missing.exr"],
         ["envmap", "missing.exr", "no such file"],
@@ -191,14 +188,20 @@ CASES = [
     pytest.param(["--plant", "{tmp}/empty.ply"], ["empty.ply", "no points"], id="cloud-without-points"),
     pytest.param(["--plant", "{tmp}/nan.ply"], ["nan.ply", "NaN or infinite"], id="cloud-with-nan"),
     pytest.param(["--plant", "{tmp}/label300.ply"], ["label300.ply", "300", "outside 0..255"], id="cloud-label-300"),
-    pytest.param(["--plant", "{tmp}/label250.ply"], ["label250.ply", "[250]", "default table", "label_names"], id="cloud-label-not-in-default-table"),
+    pytest.param(
+        ["--plant", "{tmp}/label250.ply"],
+        ["label250.ply", "[250]", "default table", "label_names"],
+        id="cloud-label-not-in-default-table",
+    ),
     pytest.param(
         ["--plant", "{tmp}/label250.ply", "--config", "{tmp}/names.toml"],
         ["label250.ply", "[250]", "label_names does not name", "[0, 1, 2]"],
         id="cloud-label-not-in-label-names",
     ),
     pytest.param(["--plant", "{tmp}/missing.ply"], ["missing.ply"], id="missing-cloud"),
-    pytest.param(["--plant", "{tmp}/good.ply", "--as-points", "10"], ["already a point cloud"], id="as-points-of-a-cloud"),
+    pytest.param(
+        ["--plant", "{tmp}/good.ply", "--as-points", "10"], ["already a point cloud"], id="as-points-of-a-cloud"
+    ),
 ]
 
 
@@ -256,7 +259,9 @@ def test_out_is_a_file(workdir: Path, cli) -> None:
 def test_existing_out_needs_overwrite(workdir: Path, cli) -> None:
     existing = workdir / "existing"
     before = snapshot(workdir)
-    code, _, err = cli(["run", "--physics", "kinematic", "--renderer", "none", "--setpoints", "1x1", "--out", str(existing)])
+    code, _, err = cli(
+        ["run", "--physics", "kinematic", "--renderer", "none", "--setpoints", "1x1", "--out", str(existing)]
+    )
     assert_one_line_error(code, err, ["--out", "already exists", "--overwrite"])
     assert snapshot(workdir) == before  # contents and mtimes untouched
     assert (existing / "keep.txt").read_text() == "precious results\n"
@@ -308,6 +313,8 @@ def test_subprocess_unknown_backend(workdir: Path) -> None:
 
 def test_subprocess_existing_out(workdir: Path) -> None:
     before = snapshot(workdir)
-    proc = _subprocess(["run", "--physics", "kinematic", "--renderer", "none", "--out", str(workdir / "existing")], workdir / "cwd")
+    proc = _subprocess(
+        ["run", "--physics", "kinematic", "--renderer", "none", "--out", str(workdir / "existing")], workdir / "cwd"
+    )
     assert_one_line_error(proc.returncode, proc.stderr, ["already exists"])
     assert snapshot(workdir) == before

@@ -10,12 +10,12 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import small_run
 from PIL import Image
 from pycocotools.coco import COCO
 from skimage.measure import label as connected
 
 from agrisim.files.coco import COCO_JSON
-from conftest import small_run
 
 
 @pytest.fixture(scope="module")
@@ -66,7 +66,9 @@ def test_masks_read_back_by_pycocotools_are_the_runs_own(run_dir: Path, cli) -> 
         rest = (labels != 0) & (instances == 0)
         for lab in np.unique(labels[rest]):
             n = connected(rest & (labels == lab), connectivity=2).max()
-            assert n == sum(1 for a in anns if a["category_id"] == lab and not np.any(instances[coco.annToMask(a).astype(bool)]))
+            assert n == sum(
+                1 for a in anns if a["category_id"] == lab and not np.any(instances[coco.annToMask(a).astype(bool)])
+            )
     assert checked_instances > 10
 
 

@@ -20,16 +20,21 @@ from typing import Any
 import pytest
 
 from agrisim.app import compare as cmp
-from agrisim.config import first_difference
 from agrisim.app.cli import main
+from agrisim.config import first_difference
 from agrisim.errors import UserError
 
 TINY = [
-    "--physics", "kinematic",
-    "--setpoints", "1x2",
-    "--resolution", "160x90",
-    "--shadow-samples", "0",
-    "--set", "metrics.truth_samples=20000",
+    "--physics",
+    "kinematic",
+    "--setpoints",
+    "1x2",
+    "--resolution",
+    "160x90",
+    "--shadow-samples",
+    "0",
+    "--set",
+    "metrics.truth_samples=20000",
 ]
 PLANTS = ("bog_marshcress", "basket_grass")
 
@@ -56,8 +61,15 @@ def _metrics(plant: str, mode: str, pixels: int, points: int, p: float, chamfer:
         labels = {"leaf": _label(pixels - 10, points - 5, p, chamfer), "stem": _label(10, 5, p, chamfer), **labels}
     else:
         labels = {"plant": _label(pixels, points, p, chamfer), **labels}
-    return {"plant": plant, "seg_mode": mode, "recon": "pointcloud", "frames": 100,
-            "thresholds_mm": [1.0, 2.0, 5.0], "labels": labels, "leaf_instances_seen": None}
+    return {
+        "plant": plant,
+        "seg_mode": mode,
+        "recon": "pointcloud",
+        "frames": 100,
+        "thresholds_mm": [1.0, 2.0, 5.0],
+        "labels": labels,
+        "leaf_instances_seen": None,
+    }
 
 
 @pytest.fixture
@@ -82,7 +94,10 @@ def test_percent_is_the_papers_formula() -> None:
 def test_rows_from_metrics(made_up) -> None:
     rows = cmp.table_rows(made_up, ["hydrangea", "boxwood"], per_label=True)
     assert [(r["plant"], r["label"]) for r in rows] == [
-        ("hydrangea", "all"), ("hydrangea", "leaf"), ("hydrangea", "stem"), ("boxwood", "all")
+        ("hydrangea", "all"),
+        ("hydrangea", "leaf"),
+        ("hydrangea", "stem"),
+        ("boxwood", "all"),
     ]
     h = rows[0]
     assert h["pixels"] == {"texture": 24_224_000, "repopa": 24_990_000}
@@ -101,8 +116,16 @@ def test_markdown_table(made_up) -> None:
     rows = cmp.table_rows(made_up, ["hydrangea", "boxwood"], per_label=True)
     md = cmp.markdown_table(rows).splitlines()
     head = [c.strip() for c in md[0].strip("|").split("|")]
-    assert head[:8] == ["Plant", "Pixels (10^6) Ours", "Pixels (10^6) RepOpa", "%", "Points Ours", "Points RepOpa",
-                        "%", "Precision@2mm Ours"]
+    assert head[:8] == [
+        "Plant",
+        "Pixels (10^6) Ours",
+        "Pixels (10^6) RepOpa",
+        "%",
+        "Points Ours",
+        "Points RepOpa",
+        "%",
+        "Precision@2mm Ours",
+    ]
     assert len(md) == 2 + 2  # header, rule, one row per plant (organ rows only in the CSV)
     cells = [c.strip() for c in md[2].strip("|").split("|")]
     assert cells[:7] == ["Hydrangea", "24.224", "24.990", "3.16", "686045", "851382", "24.10"]
@@ -167,8 +190,12 @@ def test_plan_validates_before_anything(tmp_path: Path) -> None:
     assert e.config["render"]["seg_mode"] == "repopa" and e.config["sink"]["rerun"]["save"] is False
     assert e.config["output"]["out"] == str(e.run_dir)
     # flags for the episodes pass through; plant, seg mode and output are compare's own
-    plan = cmp.plan_compare({"plant": "boxwood", "seed": 7, "render": {"seg_mode": "repopa"}},
-                            out=tmp_path / "c", plants=["coltsfoot"], seg_modes=["texture"])
+    plan = cmp.plan_compare(
+        {"plant": "boxwood", "seed": 7, "render": {"seg_mode": "repopa"}},
+        out=tmp_path / "c",
+        plants=["coltsfoot"],
+        seg_modes=["texture"],
+    )
     assert [(e.plant, e.seg_mode, e.config["seed"]) for e in plan.episodes] == [("coltsfoot", "texture", 7)]
     assert not (tmp_path / "c").exists()
 
@@ -191,8 +218,10 @@ def test_resume_plans_per_run_directory(tmp_path: Path) -> None:
     (by[("coltsfoot", "texture")].run_dir / "scene").mkdir(parents=True)  # killed before run.json
     (out / "compare.json").write_text("{}")
     plan = cmp.plan_compare({}, out=out, plants=["boxwood", "coltsfoot"], resume=True)
-    actions = {(e.plant, e.seg_mode): (e.action, e.config["output"]["resume"], e.config["output"]["overwrite"])
-               for e in plan.episodes}
+    actions = {
+        (e.plant, e.seg_mode): (e.action, e.config["output"]["resume"], e.config["output"]["overwrite"])
+        for e in plan.episodes
+    }
     assert actions == {
         ("boxwood", "texture"): ("skip", False, False),
         ("boxwood", "repopa"): ("resume", True, False),
@@ -226,8 +255,6 @@ def _refuse_ray(**kwargs: Any) -> dict:
 def no_ray(monkeypatch: pytest.MonkeyPatch) -> None:
     """Fail the test if compare starts Ray: bad input must be found before that."""
     monkeypatch.setattr(cmp, "start_ray", _refuse_ray)
-
-
 
 
 @pytest.mark.parametrize(
@@ -298,8 +325,10 @@ def test_table_rows_are_the_runs_metrics(two_workers) -> None:
     assert list(table) == list(PLANTS)
     md = (out / "table.md").read_text()
     for plant in PLANTS:
-        m = {mode: json.loads((out / plant / mode / "metrics.json").read_text())["labels"]["all"]
-             for mode in cmp.SEG_MODES}
+        m = {
+            mode: json.loads((out / plant / mode / "metrics.json").read_text())["labels"]["all"]
+            for mode in cmp.SEG_MODES
+        }
         row = table[plant]
         for mode in cmp.SEG_MODES:
             assert int(row[f"pixels_{mode}"]) == m[mode]["pixels"]
@@ -356,8 +385,22 @@ def test_table_3_runs_the_mesh_then_each_point_size(tmp_path: Path) -> None:
     """Coltsfoot as its mesh and as points of two sizes: the table's figures are the runs'
     metrics, and bigger spheres label more pixels and stand further off the surface."""
     out = tmp_path / "t3"
-    status = main(["compare", "--plants", "coltsfoot", "--as-points", "8000", "--point-sizes", "0.002,0.008",
-                   "--workers", "2", "--out", str(out), *TINY])
+    status = main(
+        [
+            "compare",
+            "--plants",
+            "coltsfoot",
+            "--as-points",
+            "8000",
+            "--point-sizes",
+            "0.002,0.008",
+            "--workers",
+            "2",
+            "--out",
+            str(out),
+            *TINY,
+        ]
+    )
     assert status == 0
     assert sorted(p.name for p in (out / "coltsfoot").iterdir()) == ["mesh", "points-0.002", "points-0.008"]
     rows = list(csv.DictReader(io.StringIO((out / "table.csv").read_text())))
@@ -368,7 +411,9 @@ def test_table_3_runs_the_mesh_then_each_point_size(tmp_path: Path) -> None:
         assert int(r["pixels"]) == doc["pixels"] and int(r["points"]) == doc["points"]
         assert float(r["thickness_mm"]) == doc["thickness_mm"]
         cfg = json.loads((run / "run.json").read_text())["config"]["points"]
-        assert cfg == ({"count": None, "size": None} if r["variant"] == "mesh" else {"count": 8000, "size": float(r["variant"])})
+        assert cfg == (
+            {"count": None, "size": None} if r["variant"] == "mesh" else {"count": 8000, "size": float(r["variant"])}
+        )
     small, big = rows[1], rows[2]
     assert int(big["pixels"]) > int(small["pixels"])
     assert float(big["thickness_mm"]) > float(small["thickness_mm"]) > 0

@@ -7,11 +7,9 @@ import json
 import numpy as np
 from PIL import Image
 
-from agrisim.files.plant_asset import load_plant
 from agrisim.config import build_config
 from agrisim.episode import Episode
-
-
+from agrisim.files.plant_asset import load_plant
 
 
 def test_files_match_the_rendered_frames(tmp_path, frames):

@@ -9,6 +9,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import small_run
 from PIL import Image
 
 from agrisim.evaluation.metrics import GroundTruth, SurfaceDistance
@@ -18,7 +19,6 @@ from agrisim.files.encoding import depth_to_mm
 from agrisim.files.exr import read_exr
 from agrisim.files.plant_asset import load_plant
 from agrisim.files.rundir import camera_from_json, read_run
-from conftest import small_run
 
 
 @pytest.fixture(scope="module")

@@ -8,13 +8,13 @@ import json
 import numpy as np
 import pytest
 
-from agrisim.scene.cell import build_cell
 from agrisim.config import CellConfig, build_config
 from agrisim.episode import Episode
-from agrisim.scene.transforms import pose_error
 from agrisim.plugins.physics.kinematic import KinematicOptions
 from agrisim.plugins.physics.kinematic.backend import KinematicPhysics
 from agrisim.registry import hookimpl
+from agrisim.scene.cell import build_cell
+from agrisim.scene.transforms import pose_error
 
 
 class Recorder:
@@ -89,7 +89,9 @@ def test_executed_trajectories_are_collision_free_by_coal(pybullet_run):
         by_robot: dict[str, list] = {}
         for tr in recorder.trajectories:
             by_robot.setdefault(tr.robot, []).append(tr.executed)
-        samples = {r: (np.concatenate([e.t for e in ex]), np.concatenate([e.q for e in ex])) for r, ex in by_robot.items()}
+        samples = {
+            r: (np.concatenate([e.t for e in ex]), np.concatenate([e.q for e in ex])) for r, ex in by_robot.items()
+        }
         homes = {a.name: np.array(a.home) for a in run.cell.arms}
 
         def q_at(robot, t):
@@ -143,7 +145,9 @@ def _far_apart_routine(tmp_path) -> str:
     rows = [(1.9, 0.3, 1.3), (1.8, -0.3, 1.2), (1.7, 0.0, 1.4)]
     csv.write_text(
         "robot,x,y,z,roll,pitch,yaw\n"
-        + "".join(f"{robot},{sign * x},{y},{z},3.14159,0,0\n" for robot, sign in (("r1", 1), ("r2", -1)) for x, y, z in rows)
+        + "".join(
+            f"{robot},{sign * x},{y},{z},3.14159,0,0\n" for robot, sign in (("r1", 1), ("r2", -1)) for x, y, z in rows
+        )
     )
     return str(csv)
 
@@ -215,7 +219,9 @@ def test_arms_take_turns_when_moving_together_would_collide(tmp_path, monkeypatc
 
 def test_unreachable_setpoints_are_recorded_and_the_run_goes_on(tmp_path):
     csv = tmp_path / "sp.csv"
-    csv.write_text("robot,x,y,z,roll,pitch,yaw\nr1,0.3,0,1.2,3.14159,0,0\nr1,4.0,0,1.0,0,0,0\nr1,0.3,0.1,1.2,3.14159,0,0\n")
+    csv.write_text(
+        "robot,x,y,z,roll,pitch,yaw\nr1,0.3,0,1.2,3.14159,0,0\nr1,4.0,0,1.0,0,0,0\nr1,0.3,0.1,1.2,3.14159,0,0\n"
+    )
     episode, run, summary, recorder = _run(
         tmp_path, physics={"backend": "kinematic"}, cell={"arms": 1}, routine={"csv": str(csv)}
     )

@@ -16,10 +16,10 @@ import open3d as o3d
 import pytest
 from PIL import Image
 
-from agrisim.files.plant_asset import load_plant
 from agrisim.config import build_config
 from agrisim.episode import Episode
 from agrisim.files.nerfstudio import ExportError, opencv_to_opengl, write_nerfstudio
+from agrisim.files.plant_asset import load_plant
 from agrisim.scene.model import Mesh
 from agrisim.scene.texturing import interpolate_uv, opaque, opaque_samples, sample_surface
 
@@ -214,8 +214,6 @@ def test_nerfstudio_rays_meet_the_plant_at_the_exported_depth(exported: tuple[Pa
 
 
 # ------------------------------------------------------------------------------- bad input
-
-
 
 
 def _snapshot(root: Path) -> dict[str, tuple[bytes | None, int]]:

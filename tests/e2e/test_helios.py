@@ -21,8 +21,9 @@ from agrisim.episode import Episode, resolve_plant
 from agrisim.errors import UserError
 from agrisim.plugins.plants import helios as H
 from agrisim.plugins.plants.helios import convert as hc
-from agrisim.scene.model import PLANT_FIT_HEIGHT as FIT_HEIGHT, PLANT_FIT_RADIUS as FIT_RADIUS
 from agrisim.registry import Registry, make_plugin_manager
+from agrisim.scene.model import PLANT_FIT_HEIGHT as FIT_HEIGHT
+from agrisim.scene.model import PLANT_FIT_RADIUS as FIT_RADIUS
 from agrisim.scene.texturing import interpolate_uv, opaque
 
 # No skip without PyHelios: CI installs the extra (scripts/setup.sh), and without it these tests
@@ -36,8 +37,6 @@ LEAF, STEM, PETIOLE = hc.ORGAN_IDS["leaf"], hc.ORGAN_IDS["stem"], hc.ORGAN_IDS["
 def _plugins(monkeypatch: pytest.MonkeyPatch) -> None:
     for var in ("AGRISIM_DISABLE_PLUGIN_AUTOLOAD", "AGRISIM_LOAD_PLUGINS"):
         monkeypatch.delenv(var, raising=False)
-
-
 
 
 def assert_one_line_error(code: int, err: str, *expected: str) -> None:
@@ -146,12 +145,19 @@ def test_leaf_opacity_matches_helios_solid_fraction(model, age):
         sample = np.random.default_rng(0).choice(textured_leaf, min(150, len(textured_leaf)), replace=False)
         helios = np.asarray(ctx.getPrimitiveSolidFraction([int(prims.uuids[f]) for f in sample]), float)
     material = [mesh.materials[mesh.face_material[f]] for f in sample]
-    ours = np.array([opaque(m, interpolate_uv(mesh, np.full(len(bary), f), bary)).mean() for m, f in zip(material, sample)])
+    ours = np.array(
+        [
+            opaque(m, interpolate_uv(mesh, np.full(len(bary), f), bary)).mean()
+            for m, f in zip(material, sample, strict=True)
+        ]
+    )
     assert np.any(helios < 0.99) and np.any(ours < 0.99), "the sample holds no leaf edges"
     area = mesh.areas[sample]
     assert abs(np.sum(area * ours) - np.sum(area * helios)) / area.sum() <= 0.02
     # each triangle's UV extent in texels, along its narrower image axis
-    spans = np.array([np.ptp(mesh.uvs[mesh.faces[f]], axis=0) * m.albedo.shape[1::-1] for m, f in zip(material, sample)])
+    spans = np.array(
+        [np.ptp(mesh.uvs[mesh.faces[f]], axis=0) * m.albedo.shape[1::-1] for m, f in zip(material, sample, strict=True)]
+    )
     spans = spans.min(axis=1)
     wide = spans >= 64
     if model in ("tomato", "bean"):
@@ -206,7 +212,9 @@ def test_plant_age_flag_and_settings(tmp_path, cli):
     args = build_parser().parse_args(["run", "--plant", "helios:tomato", "--plant-age", "25"])
     assert build_config(overrides_from_args(args)).plants == {"helios:tomato": {"age": 25.0}}  # the species' option
     for extra in (["--set", "plant_age=25"], ["--set", "plants.helios:tomato.age=25"]):
-        config = build_config(overrides_from_args(build_parser().parse_args(["run", "--plant", "helios:tomato", *extra])))
+        config = build_config(
+            overrides_from_args(build_parser().parse_args(["run", "--plant", "helios:tomato", *extra]))
+        )
         plant = resolve_plant(Registry(make_plugin_manager()), config)
         assert "at 25 days" in plant.notes[0]
     out = tmp_path / "out"
@@ -250,13 +258,11 @@ def test_without_pyhelios_helios_plants_name_the_extra(tmp_path, monkeypatch, cl
 # ------------------------------------------------------------------------------ whole episodes
 
 
-
-
 def tiny_run(plant: str, out: Path, frames, **output: object) -> tuple[Episode, object, object]:  # noqa: ANN001
     settings = {
         "plant": plant,
         "render": {"labels": "organs"},
-            "renderer": {"raycast": {"shadow_samples": 0}},
+        "renderer": {"raycast": {"shadow_samples": 0}},
         "physics": {"backend": "kinematic"},
         "routine": {"setpoints": "1x3"},  # no OMPL search for any seed tried: not about motion
         "camera": {"resolution": "320x180"},
@@ -309,9 +315,26 @@ def test_compare_reports_the_repopa_excess_of_the_five_crops(tmp_path, cli):
     out = tmp_path / "compare"
     plants = ",".join(f"helios:{m}" for m in CROPS)
     code, _, err = cli(
-        ["compare", "--plants", plants, "--workers", "2", "--out", str(out), "--physics", "kinematic",
-         "--setpoints", "1x2", "--resolution", "160x90", "--shadow-samples", "0",
-         "--set", "metrics.truth_samples=20000"])
+        [
+            "compare",
+            "--plants",
+            plants,
+            "--workers",
+            "2",
+            "--out",
+            str(out),
+            "--physics",
+            "kinematic",
+            "--setpoints",
+            "1x2",
+            "--resolution",
+            "160x90",
+            "--shadow-samples",
+            "0",
+            "--set",
+            "metrics.truth_samples=20000",
+        ]
+    )
     assert code == 0, err
     rows = {r["plant"]: r for r in csv.DictReader((out / "table.csv").open()) if r["label"] == "all"}
     assert set(rows) == {f"helios:{m}" for m in CROPS}

@@ -15,25 +15,25 @@ import pkgutil
 import subprocess
 import sys
 import textwrap
-from typing import Any
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
 
 import agrisim
 from agrisim import hookspecs
-from agrisim.scene.cell import build_cell
 from agrisim.app.cli import main
 from agrisim.config import CellConfig, MotionConfig, build_config
 from agrisim.errors import BackendFailure, PluginError, UserError
 from agrisim.interfaces import PlanningFailed, PlantSpecies, Reconstructor, Renderer
-from agrisim.robot.kinematics import ArmKinematics
-from agrisim.robot.segments import path_is_valid, segment_samples
 from agrisim.plugins.physics.kinematic import KinematicOptions
 from agrisim.plugins.physics.kinematic.backend import KinematicPhysics
 from agrisim.plugins.planners.direct import DirectPlanner
 from agrisim.registry import PROVIDER_HOOKS, NoOptions, Registry, make_plugin_manager
+from agrisim.robot.kinematics import ArmKinematics
+from agrisim.robot.segments import path_is_valid, segment_samples
+from agrisim.scene.cell import build_cell
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -172,7 +172,18 @@ def test_run_with_the_example_planner(site: Path, tmp_path: Path, capsys) -> Non
     """End to end with the plugin's planner, chosen by name on the command line."""
     install_example(site)
     out = tmp_path / "run"
-    args = ["run", "--physics", "kinematic", "--planner", "waypoint", "--setpoints", "1x2", "--no-rrd", "--renderer", "none"]
+    args = [
+        "run",
+        "--physics",
+        "kinematic",
+        "--planner",
+        "waypoint",
+        "--setpoints",
+        "1x2",
+        "--no-rrd",
+        "--renderer",
+        "none",
+    ]
     assert main([*args, "--out", str(out)]) == 0
     stdout = capsys.readouterr().out
     run = json.loads((out / "run.json").read_text())
@@ -222,8 +233,19 @@ def test_example_planner_options_are_validated(site: Path, tmp_path: Path, capsy
     install_example(site)
     out = tmp_path / "run"
     with pytest.raises(SystemExit) as exc:
-        main(["run", "--physics", "kinematic", "--planner", "waypoint", "--set", "planner.waypoint.retrat=1",
-              "--out", str(out)])
+        main(
+            [
+                "run",
+                "--physics",
+                "kinematic",
+                "--planner",
+                "waypoint",
+                "--set",
+                "planner.waypoint.retrat=1",
+                "--out",
+                str(out),
+            ]
+        )
     assert exc.value.code == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "waypoint" in err and "retrat" in err
@@ -496,9 +518,7 @@ EXERCISED_BY_TESTS = {
 
 def _hookspecs() -> dict[str, object]:
     return {
-        name: fn
-        for name, fn in vars(hookspecs).items()
-        if callable(fn) and hasattr(fn, f"{hookspecs.PROJECT}_spec")
+        name: fn for name, fn in vars(hookspecs).items() if callable(fn) and hasattr(fn, f"{hookspecs.PROJECT}_spec")
     }
 
 
@@ -631,7 +651,11 @@ def test_a_renderer_that_declares_nothing_gets_the_least(site: Path) -> None:
 def test_the_pybullet_renderer_is_accepted_for_what_it_declares(tmp_path: Path) -> None:
     from agrisim.episode import Episode
 
-    layer = {"renderer": {"backend": "pybullet"}, "render": {"seg_mode": "repopa"}, "output": {"out": str(tmp_path / "r")}}
+    layer = {
+        "renderer": {"backend": "pybullet"},
+        "render": {"seg_mode": "repopa"},
+        "output": {"out": str(tmp_path / "r")},
+    }
     episode = Episode(build_config(layer))  # validated, nothing written
     assert episode.renderer_spec.name == "pybullet" and not (tmp_path / "r").exists()
 

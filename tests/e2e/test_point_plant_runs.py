@@ -70,7 +70,9 @@ def test_a_point_cloud_file_runs_the_routine_and_is_its_own_truth(sampled_run, t
     plant_file.write_bytes((sampled_run / layout.PLANT_POINTS).read_bytes())
     out = small_run(tmp_path / "run", plant=str(plant_file), render={"labels": "organs"}, routine={"setpoints": "1x2"})
     run = json.loads((out / layout.RUN_JSON).read_text())
-    assert [lab["name"] for lab in run["labels"]] == [lab["name"] for lab in json.loads((sampled_run / layout.RUN_JSON).read_text())["labels"]]
+    assert [lab["name"] for lab in run["labels"]] == [
+        lab["name"] for lab in json.loads((sampled_run / layout.RUN_JSON).read_text())["labels"]
+    ]
     assert not (out / layout.PLANT_GLB).exists()  # no surface: the points are the truth
     metrics = json.loads((out / layout.METRICS_JSON).read_text())
     assert metrics["truth"]["surface"] is False and metrics["truth"]["samples"] == 30000

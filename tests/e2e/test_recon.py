@@ -11,26 +11,34 @@ import numpy as np
 import open3d as o3d
 import pytest
 
-from agrisim.scene.camera import preset
-from agrisim.scene.cell import build_cell
 from agrisim.app.cli import main
 from agrisim.config import CellConfig, RenderConfig, RoutineConfig, build_config
 from agrisim.episode import Episode, resolve_plant
-from agrisim.lab.room import build_scene
 from agrisim.evaluation.metrics import GroundTruth, ViewStats, evaluate
+from agrisim.evaluation.session import ReconSession
+from agrisim.evaluation.views import View, backproject, load_view
+from agrisim.files.rundir import camera_from_json, read_run
 from agrisim.interfaces import Cloud, Reconstruction
+from agrisim.lab.room import build_scene
 from agrisim.plugins.recon.pointcloud import PointCloudReconstructor
 from agrisim.plugins.recon.voxel_grid import VoxelGrid
-from agrisim.evaluation.session import ReconSession
-from agrisim.files.rundir import camera_from_json, read_run
 from agrisim.registry import Registry, make_plugin_manager
-from agrisim.scene.model import Label, LabelTable, Material, Mesh
 from agrisim.robot.setpoints import hemisphere
-from agrisim.evaluation.views import View, backproject, load_view
+from agrisim.scene.camera import preset
+from agrisim.scene.cell import build_cell
+from agrisim.scene.model import Label, LabelTable, Material, Mesh
 
 SPECIES = [
-    "indian_cress", "boston_fern", "amaryllis", "bog_marshcress", "chinese_evergreen",
-    "hydrangea", "boxwood", "coltsfoot", "basket_grass", "common_fern",
+    "indian_cress",
+    "boston_fern",
+    "amaryllis",
+    "bog_marshcress",
+    "chinese_evergreen",
+    "hydrangea",
+    "boxwood",
+    "coltsfoot",
+    "basket_grass",
+    "common_fern",
 ]
 
 
@@ -136,9 +144,9 @@ def test_voxel_grid_is_incremental_and_order_free_up_to_rounding() -> None:
     batches = [rng.normal(0.0, 0.01, (5000, 3)) for _ in range(6)]
     colors = [rng.integers(0, 256, (5000, 3)).astype(np.uint8) for _ in range(6)]
     a, b = VoxelGrid(0.002), VoxelGrid(0.002)
-    for p, c in zip(batches, colors):
+    for p, c in zip(batches, colors, strict=True):
         a.add(p, c)
-    for p, c in zip(reversed(batches), reversed(colors)):
+    for p, c in zip(reversed(batches), reversed(colors), strict=True):
         b.add(p, c)
     assert np.array_equal(a.keys, b.keys) and np.array_equal(a.counts, b.counts)
     assert np.max(np.abs(a.cloud().points - b.cloud().points)) < 1e-15
@@ -230,7 +238,10 @@ def test_precision_is_the_exact_distance_to_the_opaque_surface() -> None:
     assert row["precision"] == pytest.approx({"1": 0.0, "2": 0.5, "5": 1.0})
     # recall, by brute force over every sample
     nearest = np.concatenate(
-        [np.min(np.linalg.norm(chunk[:, None] - points[None], axis=2), axis=1) for chunk in np.array_split(truth.points, 200)]
+        [
+            np.min(np.linalg.norm(chunk[:, None] - points[None], axis=2), axis=1)
+            for chunk in np.array_split(truth.points, 200)
+        ]
     )
     for t in (1, 2, 5):
         assert row["recall"][str(t)] == pytest.approx(np.mean(nearest <= t * 1e-3), abs=1e-12)
@@ -289,7 +300,11 @@ def _listing(path: Path) -> list[str]:
     "case, args, message",
     [
         ("not a directory", ["recon", "{missing}"], "is not a directory"),
-        ("unknown recon", ["recon", "{run}", "--recon", "nope", "--out", "{out}"], "unknown reconstructor backend 'nope'"),
+        (
+            "unknown recon",
+            ["recon", "{run}", "--recon", "nope", "--out", "{out}"],
+            "unknown reconstructor backend 'nope'",
+        ),
         ("zero voxel", ["recon", "{run}", "--out", "{out}", "--set", "recon.pointcloud.voxel_size=0"], "voxel_size"),
         ("existing outputs", ["recon", "{run}"], "already exists; pass --overwrite"),
         ("other settings", ["recon", "{run}", "--set", "seed=3"], "only recon.* and metrics.*"),

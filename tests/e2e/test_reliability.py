@@ -25,12 +25,17 @@ from agrisim.interfaces import Renderer
 from agrisim.registry import make_plugin_manager
 
 RUN = [
-    "--plant", "coltsfoot",
-    "--physics", "kinematic",
-    "--setpoints", "1x3",
-    "--resolution", "320x180",
+    "--plant",
+    "coltsfoot",
+    "--physics",
+    "kinematic",
+    "--setpoints",
+    "1x3",
+    "--resolution",
+    "320x180",
     "--no-rrd",
-    "--set", "metrics.truth_samples=50000",
+    "--set",
+    "metrics.truth_samples=50000",
 ]
 #: files whose bytes legitimately differ between runs (times, the command line)
 VOLATILE = {"run.json"}
@@ -38,7 +43,9 @@ VOLATILE = {"run.json"}
 
 def _agrisim(*args: str, **env: str) -> subprocess.Popen[bytes]:
     env = {**os.environ, "PYTHONUNBUFFERED": "1", **env}
-    return subprocess.Popen([sys.executable, "-m", "agrisim", *args], stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=env)
+    return subprocess.Popen(
+        [sys.executable, "-m", "agrisim", *args], stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=env
+    )
 
 
 #: A plugin that SIGKILLs its own process when capture number KILL_AFTER_CAPTURES + 1 is

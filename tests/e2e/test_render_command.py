@@ -136,24 +136,43 @@ def test_rerender_resumes_frame_by_frame(runs: dict[str, Path], tmp_path: Path) 
     assert again.returncode == 0, again.stderr
     assert f"resuming: 1 of {len(record['frames_done'])}" in again.stdout
     assert layout.image(out, "rgb", first).read_bytes() == marker
-    assert {f: files(out, "rgb")[f"{f}.png"] for f in rest} == {f: files(runs["mitsuba"], "rgb")[f"{f}.png"] for f in rest}
+    assert {f: files(out, "rgb")[f"{f}.png"] for f in rest} == {
+        f: files(runs["mitsuba"], "rgb")[f"{f}.png"] for f in rest
+    }
 
 
 @pytest.mark.parametrize(
     ("make", "args", "expected"),
     [
-        (lambda d: None, ["--renderer", "raycast"], ["renderer 'raycast' cannot re-render", "renderers that can: mitsuba"]),
+        (
+            lambda d: None,
+            ["--renderer", "raycast"],
+            ["renderer 'raycast' cannot re-render", "renderers that can: mitsuba"],
+        ),
         (lambda d: (d / str(layout.SCENE_GLB)).unlink(), [], ["no saved scene", "scene/lab.glb"]),
-        (lambda d: (d / "run.json").write_text(json.dumps(dict(json.loads((d / "run.json").read_text()), status="interrupted"))),
-         [], ["interrupted, not complete"]),
+        (
+            lambda d: (d / "run.json").write_text(
+                json.dumps(dict(json.loads((d / "run.json").read_text()), status="interrupted"))
+            ),
+            [],
+            ["interrupted, not complete"],
+        ),
         (lambda d: next((d / layout.LINK_POSES).glob("*.json")).unlink(), [], ["saved no arm link poses"]),
         (lambda d: None, ["--set", "renderer.mitsuba.spp=0"], ["renderer backend 'mitsuba'", "spp"]),
         (lambda d: None, ["--set", "plant=boxwood"], ["only renderer.* settings"]),
         (lambda d: None, ["--out", "{run}"], ["replaces its RGB", "--overwrite"]),
         (lambda d: (d.parent / "taken").mkdir(), ["--out", "{parent}/taken"], []),
     ],
-    ids=["raycast-cannot", "no-scene", "incomplete", "no-link-poses", "bad-option", "not-a-renderer-setting",
-         "in-place-needs-overwrite", "existing-out-empty-is-fine"],
+    ids=[
+        "raycast-cannot",
+        "no-scene",
+        "incomplete",
+        "no-link-poses",
+        "bad-option",
+        "not-a-renderer-setting",
+        "in-place-needs-overwrite",
+        "existing-out-empty-is-fine",
+    ],
 )
 def test_bad_input_writes_nothing(runs: dict[str, Path], tmp_path: Path, make, args, expected) -> None:  # noqa: ANN001
     import shutil

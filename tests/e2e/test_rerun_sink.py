@@ -22,18 +22,18 @@ import pytest
 rr = pytest.importorskip("rerun")
 from rerun.chunk import RrdReader  # noqa: E402
 
-from agrisim.scene.camera import preset  # noqa: E402
-from agrisim.scene.cell import build_cell  # noqa: E402
 from agrisim.config import build_config  # noqa: E402
 from agrisim.episode import Episode, Run, RunSummary, SetpointResult  # noqa: E402
 from agrisim.interfaces import Capture, Frame, JointTrajectory, Trajectory  # noqa: E402
-from agrisim.robot.kinematics import ArmKinematics  # noqa: E402
-from agrisim.robot import meshes as robot_meshes  # noqa: E402
 from agrisim.plugins.sinks import rerun_sink  # noqa: E402
 from agrisim.plugins.sinks.rerun_sink import RerunOptions, entities, recording  # noqa: E402
 from agrisim.plugins.sinks.rerun_sink.entities import paths  # noqa: E402
 from agrisim.registry import make_plugin_manager  # noqa: E402
+from agrisim.robot import meshes as robot_meshes  # noqa: E402
+from agrisim.robot.kinematics import ArmKinematics  # noqa: E402
 from agrisim.robot.setpoints import routine  # noqa: E402
+from agrisim.scene.camera import preset  # noqa: E402
+from agrisim.scene.cell import build_cell  # noqa: E402
 
 UR10_MESH_LINKS = {
     "base_link",
@@ -261,7 +261,9 @@ def test_episode_recording_holds_robots_on_both_timelines(tmp_path: Path) -> Non
 
 
 def _hand_built_run(tmp_path: Path, **output: object) -> Run:
-    cfg = build_config({"routine": {"setpoints": "1x2"}, "cell": {"arms": 1}, "output": {"out": str(tmp_path / "run"), **output}})
+    cfg = build_config(
+        {"routine": {"setpoints": "1x2"}, "cell": {"arms": 1}, "output": {"out": str(tmp_path / "run"), **output}}
+    )
     cell = build_cell(cfg.cell)
     (tmp_path / "run").mkdir()
     known: dict[str, object] = dict(
@@ -309,14 +311,16 @@ def test_hooks_record_motion_images_and_clouds(tmp_path: Path) -> None:
 
     sink.agrisim_run_started(run=run)
     sink.agrisim_trajectory(run=run, robot="r1", trajectory=trajectory)
-    sink.agrisim_setpoint(run=run, robot="r1", result=SetpointResult("r1", 0, "r1_000", True, ee_error_mm=0.01, sim_time=2.0))
+    sink.agrisim_setpoint(
+        run=run, robot="r1", result=SetpointResult("r1", 0, "r1_000", True, ee_error_mm=0.01, sim_time=2.0)
+    )
     sink.agrisim_capture(run=run, capture=capture)
     sink.log_label_table({0: ("background", (0, 0, 0)), 1: ("plant", (0, 200, 0))})
     sink.agrisim_cloud(run=run, label="plant", cloud=np.random.default_rng(0).random((50, 3)), merged=True)
-    sink.agrisim_setpoint(run=run, robot="r1", result=SetpointResult("r1", 1, "r1_001", False, reason="ik: nope", sim_time=2.0))
-    sink.agrisim_run_finished(
-        run=run, summary=RunSummary("complete", 2, 1, 1, 0, 2.0, {"ik": 0.1})
+    sink.agrisim_setpoint(
+        run=run, robot="r1", result=SetpointResult("r1", 1, "r1_001", False, reason="ik: nope", sim_time=2.0)
     )
+    sink.agrisim_run_finished(run=run, summary=RunSummary("complete", 2, 1, 1, 0, 2.0, {"ik": 0.1}))
     assert sink.rec is None, "the stream is closed at the end of the run"
     assert not (run.out_dir / "recording.rrd").exists(), "--rrd moves the recording"
 
@@ -326,8 +330,14 @@ def test_hooks_record_motion_images_and_clouds(tmp_path: Path) -> None:
     assert len(rows["sim_time"]) == 1 + 61
     np.testing.assert_allclose(np.diff(rows["sim_time"][1:]), 1 / 30, atol=1 / 240 + 1e-9)
     final = kin.link_poses(goal)["wrist_3_link"]
-    np.testing.assert_allclose(rows["Transform3D:quaternion"][-1][0], entities.quaternions_xyzw(final[:3, :3])[0], atol=1e-6)
-    for kind, component in (("rgb", "EncodedImage:blob"), ("labels", "SegmentationImage:buffer"), ("depth", "DepthImage:buffer")):
+    np.testing.assert_allclose(
+        rows["Transform3D:quaternion"][-1][0], entities.quaternions_xyzw(final[:3, :3])[0], atol=1e-6
+    )
+    for kind, component in (
+        ("rgb", "EncodedImage:blob"),
+        ("labels", "SegmentationImage:buffer"),
+        ("depth", "DepthImage:buffer"),
+    ):
         entity = paths.camera_image("r1", kind)
         got = rec.temporal(entity, component) or rec.temporal(entity, "Image:buffer")
         assert got and got["setpoint"] == [0] and got["sim_time"] == [2.0], kind
@@ -405,7 +415,11 @@ def test_spawn_tees_to_the_viewer_and_the_file(tmp_path: Path, monkeypatch: pyte
     # A Rerun gRPC server in a child process stands in for the spawned viewer (no display here).
     port = _free_port()
     server = subprocess.Popen(
-        [sys.executable, "-c", f"import rerun as rr, time; r = rr.RecordingStream('viewer'); r.serve_grpc(grpc_port={port}); time.sleep(60)"],
+        [
+            sys.executable,
+            "-c",
+            f"import rerun as rr, time; r = rr.RecordingStream('viewer'); r.serve_grpc(grpc_port={port}); time.sleep(60)",
+        ],
         stdout=subprocess.DEVNULL,
         stderr=subprocess.DEVNULL,
     )

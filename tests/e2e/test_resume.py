@@ -60,7 +60,12 @@ def test_resume_gives_the_uninterrupted_files(tmp_path, capsys):
     assert cut["status"] == "complete"
     assert cut["frames_complete"] == whole["frames_complete"]
     for a, b in zip(whole["results"], cut["results"], strict=True):
-        assert (a["frame"], a["reached"], a["ee_error_mm"], a["sim_time"]) == (b["frame"], b["reached"], b["ee_error_mm"], b["sim_time"])
+        assert (a["frame"], a["reached"], a["ee_error_mm"], a["sim_time"]) == (
+            b["frame"],
+            b["reached"],
+            b["ee_error_mm"],
+            b["sim_time"],
+        )
     assert json.loads((tmp_path / "cut" / "cameras.json").read_text()) == json.loads(
         (tmp_path / "whole" / "cameras.json").read_text()
     )
@@ -75,8 +80,20 @@ def test_a_complete_run_is_not_resumed(tmp_path, capsys):
 
 
 #: the command line that makes the run ARGS describes
-CLI = ["run", "--plant", "coltsfoot", "--shadow-samples", "2", "--physics", "kinematic", "--setpoints", "1x3",
-       "--resolution", "160x90", "--no-rrd"]
+CLI = [
+    "run",
+    "--plant",
+    "coltsfoot",
+    "--shadow-samples",
+    "2",
+    "--physics",
+    "kinematic",
+    "--setpoints",
+    "1x3",
+    "--resolution",
+    "160x90",
+    "--no-rrd",
+]
 
 
 def test_the_same_command_with_resume_appended_continues(tmp_path, capsys):

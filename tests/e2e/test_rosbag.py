@@ -15,11 +15,10 @@ from typing import Any
 
 import numpy as np
 import pytest
+from conftest import small_run
 from mcap_ros2.reader import read_ros2_messages
 from PIL import Image
 from ruamel.yaml import YAML
-
-from conftest import small_run
 
 
 @pytest.fixture(scope="module")
@@ -78,7 +77,7 @@ def pixels(msg: Any, dtype: str, channels: int = 1) -> np.ndarray:
 
 
 def static_edges(topics: dict[str, list[Any]]) -> dict[str, tuple[str, np.ndarray]]:
-    (_, static), = topics["/tf_static"]
+    ((_, static),) = topics["/tf_static"]
     return {t.child_frame_id: (t.header.frame_id, matrix(t.transform)) for t in static.transforms}
 
 
@@ -108,7 +107,10 @@ def test_bag_reads_back_as_the_run(run_dir: Path, cli) -> None:  # noqa: ANN001
         arm, t = entry["robot"], stamp(entry["sim_time"])
         optical = f"{arm}/camera_optical_frame"
         # the images: the run's PNGs, in the camera's optical frame, at the capture's stamp
-        by_topic = {name: dict(topics[f"/{arm}/camera/{name}"]) for name in ("image_raw", "depth", "labels", "instances", "camera_info")}
+        by_topic = {
+            name: dict(topics[f"/{arm}/camera/{name}"])
+            for name in ("image_raw", "depth", "labels", "instances", "camera_info")
+        }
         msgs = {name: by_topic[name][t] for name in by_topic}
         assert all(m.header.frame_id == optical for m in msgs.values())
         assert msgs["image_raw"].encoding == "rgb8"
@@ -160,7 +162,17 @@ def test_bag_reads_back_as_the_run(run_dir: Path, cli) -> None:  # noqa: ANN001
     assert cloud.header.frame_id == "world"
     fields = {f.name: (f.offset, f.datatype) for f in cloud.fields}
     assert fields == {"x": (0, 7), "y": (4, 7), "z": (8, 7), "rgb": (12, 7), "label": (16, 2)}
-    rows = np.frombuffer(bytes(cloud.data), np.dtype({"names": ["xyz", "rgb", "label"], "formats": [("<f4", 3), "<u4", "u1"], "offsets": [0, 12, 16], "itemsize": cloud.point_step}))
+    rows = np.frombuffer(
+        bytes(cloud.data),
+        np.dtype(
+            {
+                "names": ["xyz", "rgb", "label"],
+                "formats": [("<f4", 3), "<u4", "u1"],
+                "offsets": [0, 12, 16],
+                "itemsize": cloud.point_step,
+            }
+        ),
+    )
     import trimesh
 
     for label in run["labels"][1:]:
@@ -183,8 +195,16 @@ def test_pybullet_arms_hold_their_pose_until_the_capture(tmp_path: Path, cli) ->
     frames = json.loads((run_dir / "cameras.json").read_text())["frames"]
     for entry in frames.values():
         edges = dict(static)
-        edges.update({tr.child_frame_id: (tr.header.frame_id, matrix(tr.transform)) for tr in tf_at[stamp(entry["sim_time"])].transforms})
-        assert np.abs(chain(edges, f"{entry['robot']}/camera_optical_frame") - np.asarray(entry["world_T_camera"])).max() < 1e-6
+        edges.update(
+            {
+                tr.child_frame_id: (tr.header.frame_id, matrix(tr.transform))
+                for tr in tf_at[stamp(entry["sim_time"])].transforms
+            }
+        )
+        assert (
+            np.abs(chain(edges, f"{entry['robot']}/camera_optical_frame") - np.asarray(entry["world_T_camera"])).max()
+            < 1e-6
+        )
     assert all(len(msg.velocity) == 0 for _, msg in topics["/r1/joint_states"][1:])
     assert "/reconstruction/cloud" not in topics  # no reconstruction, no cloud
 
@@ -193,7 +213,14 @@ def test_robot_only_run_exports_robot_topics(tmp_path: Path, cli) -> None:  # no
     run_dir = small_run(tmp_path / "run", renderer={"backend": "none"})
     assert cli(["export", "rosbag", str(run_dir)])[0] == 0
     topics = read_bag(run_dir)
-    assert set(topics) == {"/tf_static", "/tf", "/r1/joint_states", "/r2/joint_states", "/r1/planned_trajectory", "/r2/planned_trajectory"}
+    assert set(topics) == {
+        "/tf_static",
+        "/tf",
+        "/r1/joint_states",
+        "/r2/joint_states",
+        "/r1/planned_trajectory",
+        "/r2/planned_trajectory",
+    }
     # COCO needs images: refused with one line, nothing written
     code, _, err = cli(["export", "coco", str(run_dir)])
     assert code == 2 and "--renderer none" in err and len(err.strip().splitlines()) == 1
@@ -213,7 +240,9 @@ def test_refusals_write_nothing(run_dir: Path, cli, tmp_path: Path) -> None:  # 
 
     def copy(name: str, status: str = "complete", trajectories: bool = True) -> Path:
         out = tmp_path / name
-        shutil.copytree(run_dir, out, ignore=shutil.ignore_patterns("rosbag", *(() if trajectories else ("trajectories",))))
+        shutil.copytree(
+            run_dir, out, ignore=shutil.ignore_patterns("rosbag", *(() if trajectories else ("trajectories",)))
+        )
         doc = json.loads((out / "run.json").read_text())
         (out / "run.json").write_text(json.dumps(dict(doc, status=status)))
         return out

@@ -18,10 +18,9 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from PIL import Image
-
 from browser import Page, browser
 from conftest import small_run
+from PIL import Image
 
 pytestmark = pytest.mark.skipif(
     browser() is None and not os.environ.get("CI"), reason="no headless Chromium (make test installs it)"
@@ -169,8 +168,22 @@ def test_run_serve_web_streams_the_run_live(tmp_path: Path) -> None:
     out = tmp_path / "run"
     web, grpc = free_port(), free_port()
     process = agrisim(
-        "run", "--physics", "kinematic", "--setpoints", "1x3", "--resolution", "320x180", "--shadow-samples", "0",
-        "--out", str(out), "--serve-web", "--web-port", str(web), "--grpc-port", str(grpc),
+        "run",
+        "--physics",
+        "kinematic",
+        "--setpoints",
+        "1x3",
+        "--resolution",
+        "320x180",
+        "--shadow-samples",
+        "0",
+        "--out",
+        str(out),
+        "--serve-web",
+        "--web-port",
+        str(web),
+        "--grpc-port",
+        str(grpc),
     )
     try:
         lines = Lines(process)

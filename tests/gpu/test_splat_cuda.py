@@ -66,8 +66,16 @@ def test_a_synthetic_plane_is_fitted_to_35_db_and_its_depth_lies_on_the_plane() 
     g = (np.arange(80) + 0.5) / 80 * 0.4 - 0.2
     x, y = np.meshgrid(g, g)
     means = np.column_stack([x.ravel(), y.ravel(), np.full(x.size, 0.9)])
-    colors = np.column_stack([0.5 + 0.4 * np.sin(9 * means[:, 0]), 0.5 + 0.4 * np.cos(7 * means[:, 1]), 0.5 + 0.3 * np.sin(5 * (means[:, 0] + means[:, 1]))])
-    truth = gaussians(means, np.log(np.column_stack([np.full(x.size, 0.004)] * 2 + [np.full(x.size, 1e-4)])), colors, 0.99)
+    colors = np.column_stack(
+        [
+            0.5 + 0.4 * np.sin(9 * means[:, 0]),
+            0.5 + 0.4 * np.cos(7 * means[:, 1]),
+            0.5 + 0.3 * np.sin(5 * (means[:, 0] + means[:, 1])),
+        ]
+    )
+    truth = gaussians(
+        means, np.log(np.column_stack([np.full(x.size, 0.004)] * 2 + [np.full(x.size, 1e-4)])), colors, 0.99
+    )
     K = np.array([[120.0, 0, 63.5], [0, 120.0, 47.5], [0, 0, 1]])
     frames, poses = [], []
     for i in range(40):
@@ -103,7 +111,10 @@ def test_a_synthetic_plane_is_fitted_to_35_db_and_its_depth_lies_on_the_plane() 
         # the plane's planar depth at every pixel: along the ray to z = 0.9
         T = poses[i]
         rows, cols = np.mgrid[:96, :128]
-        rays = np.stack([(cols - K[0, 2]) / K[0, 0], (rows - K[1, 2]) / K[1, 1], np.ones_like(cols, float)], -1) @ T[:3, :3].T
+        rays = (
+            np.stack([(cols - K[0, 2]) / K[0, 0], (rows - K[1, 2]) / K[1, 1], np.ones_like(cols, float)], -1)
+            @ T[:3, :3].T
+        )
         z = (0.9 - T[2, 3]) / rays[..., 2]  # the camera-frame z of the hit (rays have camera z = 1)
         covered = alpha.cpu().numpy() > 0.99
         hit = np.abs(T[:3, 3][0] + z * rays[..., 0]) < 0.19
@@ -115,4 +126,7 @@ def test_a_synthetic_plane_is_fitted_to_35_db_and_its_depth_lies_on_the_plane() 
         # measured 3 to 7 mm nearer than the plane at 0.6 to 0.8 m, more at grazing views. A
         # depth that were distance, not planar z, would be off by up to 100 mm at the corners.
         error = depth.cpu().numpy()[sel] - z[sel]
-        assert np.median(np.abs(error)) < 0.01 and abs(np.mean(error)) < 0.01, (np.median(np.abs(error)), np.mean(error))
+        assert np.median(np.abs(error)) < 0.01 and abs(np.mean(error)) < 0.01, (
+            np.median(np.abs(error)),
+            np.mean(error),
+        )

@@ -143,10 +143,14 @@ def test_the_readme_architecture_matches_the_tree() -> None:
             listed[top].add(line.split()[0])
     core = {p.name for p in (REPO / "core").glob("*.py") if p.name != "__init__.py" and p.name != "__main__.py"}
     core |= {f"{p.name}/" for p in (REPO / "core").iterdir() if (p / "__init__.py").exists()}
-    assert listed["core"] == core, f"README lists {sorted(listed['core'] - core)}, misses {sorted(core - listed['core'])}"
+    assert listed["core"] == core, (
+        f"README lists {sorted(listed['core'] - core)}, misses {sorted(core - listed['core'])}"
+    )
     kinds = {f"{p.name}/" for p in (REPO / "plugins").iterdir() if (p / "__init__.py").exists()}
     assert listed["plugins"] == kinds
-    assert listed["tests"] == {f"{p.name}/" for p in (REPO / "tests").iterdir() if p.is_dir() and any(p.glob("test_*.py"))}
+    assert listed["tests"] == {
+        f"{p.name}/" for p in (REPO / "tests").iterdir() if p.is_dir() and any(p.glob("test_*.py"))
+    }
     # every backend package (a folder of several files) is named in the map
     for kind in (REPO / "plugins").iterdir():
         for pkg in kind.iterdir() if kind.is_dir() else ():

@@ -26,7 +26,9 @@ def test_defaults_reproduce_the_paper():
 
 def test_toml_then_flags(tmp_path):
     f = tmp_path / "c.toml"
-    f.write_text('seed = 4\n[routine]\nsetpoints = "2x3"\n[physics]\nbackend = "kinematic"\n[physics.kinematic]\nrate = 480\n')
+    f.write_text(
+        'seed = 4\n[routine]\nsetpoints = "2x3"\n[physics]\nbackend = "kinematic"\n[physics.kinematic]\nrate = 480\n'
+    )
     cfg = build_config(load_toml(f), {"routine": {"setpoints": "3x3"}})
     assert cfg.seed == 4 and cfg.routine.setpoints == "3x3"
     assert cfg.physics.backend == "kinematic" and cfg.physics.options_for("kinematic") == {"rate": 480}
@@ -68,7 +70,10 @@ def test_settings_that_moved_to_a_backend_land_in_its_table():
     }
     assert build_config(layer, {"renderer": {"backend": "none"}}).renderer.model_extra == {}
     # the alias is the most specific: it wins over the table it names
-    assert build_config({"output": {"rrd": "a.rrd"}, "sink": {"rerun": {"path": "b.rrd"}}}).sink["rerun"]["path"] == "a.rrd"
+    assert (
+        build_config({"output": {"rrd": "a.rrd"}, "sink": {"rerun": {"path": "b.rrd"}}}).sink["rerun"]["path"]
+        == "a.rrd"
+    )
 
 
 def test_backend_options_without_naming_the_backend_keep_the_default():

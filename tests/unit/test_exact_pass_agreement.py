@@ -27,8 +27,18 @@ from agrisim.robot.setpoints import hemisphere
 from agrisim.robot.visuals import arm_link_meshes
 from agrisim.scene.camera import preset
 
-SPECIES = ["amaryllis", "basket_grass", "bog_marshcress", "boston_fern", "boxwood", "chinese_evergreen",
-           "coltsfoot", "common_fern", "hydrangea", "indian_cress"]
+SPECIES = [
+    "amaryllis",
+    "basket_grass",
+    "bog_marshcress",
+    "boston_fern",
+    "boxwood",
+    "chinese_evergreen",
+    "coltsfoot",
+    "common_fern",
+    "hydrangea",
+    "indian_cress",
+]
 CAMERA = preset("rpi3-wide-1080p", "320x180")
 #: a nudge of the reference's ray, in pixels, that tells a grazing ray
 NUDGE = 0.01
@@ -44,7 +54,9 @@ def _differing(new: dict, ref: dict) -> np.ndarray:
     return out
 
 
-def _grazes(reference: ReferenceTracer, T: np.ndarray, seg_mode: str, ys: np.ndarray, xs: np.ndarray, ref: dict) -> np.ndarray:
+def _grazes(
+    reference: ReferenceTracer, T: np.ndarray, seg_mode: str, ys: np.ndarray, xs: np.ndarray, ref: dict
+) -> np.ndarray:
     """Does the reference see something else when each pixel's ray moves by NUDGE pixels?"""
     centre = {k: a[ys, xs] for k, a in ref.items()}
     grazing = np.zeros(len(ys), bool)
@@ -97,12 +109,14 @@ def test_the_exact_pass_agrees_with_an_independent_one(species, registry, cell, 
 #: world_T_camera that r1 reached at the first setpoint of a real ``--setpoints 1x2`` run (7 um
 #: from the hemisphere's): with rays of non-unit direction Embree's coherent packets lost the pot
 #: in 9,272 pixels of this view, while the same pose from the hemisphere showed nothing
-REACHED = np.array([
-    [0.98636171401263, 0.09400642700393269, -0.13510499921180358, 0.04837159292131199],
-    [0.1645921295148971, -0.5633864198896998, 0.8096327394477191, -0.2898858229990692],
-    [-5.6407942526222035e-06, -0.8208279561307722, -0.5711755127825072, 1.204504692074884],
-    [0.0, 0.0, 0.0, 1.0],
-])
+REACHED = np.array(
+    [
+        [0.98636171401263, 0.09400642700393269, -0.13510499921180358, 0.04837159292131199],
+        [0.1645921295148971, -0.5633864198896998, 0.8096327394477191, -0.2898858229990692],
+        [-5.6407942526222035e-06, -0.8208279561307722, -0.5711755127825072, 1.204504692074884],
+        [0.0, 0.0, 0.0, 1.0],
+    ]
+)
 
 
 def test_a_full_size_view_agrees_pixel_for_pixel_where_sampled(registry, cell):

@@ -57,7 +57,9 @@ def test_radiance_is_written_as_exact_float_exr(tmp_path) -> None:  # noqa: ANN0
 
     rng = np.random.default_rng(4)
     radiance = (rng.random((6, 7, 3)) ** 3 * 50.0).astype(np.float32)  # above 1: not clipped
-    frame = Frame(np.zeros((6, 7, 3), np.uint8), np.zeros((6, 7), np.uint8), np.ones((6, 7), np.float32), radiance=radiance)
+    frame = Frame(
+        np.zeros((6, 7, 3), np.uint8), np.zeros((6, 7), np.uint8), np.ones((6, 7), np.float32), radiance=radiance
+    )
     write_frame(tmp_path, "r1_000", frame, None)
     path = layout.radiance(tmp_path, "r1_000")
     assert np.array_equal(read_exr(path), radiance)

@@ -15,7 +15,6 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-
 #: a valid, cheap run: each example breaks it
 BASE: dict[str, Any] = {
     "plant": "indian_cress",
@@ -47,16 +46,30 @@ FIELDS: list[tuple[str, st.SearchStrategy[Any]]] = [
     ("sink.rerun.spawn", st.one_of(st.sampled_from([2, "maybe", 1.5]), st.lists(st.integers(), max_size=2))),
     ("render.seg_mode", st.one_of(st.sampled_from(["Texture", "opacity", ""]), st.integers())),
     ("render.labels", st.one_of(st.sampled_from(["organ", "all"]), st.integers())),
-    ("routine.setpoints", st.one_of(st.sampled_from(["0x1", "1x0", "x", "5x", "-1x2", "1000x1000", "5x10x2"]), st.integers())),
+    (
+        "routine.setpoints",
+        st.one_of(st.sampled_from(["0x1", "1x0", "x", "5x", "-1x2", "1000x1000", "5x10x2"]), st.integers()),
+    ),
     ("routine.radius", bad_float),
     ("routine.csv", st.sampled_from(["/nonexistent/poses.csv", ""])),
     ("cell.arm_distance", bad_float),
     ("cell.stand_height", bad_float),
     ("camera.preset", st.one_of(st.sampled_from(["rpi4", "", "RPI3-WIDE-1080P"]), st.integers())),
-    ("camera.resolution", st.one_of(st.sampled_from(["0x0", "axb", "1920", "-5x5", "100000x100000", "1920x1080x3"]), st.integers())),
+    (
+        "camera.resolution",
+        st.one_of(st.sampled_from(["0x0", "axb", "1920", "-5x5", "100000x100000", "1920x1080x3"]), st.integers()),
+    ),
     ("motion.max_acceleration", bad_float),
     ("motion.reach_timeout", bad_float),
-    ("metrics.thresholds_mm", st.one_of(st.just([]), st.lists(bad_float, min_size=1, max_size=3).filter(lambda v: any(not isinstance(x, (int, float)) or not (0 < x <= 1000) or x != x for x in v)))),
+    (
+        "metrics.thresholds_mm",
+        st.one_of(
+            st.just([]),
+            st.lists(bad_float, min_size=1, max_size=3).filter(
+                lambda v: any(not isinstance(x, (int, float)) or not (0 < x <= 1000) or x != x for x in v)
+            ),
+        ),
+    ),
     ("metrics.truth_samples", st.one_of(st.sampled_from([0, -5, 10**12]), junk)),
     ("physics.backend", st.text(min_size=1, max_size=10).filter(lambda s: s not in ("pybullet", "kinematic"))),
     ("planner.backend", st.text(min_size=1, max_size=10).filter(lambda s: s not in ("ompl", "direct"))),
@@ -75,7 +88,11 @@ def _toml_value(v: Any) -> str:
     if isinstance(v, float):
         return "nan" if v != v else ("inf" if v == math.inf else "-inf" if v == -math.inf else repr(v))
     if isinstance(v, str):
-        return '"' + v.replace("\\", "\\\\").replace('"', '\\"').encode("unicode_escape").decode().replace("\\\\u", "\\u") + '"'
+        return (
+            '"'
+            + v.replace("\\", "\\\\").replace('"', '\\"').encode("unicode_escape").decode().replace("\\\\u", "\\u")
+            + '"'
+        )
     if isinstance(v, list):
         return "[" + ", ".join(_toml_value(x) for x in v) + "]"
     if isinstance(v, dict):
@@ -146,7 +163,9 @@ def _expect_refusal(args: list[str], root: Path, cli) -> str:
     return err
 
 
-@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow])
+@settings(
+    max_examples=60, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow]
+)
 @given(tree=broken_configs())
 def test_broken_config_files_are_refused(tree: dict[str, Any], sandbox: Path, cli) -> None:
     path = sandbox / "input" / "config.toml"
@@ -217,7 +236,15 @@ def test_label_texture_of_only_background_is_refused(sandbox: Path, cli) -> None
     obj.write_text("v 0 0 0\nv 0.1 0 0\nv 0 0.1 0\nvt 0 0\nvt 1 0\nvt 0 1\nf 1/1 2/2 3/3\n")
     Image.fromarray(np.zeros((4, 6, 3), np.uint8)).save(sandbox / "input" / "labels.png")
     err = _expect_refusal(
-        ["run", "--plant", str(obj), "--set", f"plant_file.label_texture={sandbox / 'input' / 'labels.png'}", "--out", "o"],
+        [
+            "run",
+            "--plant",
+            str(obj),
+            "--set",
+            f"plant_file.label_texture={sandbox / 'input' / 'labels.png'}",
+            "--out",
+            "o",
+        ],
         sandbox,
         cli,
     )
@@ -227,5 +254,7 @@ def test_label_texture_of_only_background_is_refused(sandbox: Path, cli) -> None
 def test_output_under_a_regular_file_is_refused(sandbox: Path, cli) -> None:
     (sandbox / "input").mkdir()
     (sandbox / "input" / "afile").write_text("x")
-    err = _expect_refusal(["run", "--renderer", "none", "--out", str(sandbox / "input" / "afile" / "run")], sandbox, cli)
+    err = _expect_refusal(
+        ["run", "--renderer", "none", "--out", str(sandbox / "input" / "afile" / "run")], sandbox, cli
+    )
     assert "afile" in err

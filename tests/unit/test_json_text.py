@@ -21,7 +21,7 @@ def _rows(n: int, rng: np.random.Generator) -> list[dict]:
             "ee_error_mm": float(rng.normal()) if i % 3 else None,
             "contacts": [f"a|b{j}" for j in range(i % 3)],
             "nested": {"q": rng.normal(size=i % 4).tolist(), "empty": {}, "none": []},
-            "reason": "no path \u00e9 \"quoted\"\nline",
+            "reason": 'no path \u00e9 "quoted"\nline',
         }
         for i in range(n)
     ]

@@ -5,9 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from agrisim.scene.transforms import look_at, pose_error
 from agrisim.plugins.physics.pybullet_physics import BulletOptions
 from agrisim.plugins.physics.pybullet_physics.backend import BulletPhysics
+from agrisim.scene.transforms import look_at, pose_error
 
 
 @pytest.fixture(scope="module")
@@ -122,7 +122,11 @@ def test_ik_iterations_cut_short_by_a_cycle_give_the_full_answer_bit_for_bit(cel
     cycled = 0
     for n in range(60):
         far = n % 3 == 0  # a third out of reach: those seeds all fail, most by cycling
-        target_T = look_at(np.array([2.5, 0.3, 1.0]), np.array([3.0, 0.0, 1.0])) if far else k.fk(rng.uniform(-2.5, 2.5, k.dof))
+        target_T = (
+            look_at(np.array([2.5, 0.3, 1.0]), np.array([3.0, 0.0, 1.0]))
+            if far
+            else k.fk(rng.uniform(-2.5, 2.5, k.dof))
+        )
         target = k._base.actInv(pin.SE3(target_T))
         q0 = rng.uniform(k.lower / 2, k.upper / 2)
         iterations = int(rng.integers(20, 200))

@@ -6,9 +6,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from agrisim.lab import clutter, room as lab
-from agrisim.scene.cell import Box, Cylinder, build_cell
 from agrisim.config import CellConfig
+from agrisim.lab import clutter
+from agrisim.lab import room as lab
+from agrisim.scene.cell import Box, Cylinder, build_cell
 from agrisim.scene.model import Label, LabelTable, Material, Mesh, Plant
 
 # ---------------------------------------------------------------------------------------------
@@ -126,7 +127,7 @@ def test_plant_label_mode_maps_every_organ_to_one(plant, scene):
         (1, "plant", (0, 255, 0)),
     ]
     mesh = scene.mesh("plant")
-    for new, old in zip(mesh.materials, plant.mesh.materials):
+    for new, old in zip(mesh.materials, plant.mesh.materials, strict=True):
         if old.labels is None:
             assert new.labels is None and new.label == (1 if old.label else 0)
         else:
@@ -207,7 +208,7 @@ def test_four_lights_two_ceiling_two_on_the_stands(cell, scene):
         assert lt.direction[2] < -0.9
         assert lt.position[2] < 3.0
     boxes = {ob.name: ob for ob in cell.obstacles}
-    for lt, name in zip(stands, ("r1_stand", "r2_stand")):
+    for lt, name in zip(stands, ("r1_stand", "r2_stand"), strict=True):
         stand = boxes[name]
         c, h = stand.world_T[:3, 3], np.asarray(stand.size) / 2
         assert np.all(np.abs(lt.position[:2] - c[:2]) <= h[:2])  # above the stand

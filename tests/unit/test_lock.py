@@ -46,4 +46,3 @@ def test_the_lock_pins_every_declared_dependency_within_its_range() -> None:
         name = canonicalize_name(req.name)
         assert name in pins, f"{req} is in pyproject.toml but not in requirements.lock: run `make lock`"
         assert req.specifier.contains(pins[name], prereleases=True), f"lock pins {name}=={pins[name]}, outside {req}"
-

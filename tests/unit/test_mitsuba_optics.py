@@ -41,7 +41,9 @@ def mi(request):  # noqa: ANN001, ANN201
 
 
 def render(mi, scene: dict, camera: CameraModel, T: np.ndarray, spp: int) -> np.ndarray:  # noqa: ANN001
-    return np.asarray(mi.render(mi.load_dict(scene), sensor=load_sensor(mi, camera, T, spp), seed=1), np.float64)[..., :3]
+    return np.asarray(mi.render(mi.load_dict(scene), sensor=load_sensor(mi, camera, T, spp), seed=1), np.float64)[
+        ..., :3
+    ]
 
 
 @pytest.mark.parametrize("cx, cy", [(40.0, 30.0), (33.3, 27.6), (45.75, 21.2)])
@@ -56,7 +58,7 @@ def test_markers_land_on_their_k_projection(mi, cx, cy):  # noqa: ANN001
     depths = [2.0, 2.4, 1.8, 2.2, 2.6]
     scene: dict = {"type": "scene", "integrator": {"type": "path", "max_depth": 2}}
     points = []
-    for i, ((du, dv), z) in enumerate(zip(targets, depths)):
+    for i, ((du, dv), z) in enumerate(zip(targets, depths, strict=True)):
         p_cam = np.array([du / camera.fx * z, dv / camera.fy * z, z])
         p = R @ p_cam + t
         points.append(p)
@@ -64,7 +66,11 @@ def test_markers_land_on_their_k_projection(mi, cx, cy):  # noqa: ANN001
         M = np.eye(4)
         M[:3, :3] = R @ np.diag([radius, radius, -radius])  # facing the camera (-z of it)
         M[:3, 3] = p
-        scene[f"m{i}"] = {"type": "disk", "to_world": mi.ScalarTransform4f(M), "emitter": {"type": "area", "radiance": 1.0}}
+        scene[f"m{i}"] = {
+            "type": "disk",
+            "to_world": mi.ScalarTransform4f(M),
+            "emitter": {"type": "area", "radiance": 1.0},
+        }
     image = render(mi, scene, camera, T, 512)[..., 0]
     for p in points:
         q = camera.K @ (R.T @ (p - t))
@@ -105,7 +111,12 @@ def icosphere(subdivisions: int) -> tuple[np.ndarray, np.ndarray]:
         faces = [
             tri
             for (i, j, k) in faces
-            for tri in ((i, mid(i, j), mid(k, i)), (j, mid(j, k), mid(i, j)), (k, mid(k, i), mid(j, k)), (mid(i, j), mid(j, k), mid(k, i)))
+            for tri in (
+                (i, mid(i, j), mid(k, i)),
+                (j, mid(j, k), mid(i, j)),
+                (k, mid(k, i), mid(j, k)),
+                (mid(i, j), mid(j, k), mid(k, i)),
+            )
         ]
     return np.array(verts), np.array(faces)
 
@@ -142,7 +153,9 @@ def test_integrating_sphere_reaches_its_closed_form(mi):  # noqa: ANN001
     Phi = pi^2 I: the wall's radiance is pi a^2 I / (A (1 - a)). Path tracing reaches it within a
     few percent; direct light alone (max_depth 2) leaves that wall black."""
     a, intensity = 0.8, 2.0
-    light = Light("lamp", "area", np.array([0.0, 0.0, 0.0]), np.array([0.0, 0.0, 1.0]), (1.0, 1.0, 1.0), intensity, 0.05)
+    light = Light(
+        "lamp", "area", np.array([0.0, 0.0, 0.0]), np.array([0.0, 0.0, 1.0]), (1.0, 1.0, 1.0), intensity, 0.05
+    )
     value, area = sphere_radiance(mi, a, light, max_depth=100, spp=256)
     expected = np.pi * a * a * intensity / (area * (1.0 - a))
     assert abs(value / expected - 1.0) < 0.04, (value, expected)
@@ -160,7 +173,12 @@ def test_area_light_radiance_keeps_raycast_units(mi):  # noqa: ANN001
     assert np.allclose(np.linalg.norm(M[:3, :3], axis=0), 0.2)
 
 
-def _quad_radiance(mi, material, layout: str = "usual", light=(0.0, 0.6, 0.8), eye=(0.3, -0.4, 0.866), R=np.eye(3)) -> np.ndarray:  # noqa: ANN001, B008
+_IDENTITY = np.eye(3)  # a default that is read, never written
+
+
+def _quad_radiance(
+    mi, material, layout: str = "usual", light=(0.0, 0.6, 0.8), eye=(0.3, -0.4, 0.866), R=_IDENTITY
+) -> np.ndarray:  # noqa: ANN001
     """Mean RGB radiance at the middle of a quad (z = 0, normal +z) of ``material`` under a
     distant light from ``light``, seen from afar from ``eye``, both turned by ``R``. The UVs
     are laid out as glTF's usually are (``usual``: u along +x, v growing toward -y, down the
@@ -228,8 +246,12 @@ def test_metallic_roughness_texture_scales_the_factors(mi):  # noqa: ANN001
     texture = np.zeros((4, 4, 3), np.uint8)
     texture[..., 1], texture[..., 2] = 102, 204  # 0.4, 0.8
     base = Material("m", color=(0.8, 0.5, 0.3, 1.0), roughness=0.5, metallic=0.5)
-    textured = _quad_radiance(mi, dataclasses.replace(base, metallic_roughness=texture), light=(0.2, 0.1, 0.9), eye=(-0.2, -0.1, 0.9))
-    plain = _quad_radiance(mi, dataclasses.replace(base, roughness=0.2, metallic=0.4), light=(0.2, 0.1, 0.9), eye=(-0.2, -0.1, 0.9))
+    textured = _quad_radiance(
+        mi, dataclasses.replace(base, metallic_roughness=texture), light=(0.2, 0.1, 0.9), eye=(-0.2, -0.1, 0.9)
+    )
+    plain = _quad_radiance(
+        mi, dataclasses.replace(base, roughness=0.2, metallic=0.4), light=(0.2, 0.1, 0.9), eye=(-0.2, -0.1, 0.9)
+    )
     factors = _quad_radiance(mi, base, light=(0.2, 0.1, 0.9), eye=(-0.2, -0.1, 0.9))
     assert np.allclose(textured, plain, rtol=0.01), (textured, plain)
     assert not np.allclose(textured, factors, rtol=0.05)

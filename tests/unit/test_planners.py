@@ -8,15 +8,15 @@ import pytest
 from agrisim.config import backend_options
 from agrisim.errors import ConfigError
 from agrisim.interfaces import PlanningFailed
-from agrisim.robot.segments import segment_samples
-from agrisim.plugins.physics.pybullet_physics import BulletOptions
-from agrisim.plugins.physics.pybullet_physics.backend import BulletPhysics
 from agrisim.plugins.physics.kinematic import KinematicOptions
 from agrisim.plugins.physics.kinematic.backend import KinematicPhysics
+from agrisim.plugins.physics.pybullet_physics import BulletOptions
+from agrisim.plugins.physics.pybullet_physics.backend import BulletPhysics
 from agrisim.plugins.planners.direct import DirectPlanner
 from agrisim.plugins.planners.ompl_planner import OmplOptions
 from agrisim.plugins.planners.ompl_planner.backend import OmplPlanner
 from agrisim.registry import NoOptions
+from agrisim.robot.segments import segment_samples
 
 LOWER, UPPER = np.full(6, -np.pi), np.full(6, np.pi)
 START = np.array([-2.0, 0, 0, 0, 0, 0])

@@ -56,7 +56,9 @@ def edit_glb(src: Path, dst: Path, edit) -> Path:
     j = json.dumps(doc).encode()
     j += b" " * (-len(j) % 4)
     rest = data[20 + n :]
-    dst.write_bytes(struct.pack("<4sII", b"glTF", 2, 20 + len(j) + len(rest)) + struct.pack("<II", len(j), 0x4E4F534A) + j + rest)
+    dst.write_bytes(
+        struct.pack("<4sII", b"glTF", 2, 20 + len(j) + len(rest)) + struct.pack("<II", len(j), 0x4E4F534A) + j + rest
+    )
     return dst
 
 
@@ -73,7 +75,9 @@ def rich_mesh() -> tuple[Mesh, LabelTable]:
     uvs = rng.uniform(-0.5, 1.5, (n, 2)).astype(np.float32)
     albedo = rng.integers(0, 256, (16, 8, 4), dtype=np.uint8)
     labels_tex = rng.choice(np.array([1, 3], np.uint8), (16, 8))
-    leaf = Material("leaf", (0.9, 1.0, 0.8, 0.75), albedo=albedo, labels=labels_tex, alpha_mode="MASK", alpha_cutoff=0.4)
+    leaf = Material(
+        "leaf", (0.9, 1.0, 0.8, 0.75), albedo=albedo, labels=labels_tex, alpha_mode="MASK", alpha_cutoff=0.4
+    )
     stem = Material("stem", (0.3, 0.2, 0.1, 1.0), label=2, double_sided=False)
     petal = Material(
         "petal",
@@ -92,7 +96,12 @@ def rich_mesh() -> tuple[Mesh, LabelTable]:
     inst = rng.integers(0, 7, 40).astype(np.uint16)
     mesh = Mesh("plant", vertices, faces, [leaf, stem, petal], face_material, uvs, inst)
     table = LabelTable(
-        [Label(0, "background", (0, 0, 0)), Label(1, "leaf", (0, 255, 0)), Label(2, "stem", (96, 0, 128)), Label(3, "flower_white", (0, 0, 255))]
+        [
+            Label(0, "background", (0, 0, 0)),
+            Label(1, "leaf", (0, 255, 0)),
+            Label(2, "stem", (96, 0, 128)),
+            Label(3, "flower_white", (0, 0, 255)),
+        ]
     )
     return mesh, table
 
@@ -110,11 +119,16 @@ def test_round_trip_is_exact(tmp_path: Path) -> None:
     assert np.array_equal(m.face_material, mesh.face_material)
     assert np.array_equal(m.face_instance, mesh.face_instance)
     assert len(m.materials) == len(mesh.materials)
-    for a, b in zip(m.materials, mesh.materials):
+    for a, b in zip(m.materials, mesh.materials, strict=True):
         assert (a.name, a.color, a.label, a.alpha_mode, a.alpha_cutoff, a.double_sided) == (
             b.name, b.color, b.label, b.alpha_mode, b.alpha_cutoff, b.double_sided
         )  # fmt: skip
-        assert (a.roughness, a.metallic, a.transmittance, a.normal_scale) == (b.roughness, b.metallic, b.transmittance, b.normal_scale)
+        assert (a.roughness, a.metallic, a.transmittance, a.normal_scale) == (
+            b.roughness,
+            b.metallic,
+            b.transmittance,
+            b.normal_scale,
+        )
         textures = ("albedo", "labels", "transmission", "metallic_roughness", "normal_map")
         for x, y in ((getattr(a, t), getattr(b, t)) for t in textures):
             assert (x is None) == (y is None)
@@ -132,7 +146,12 @@ def test_export_is_standard_gltf(tmp_path: Path) -> None:
     export_glb(mesh, path, table)
     doc = glb_json(path)
     assert doc["asset"]["version"] == "2.0"
-    assert [e["name"] for e in doc["asset"]["extras"]["agrisim"]["labels"]] == ["background", "leaf", "stem", "flower_white"]
+    assert [e["name"] for e in doc["asset"]["extras"]["agrisim"]["labels"]] == [
+        "background",
+        "leaf",
+        "stem",
+        "flower_white",
+    ]
     leaf = doc["materials"][0]
     assert leaf["alphaMode"] == "MASK" and leaf["alphaCutoff"] == 0.4 and leaf["doubleSided"] is True
     lt = leaf["extras"]["agrisim"]["label_texture"]
@@ -154,7 +173,7 @@ def test_interleaved_materials_group_by_material(tmp_path: Path) -> None:
     mesh = Mesh("plant", mesh.vertices, mesh.faces, mesh.materials, fm, mesh.uvs, mesh.face_instance)
     export_glb(mesh, tmp_path / "p.glb", table)
     m = load_plant(tmp_path / "p.glb", place=False).mesh
-    key = lambda f, mat, inst: sorted(zip(map(tuple, f.tolist()), mat.tolist(), inst.tolist()))  # noqa: E731
+    key = lambda f, mat, inst: sorted(zip(map(tuple, f.tolist()), mat.tolist(), inst.tolist(), strict=True))  # noqa: E731
     assert key(m.faces, m.face_material, m.face_instance) == key(mesh.faces, mesh.face_material, mesh.face_instance)
     assert len(glb_json(tmp_path / "p.glb")["meshes"][0]["primitives"]) == 3
 
@@ -162,7 +181,9 @@ def test_interleaved_materials_group_by_material(tmp_path: Path) -> None:
 def test_export_refuses_labels_outside_the_table(tmp_path: Path) -> None:
     mesh, table = rich_mesh()
     with pytest.raises(ValueError, match="label ids"):
-        export_glb(mesh, tmp_path / "p.glb", LabelTable([Label(0, "background", (0, 0, 0)), Label(1, "leaf", (0, 255, 0))]))
+        export_glb(
+            mesh, tmp_path / "p.glb", LabelTable([Label(0, "background", (0, 0, 0)), Label(1, "leaf", (0, 255, 0))])
+        )
     assert not (tmp_path / "p.glb").exists()
 
 
@@ -173,7 +194,9 @@ def test_export_refuses_labels_outside_the_table(tmp_path: Path) -> None:
 
 def trimesh_card_glb(path: Path, albedo: np.ndarray, transform=None, **pbr) -> Path:
     mat = PBRMaterial(name="leaf", baseColorTexture=Image.fromarray(albedo, "RGBA"), **pbr)
-    card = trimesh.Trimesh(CARD_V, CARD_F, process=False, visual=trimesh.visual.TextureVisuals(uv=CARD_UV_GL, material=mat))
+    card = trimesh.Trimesh(
+        CARD_V, CARD_F, process=False, visual=trimesh.visual.TextureVisuals(uv=CARD_UV_GL, material=mat)
+    )
     scene = trimesh.Scene()
     scene.add_geometry(card, geom_name="leaf", transform=transform)
     scene.export(path)
@@ -183,7 +206,9 @@ def trimesh_card_glb(path: Path, albedo: np.ndarray, transform=None, **pbr) -> P
 def test_trimesh_glb_alpha_mask_cutoff_is_honoured(tmp_path: Path) -> None:
     # Left half alpha 100/255 = 0.39: kept with the file's cutoff 0.3, cut with the default 0.5.
     T = trimesh.transformations.translation_matrix([0.1, 0.2, 0.3])
-    path = trimesh_card_glb(tmp_path / "card.glb", half_alpha(100, 0), transform=T, alphaMode="MASK", alphaCutoff=0.3, doubleSided=True)
+    path = trimesh_card_glb(
+        tmp_path / "card.glb", half_alpha(100, 0), transform=T, alphaMode="MASK", alphaCutoff=0.3, doubleSided=True
+    )
     plant = load_plant(path, place=False)
     mat = plant.mesh.materials[0]
     assert (mat.alpha_mode, mat.alpha_cutoff, mat.double_sided) == ("MASK", 0.3, True)
@@ -220,7 +245,9 @@ def two_material_glb(path: Path) -> Path:
     scene = trimesh.Scene()
     for name, dx in (("LeafMat.001", 0.0), ("Bark", 0.3)):
         mat = PBRMaterial(name=name, baseColorFactor=[0.2, 0.8, 0.2, 1.0])
-        m = trimesh.Trimesh(CARD_V + [dx, 0, 0], CARD_F, process=False, visual=trimesh.visual.TextureVisuals(material=mat))
+        m = trimesh.Trimesh(
+            CARD_V + [dx, 0, 0], CARD_F, process=False, visual=trimesh.visual.TextureVisuals(material=mat)
+        )
         scene.add_geometry(m, geom_name=name)
     scene.export(path)
     return path
@@ -251,7 +278,9 @@ def test_material_labels_must_cover_the_materials(tmp_path: Path) -> None:
 # ----------------------------------------------------------------------------------------------
 
 
-def write_obj(folder: Path, mtl: str, obj_faces: str = "f 1/1 2/2 3/3\nf 1/1 3/3 4/4\n", textures: dict | None = None) -> Path:
+def write_obj(
+    folder: Path, mtl: str, obj_faces: str = "f 1/1 2/2 3/3\nf 1/1 3/3 4/4\n", textures: dict | None = None
+) -> Path:
     """A y-up card (x right, y up) with two triangles, its MTL and textures."""
     folder.mkdir(parents=True, exist_ok=True)
     for name, arr in (textures or {}).items():
@@ -288,7 +317,9 @@ def test_obj_map_d_with_options_and_spaces(tmp_path: Path) -> None:
 
 def test_obj_from_trimesh_exporter(tmp_path: Path) -> None:
     mat = SimpleMaterial(name="leaf", image=Image.fromarray(half_alpha(), "RGBA"))
-    card = trimesh.Trimesh(CARD_V, CARD_F, process=False, visual=trimesh.visual.TextureVisuals(uv=CARD_UV_GL, material=mat))
+    card = trimesh.Trimesh(
+        CARD_V, CARD_F, process=False, visual=trimesh.visual.TextureVisuals(uv=CARD_UV_GL, material=mat)
+    )
     (tmp_path / "t").mkdir()
     card.export(tmp_path / "t" / "card.obj")
     mesh = load_plant(tmp_path / "t" / "card.obj", up="z").mesh
@@ -315,7 +346,10 @@ def test_label_texture_of_ids(tmp_path: Path) -> None:
     ids[:, 4:] = 2
     Image.fromarray(ids, "L").save(tmp_path / "labels.png")
     plant = load_plant(path, label_texture=tmp_path / "labels.png", label_names={1: "leaf", 2: "stem"}, place=False)
-    assert [(lab.id, lab.name, lab.color) for lab in plant.labels.labels[1:]] == [(1, "leaf", (0, 255, 0)), (2, "stem", (96, 0, 128))]
+    assert [(lab.id, lab.name, lab.color) for lab in plant.labels.labels[1:]] == [
+        (1, "leaf", (0, 255, 0)),
+        (2, "stem", (96, 0, 128)),
+    ]
     mesh = plant.mesh
     pts, faces, bary = sample_surface(mesh, 2000, np.random.default_rng(0))
     lab = label_at(mesh.materials[0], interpolate_uv(mesh, faces, bary))
@@ -334,7 +368,12 @@ def test_label_texture_of_paper_colours(tmp_path: Path) -> None:
     colours[:, 6:] = (10, 20, 30)
     Image.fromarray(colours, "RGB").save(tmp_path / "seg.png")
     plant = load_plant(path, label_texture=tmp_path / "seg.png", label_names={"#0A141E": "bud"})
-    assert [(lab.id, lab.name) for lab in plant.labels.labels] == [(0, "background"), (1, "leaf"), (2, "flower_white"), (3, "bud")]
+    assert [(lab.id, lab.name) for lab in plant.labels.labels] == [
+        (0, "background"),
+        (1, "leaf"),
+        (2, "flower_white"),
+        (3, "bud"),
+    ]
     lab = plant.mesh.materials[0].labels
     assert lab[0, 0] == 1 and lab[0, 4] == 2 and lab[0, 7] == 3
 
@@ -347,7 +386,11 @@ def test_label_texture_of_paper_colours(tmp_path: Path) -> None:
 def own_card_glb(path: Path) -> Path:
     mat = Material("leaf", albedo=half_alpha(), alpha_mode="MASK", label=1)
     uv = np.array([[0, 1], [1, 1], [1, 0], [0, 0]], np.float32)
-    export_glb(Mesh("card", CARD_V, CARD_F, [mat], np.zeros(2, int), uv), path, LabelTable([Label(0, "background", (0, 0, 0)), Label(1, "plant", (0, 255, 0))]))
+    export_glb(
+        Mesh("card", CARD_V, CARD_F, [mat], np.zeros(2, int), uv),
+        path,
+        LabelTable([Label(0, "background", (0, 0, 0)), Label(1, "plant", (0, 255, 0))]),
+    )
     return path
 
 
@@ -391,13 +434,19 @@ def test_no_triangles_and_nan(tmp_path: Path) -> None:
     expect_error(tmp_path / "lines.glb", "no triangles")
     edit_glb(tmp_path / "card.glb", tmp_path / "nomesh.glb", lambda d: d.update(meshes=[], nodes=[{}]))
     expect_error(tmp_path / "nomesh.glb", "not a mesh")
-    edit_glb(tmp_path / "card.glb", tmp_path / "nanT.glb", lambda d: d["nodes"][0].update(translation=[0, float("nan"), 0]))
+    edit_glb(
+        tmp_path / "card.glb", tmp_path / "nanT.glb", lambda d: d["nodes"][0].update(translation=[0, float("nan"), 0])
+    )
     expect_error(tmp_path / "nanT.glb", "NaN")
 
 
 def test_uv_problems(tmp_path: Path) -> None:
     own_card_glb(tmp_path / "card.glb")
-    edit_glb(tmp_path / "card.glb", tmp_path / "nouv.glb", lambda d: d["meshes"][0]["primitives"][0]["attributes"].pop("TEXCOORD_0"))
+    edit_glb(
+        tmp_path / "card.glb",
+        tmp_path / "nouv.glb",
+        lambda d: d["meshes"][0]["primitives"][0]["attributes"].pop("TEXCOORD_0"),
+    )
     expect_error(tmp_path / "nouv.glb", "no UVs")
 
     def short_uvs(d):
@@ -406,9 +455,16 @@ def test_uv_problems(tmp_path: Path) -> None:
     edit_glb(tmp_path / "card.glb", tmp_path / "shortuv.glb", short_uvs)
     expect_error(tmp_path / "shortuv.glb", "3 UVs for 4 vertices")
 
-    obj = write_obj(tmp_path / "a", "newmtl leaf\nmap_Kd leaf.png\n", obj_faces="f 1 2 3\n", textures={"leaf.png": half_alpha()})
+    obj = write_obj(
+        tmp_path / "a", "newmtl leaf\nmap_Kd leaf.png\n", obj_faces="f 1 2 3\n", textures={"leaf.png": half_alpha()}
+    )
     expect_error(obj, "no UVs")
-    obj = write_obj(tmp_path / "b", "newmtl leaf\nmap_Kd leaf.png\n", obj_faces="f 1/1 2/9 3/3\n", textures={"leaf.png": half_alpha()})
+    obj = write_obj(
+        tmp_path / "b",
+        "newmtl leaf\nmap_Kd leaf.png\n",
+        obj_faces="f 1/1 2/9 3/3\n",
+        textures={"leaf.png": half_alpha()},
+    )
     expect_error(obj, "texture coordinate 9, but the file has 4")
 
 
@@ -433,7 +489,9 @@ def test_texture_problems(tmp_path: Path) -> None:
 def test_label_texture_problems(tmp_path: Path) -> None:
     glb = own_card_glb(tmp_path / "card.glb")
     Image.fromarray(np.ones((4, 4), np.uint8), "L").save(tmp_path / "small.png")
-    with pytest.raises(UserError, match=r"small\.png: label texture is 4x4 but the albedo of material 'leaf' in .*card\.glb is 8x8"):
+    with pytest.raises(
+        UserError, match=r"small\.png: label texture is 4x4 but the albedo of material 'leaf' in .*card\.glb is 8x8"
+    ):
         load_plant(glb, label_texture=tmp_path / "small.png")
     photo = np.random.default_rng(0).integers(0, 256, (16, 16, 3), dtype=np.uint8)
     Image.fromarray(photo, "RGB").save(tmp_path / "photo.png")
@@ -460,7 +518,11 @@ def test_too_big_suggests_centimetres(tmp_path: Path) -> None:
 
 def test_refused_extensions(tmp_path: Path) -> None:
     own_card_glb(tmp_path / "card.glb")
-    edit_glb(tmp_path / "card.glb", tmp_path / "draco.glb", lambda d: d.update(extensionsRequired=["KHR_draco_mesh_compression"]))
+    edit_glb(
+        tmp_path / "card.glb",
+        tmp_path / "draco.glb",
+        lambda d: d.update(extensionsRequired=["KHR_draco_mesh_compression"]),
+    )
     expect_error(tmp_path / "draco.glb", "Draco")
 
 
@@ -480,7 +542,10 @@ def test_root_refuses_escapes(tmp_path: Path) -> None:
     # files an asset refers to are held to the root too
     write_obj(tmp_path / "tex", "", textures={"leaf.png": half_alpha()})
     obj = write_obj(root / "sub", "newmtl leaf\nmap_Kd ../../tex/leaf.png\n")
-    with pytest.raises(UserError, match=r"card\.obj: material library 'card\.mtl': texture '\.\./\.\./tex/leaf\.png': outside the asset root"):
+    with pytest.raises(
+        UserError,
+        match=r"card\.obj: material library 'card\.mtl': texture '\.\./\.\./tex/leaf\.png': outside the asset root",
+    ):
         load_plant(obj, root=root)
     assert load_plant(obj).mesh.materials[0].albedo is not None  # without a root it is fine
 
@@ -492,7 +557,9 @@ def test_root_refuses_escapes(tmp_path: Path) -> None:
 
 def trimesh_card(albedo: np.ndarray) -> trimesh.Trimesh:
     mat = PBRMaterial(name="leaf", baseColorTexture=Image.fromarray(albedo, "RGBA"), alphaMode="MASK")
-    return trimesh.Trimesh(CARD_V, CARD_F, process=False, visual=trimesh.visual.TextureVisuals(uv=CARD_UV_GL, material=mat))
+    return trimesh.Trimesh(
+        CARD_V, CARD_F, process=False, visual=trimesh.visual.TextureVisuals(uv=CARD_UV_GL, material=mat)
+    )
 
 
 def test_gltf_with_external_and_embedded_buffers(tmp_path: Path) -> None:
@@ -522,7 +589,9 @@ def test_texture_transform_moves_the_cut(tmp_path: Path) -> None:
     own_card_glb(tmp_path / "card.glb")
 
     def shift(d):
-        d["materials"][0]["pbrMetallicRoughness"]["baseColorTexture"]["extensions"] = {"KHR_texture_transform": {"offset": [0.5, 0.0]}}
+        d["materials"][0]["pbrMetallicRoughness"]["baseColorTexture"]["extensions"] = {
+            "KHR_texture_transform": {"offset": [0.5, 0.0]}
+        }
 
     mesh = load_plant(edit_glb(tmp_path / "card.glb", tmp_path / "shifted.glb", shift), place=False).mesh
     pts, faces, bary = sample_surface(mesh, 2000, np.random.default_rng(0))
@@ -573,10 +642,14 @@ def test_diffuse_transmission_extension(tmp_path: Path) -> None:
     expected = np.round(linear_to_srgb(0.4 * np.array([0.5, 1.0, 0.2])) * 255.0)
     assert mat.transmittance is None and mat.transmission.shape == (1, 1, 3)
     assert np.array_equal(mat.transmission[0, 0], expected)
-    assert np.allclose(mat.color[:3], 0.8 * 0.6) and np.array_equal(mat.albedo, half_alpha())  # (0.8: the card's colour)
+    assert np.allclose(mat.color[:3], 0.8 * 0.6) and np.array_equal(
+        mat.albedo, half_alpha()
+    )  # (0.8: the card's colour)
 
     def textured(d):
-        d["materials"][0]["extensions"] = {"KHR_materials_diffuse_transmission": dict(ext, diffuseTransmissionTexture={"index": 0})}
+        d["materials"][0]["extensions"] = {
+            "KHR_materials_diffuse_transmission": dict(ext, diffuseTransmissionTexture={"index": 0})
+        }
 
     mat = load_plant(edit_glb(tmp_path / "card.glb", tmp_path / "t.glb", textured), place=False).mesh.materials[0]
     source = half_alpha()
@@ -594,13 +667,18 @@ def test_textures_on_other_uvs_are_refused(tmp_path: Path) -> None:
     def other_set(d):
         d["materials"][0]["normalTexture"] = {"index": 0, "texCoord": 1}
 
-    expect_error(edit_glb(tmp_path / "card.glb", tmp_path / "n.glb", other_set), r"normalTexture uses other texture coordinates")
+    expect_error(
+        edit_glb(tmp_path / "card.glb", tmp_path / "n.glb", other_set), r"normalTexture uses other texture coordinates"
+    )
 
 
 def test_mirrored_node_keeps_the_winding(tmp_path: Path) -> None:
     own_card_glb(tmp_path / "card.glb")
     plain = load_plant(tmp_path / "card.glb", place=False).mesh
-    mirrored = load_plant(edit_glb(tmp_path / "card.glb", tmp_path / "m.glb", lambda d: d["nodes"][0].update(scale=[-1, 1, 1])), place=False).mesh
+    mirrored = load_plant(
+        edit_glb(tmp_path / "card.glb", tmp_path / "m.glb", lambda d: d["nodes"][0].update(scale=[-1, 1, 1])),
+        place=False,
+    ).mesh
 
     def normal(m: Mesh) -> np.ndarray:
         a, b, c = (m.vertices[m.faces[0, i]] for i in range(3))
@@ -630,7 +708,9 @@ def test_handwritten_gltf_strip_sparse_normalized(tmp_path: Path) -> None:
     Image.fromarray(half_alpha(), "RGBA").save(png, format="PNG")
     doc = {
         "asset": {"version": "2.0"},
-        "buffers": [{"byteLength": len(blob), "uri": "data:application/octet-stream;base64," + base64.b64encode(blob).decode()}],
+        "buffers": [
+            {"byteLength": len(blob), "uri": "data:application/octet-stream;base64," + base64.b64encode(blob).decode()}
+        ],
         "bufferViews": [
             {"buffer": 0, "byteOffset": 0, "byteLength": 48},
             {"buffer": 0, "byteOffset": 48, "byteLength": 8},
@@ -639,15 +719,28 @@ def test_handwritten_gltf_strip_sparse_normalized(tmp_path: Path) -> None:
             {"buffer": 0, "byteOffset": 68, "byteLength": 12},
         ],
         "accessors": [
-            {"bufferView": 0, "componentType": 5126, "count": 4, "type": "VEC3",
-             "sparse": {"count": 1, "indices": {"bufferView": 3, "componentType": 5121}, "values": {"bufferView": 4}}},
+            {
+                "bufferView": 0,
+                "componentType": 5126,
+                "count": 4,
+                "type": "VEC3",
+                "sparse": {
+                    "count": 1,
+                    "indices": {"bufferView": 3, "componentType": 5121},
+                    "values": {"bufferView": 4},
+                },
+            },
             {"bufferView": 1, "componentType": 5121, "normalized": True, "count": 4, "type": "VEC2"},
             {"bufferView": 2, "componentType": 5123, "count": 4, "type": "SCALAR"},
         ],  # fmt: skip
         "images": [{"uri": "data:image/png;base64," + base64.b64encode(png.getvalue()).decode()}],
         "textures": [{"source": 0}],
-        "materials": [{"name": "leaf", "pbrMetallicRoughness": {"baseColorTexture": {"index": 0}}, "alphaMode": "MASK"}],
-        "meshes": [{"primitives": [{"attributes": {"POSITION": 0, "TEXCOORD_0": 1}, "indices": 2, "mode": 5, "material": 0}]}],
+        "materials": [
+            {"name": "leaf", "pbrMetallicRoughness": {"baseColorTexture": {"index": 0}}, "alphaMode": "MASK"}
+        ],
+        "meshes": [
+            {"primitives": [{"attributes": {"POSITION": 0, "TEXCOORD_0": 1}, "indices": 2, "mode": 5, "material": 0}]}
+        ],
         "nodes": [{"mesh": 0}],
     }
     (tmp_path / "hand.gltf").write_text(json.dumps(doc))
@@ -664,10 +757,18 @@ def test_embedded_label_texture_must_match_the_albedo(tmp_path: Path) -> None:
     export_glb(mesh, tmp_path / "p.glb", table)
 
     def swap(d):  # the leaf's label texture -> the petal's albedo texture (8x8 RGBA, albedo 16x8)
-        d["materials"][0]["extras"]["agrisim"]["label_texture"] = d["materials"][2]["pbrMetallicRoughness"]["baseColorTexture"]["index"]
+        d["materials"][0]["extras"]["agrisim"]["label_texture"] = d["materials"][2]["pbrMetallicRoughness"][
+            "baseColorTexture"
+        ]["index"]
 
-    expect_error(edit_glb(tmp_path / "p.glb", tmp_path / "bad.glb", swap), "label texture .* not a single-channel image")
+    expect_error(
+        edit_glb(tmp_path / "p.glb", tmp_path / "bad.glb", swap), "label texture .* not a single-channel image"
+    )
 
     leaf = dataclasses.replace(mesh.materials[0], labels=np.ones((4, 4), np.uint8))  # albedo is 16x8
-    export_glb(Mesh("plant", mesh.vertices, mesh.faces, [leaf], np.zeros(len(mesh.faces), int), mesh.uvs), tmp_path / "s.glb", table)
+    export_glb(
+        Mesh("plant", mesh.vertices, mesh.faces, [leaf], np.zeros(len(mesh.faces), int), mesh.uvs),
+        tmp_path / "s.glb",
+        table,
+    )
     expect_error(tmp_path / "s.glb", r"label texture .* is 4x4 but its albedo is 8x16")

@@ -93,7 +93,7 @@ def test_same_seed_same_plant_other_seed_other_plant(name, plants):
     b = grow(name, 0).mesh
     for attr in ("vertices", "faces", "uvs", "face_material", "face_instance"):
         np.testing.assert_array_equal(getattr(a, attr), getattr(b, attr), err_msg=attr)
-    for ma, mb in zip(a.materials, b.materials):
+    for ma, mb in zip(a.materials, b.materials, strict=True):
         for attr in ("albedo", "labels"):
             if getattr(ma, attr) is None:
                 assert getattr(mb, attr) is None
@@ -286,7 +286,12 @@ def test_every_plant_source_uses_the_one_palette(plants):
     from agrisim.plugins.plants.helios.convert import ORGANS
     from agrisim.scene.palette import PALETTE, PAPER
 
-    assert PAPER == {"leaf": (0, 255, 0), "flower_white": (0, 0, 255), "flower_purple": (255, 0, 0), "stem": (96, 0, 128)}
+    assert PAPER == {
+        "leaf": (0, 255, 0),
+        "flower_white": (0, 0, 255),
+        "flower_purple": (255, 0, 0),
+        "stem": (96, 0, 128),
+    }
     tables = [plant.labels.labels for plant in plants.values()] + [list(ORGANS)]
     for labels in tables:
         named = [lab for lab in labels if lab.id != 0]

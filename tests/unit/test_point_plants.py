@@ -4,6 +4,7 @@ trimesh and Open3D as second readers), sampling a mesh's opaque surface."""
 
 from __future__ import annotations
 
+import itertools
 import math
 
 import numpy as np
@@ -21,7 +22,9 @@ from agrisim.scene.points import MAX_POINTS, as_points, check_count, check_size,
 TABLE = LabelTable([Label(0, "background", (0, 0, 0)), Label(1, "leaf", (0, 255, 0)), Label(2, "stem", (96, 0, 128))])
 
 
-def brute_force(rays: np.ndarray, centres: np.ndarray, radius: float, tfar: float = np.inf) -> tuple[np.ndarray, np.ndarray]:
+def brute_force(
+    rays: np.ndarray, centres: np.ndarray, radius: float, tfar: float = np.inf
+) -> tuple[np.ndarray, np.ndarray]:
     """Nearest sphere entry along each ray in float64: (t in units of the ray's direction, index)."""
     t_out = np.full(len(rays), np.inf)
     i_out = np.full(len(rays), -1)
@@ -46,7 +49,11 @@ def brute_force(rays: np.ndarray, centres: np.ndarray, radius: float, tfar: floa
 def test_spheres_are_hit_where_a_float64_brute_force_hits_them(radius):
     rng = np.random.default_rng(1)
     n = 3000
-    centres = np.column_stack([rng.uniform(-0.1, 0.1, n), rng.uniform(-0.1, 0.1, n), rng.normal(0.3, radius, n)]) + [0.4, -0.2, 0.0]
+    centres = np.column_stack([rng.uniform(-0.1, 0.1, n), rng.uniform(-0.1, 0.1, n), rng.normal(0.3, radius, n)]) + [
+        0.4,
+        -0.2,
+        0.0,
+    ]
     # a spot of rays onto a patch dense enough that most hit (not a random mess of misses)
     k = 600
     target = centres[rng.integers(0, n, k)] + rng.normal(0, radius, (k, 3))
@@ -108,7 +115,9 @@ def test_labels_depth_and_instances_of_a_plane_of_points_are_the_nearest_spheres
     # every pixel's ray, from the near plane as the renderer casts it, by brute force
     opts = RaycastOptions()
     u, v = np.meshgrid(np.arange(camera.width), np.arange(camera.height))
-    d_cam = np.stack([(u - camera.cx) / camera.fx, (v - camera.cy) / camera.fy, np.ones_like(u, float)], -1).reshape(-1, 3)
+    d_cam = np.stack([(u - camera.cx) / camera.fx, (v - camera.cy) / camera.fy, np.ones_like(u, float)], -1).reshape(
+        -1, 3
+    )
     d = d_cam @ T[:3, :3].T
     rays = np.hstack([T[:3, 3] + opts.near * d, d])
     t_ref, i_ref = brute_force(rays, points.positions, 0.5 * points.size)
@@ -137,7 +146,7 @@ def test_coverage_rises_with_point_size_as_the_disc_area_says():
         covered.append(share)
         if size < spacing:  # discs apart: the exact share of the cell
             assert share == pytest.approx(math.pi * (size / 2) ** 2 / spacing**2, rel=0.04)
-    assert all(a < b for a, b in zip(covered, covered[1:]))
+    assert all(a < b for a, b in itertools.pairwise(covered))
     assert covered[-1] == 1.0  # overlapping spheres close the gaps
 
 
@@ -174,7 +183,13 @@ def test_pcd_files_are_read_with_their_fields(tmp_path):
     assert [lab.name for lab in plant.labels.labels] == ["background", "leaf", "stem"]
 
 
-def _ply(path, rows: str, props: str = "property float x\nproperty float y\nproperty float z\n", n: int | None = None, extra: str = ""):
+def _ply(
+    path,
+    rows: str,
+    props: str = "property float x\nproperty float y\nproperty float z\n",
+    n: int | None = None,
+    extra: str = "",
+):
     count = n if n is not None else len([r for r in rows.splitlines() if r.strip()])
     path.write_text(f"ply\nformat ascii 1.0\nelement vertex {count}\n{props}{extra}end_header\n{rows}")
     return path
@@ -186,11 +201,31 @@ def _ply(path, rows: str, props: str = "property float x\nproperty float y\nprop
         ("property float x\nproperty float y\nproperty float z\n", "", None, "holds no points"),
         ("property float x\nproperty float y\nproperty float z\n", "0 0 0\nnan 0 1\n", None, "NaN or infinite"),
         ("property float x\nproperty float y\nproperty float z\n", "0 0 0\n0 inf 1\n", None, "NaN or infinite"),
-        ("property float x\nproperty float y\nproperty float z\nproperty int label\n", "0 0 0 1\n0 0 1 300\n", None, "outside 0..255"),
-        ("property float x\nproperty float y\nproperty float z\nproperty int label\n", "0 0 0 1\n0 0 1 -1\n", None, "outside 0..255"),
-        ("property float x\nproperty float y\nproperty float z\nproperty uchar label\n", "0 0 0 1\n0 0 1 7\n", {1: "leaf"}, "does not name"),
+        (
+            "property float x\nproperty float y\nproperty float z\nproperty int label\n",
+            "0 0 0 1\n0 0 1 300\n",
+            None,
+            "outside 0..255",
+        ),
+        (
+            "property float x\nproperty float y\nproperty float z\nproperty int label\n",
+            "0 0 0 1\n0 0 1 -1\n",
+            None,
+            "outside 0..255",
+        ),
+        (
+            "property float x\nproperty float y\nproperty float z\nproperty uchar label\n",
+            "0 0 0 1\n0 0 1 7\n",
+            {1: "leaf"},
+            "does not name",
+        ),
         # without names, the default table: 0 background and 1 plant, nothing guessed
-        ("property float x\nproperty float y\nproperty float z\nproperty uchar label\n", "0 0 0 1\n0 0 1 250\n", None, r"\[250\] that the default table"),
+        (
+            "property float x\nproperty float y\nproperty float z\nproperty uchar label\n",
+            "0 0 0 1\n0 0 1 250\n",
+            None,
+            r"\[250\] that the default table",
+        ),
         ("property float x\nproperty float y\n", "0 0\n", None, "x, y and z"),
     ],
 )
@@ -248,7 +283,9 @@ def _card() -> Mesh:
     mat = Material("card", color=(1.0, 1.0, 1.0, 1.0), albedo=albedo, labels=labels, alpha_mode="MASK")
     v = np.array([[0, 0, 0], [0.1, 0, 0], [0.1, 0.1, 0], [0, 0.1, 0]], float)
     uv = np.array([[0, 1], [1, 1], [1, 0], [0, 0]], np.float32)  # v grows downwards: y = 0.1 is the top
-    return Mesh("card", v, np.array([[0, 1, 2], [0, 2, 3]]), [mat], np.zeros(2, np.int32), uv, np.array([5, 5], np.uint16))
+    return Mesh(
+        "card", v, np.array([[0, 1, 2], [0, 2, 3]]), [mat], np.zeros(2, np.int32), uv, np.array([5, 5], np.uint16)
+    )
 
 
 def test_sampled_points_lie_on_opaque_texels_with_their_colour_label_and_instance():
@@ -295,13 +332,22 @@ def test_as_points_keeps_the_mesh_as_truth_and_refuses_misuse():
 def test_thickness_is_twice_the_normal_offset_of_points_off_a_surface():
     from agrisim.evaluation.metrics import GroundTruth, SurfaceDistance, thickness_mm
 
-    square = Mesh("square", np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], float) * 0.1,
-                  np.array([[0, 1, 2], [0, 2, 3]]), [Material("m", label=1)], np.zeros(2, np.int32))
+    square = Mesh(
+        "square",
+        np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], float) * 0.1,
+        np.array([[0, 1, 2], [0, 2, 3]]),
+        [Material("m", label=1)],
+        np.zeros(2, np.int32),
+    )
     truth = GroundTruth.sample(square, 1000)
     rng = np.random.default_rng(0)
     h = 0.0015  # two sheets 1.5 mm either side of the plane, as spheres of 3 mm would show it
-    p = np.column_stack([rng.uniform(0.01, 0.09, 400), rng.uniform(0.01, 0.09, 400), np.where(rng.random(400) < 0.5, h, -h)])
+    p = np.column_stack(
+        [rng.uniform(0.01, 0.09, 400), rng.uniform(0.01, 0.09, 400), np.where(rng.random(400) < 0.5, h, -h)]
+    )
     offsets = SurfaceDistance(truth).normal_offsets(p)
     assert np.allclose(np.abs(offsets), h, atol=1e-7)
-    assert np.allclose(offsets * np.sign(p[:, 2]), offsets[0] * np.sign(p[0, 2]))  # one side positive, the other negative
+    assert np.allclose(
+        offsets * np.sign(p[:, 2]), offsets[0] * np.sign(p[0, 2])
+    )  # one side positive, the other negative
     assert thickness_mm(offsets) == pytest.approx(2 * h * 1e3, abs=1e-4)

@@ -10,9 +10,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from agrisim.lab.room import build_scene
 from agrisim.config import RenderConfig
 from agrisim.errors import ConfigError
+from agrisim.lab.room import build_scene
 from agrisim.plugins.plants.procedural import grow
 from agrisim.plugins.render.mitsuba.options import MitsubaOptions
 from agrisim.plugins.render.mitsuba.variant import newest_libllvm, resolve_variant

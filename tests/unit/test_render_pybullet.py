@@ -5,12 +5,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from agrisim.scene.camera import from_fov
 from agrisim.config import RenderConfig
-from agrisim.scene.transforms import look_at
 from agrisim.plugins.render.pybullet_render import PybulletRenderOptions, agrisim_renderers
 from agrisim.plugins.render.pybullet_render.renderer import PybulletRenderer
+from agrisim.scene.camera import from_fov
 from agrisim.scene.model import Label, LabelTable, Light, Material, Mesh, Scene
+from agrisim.scene.transforms import look_at
 
 
 def quad(name: str, half: float, z: float, material: Material) -> Mesh:
@@ -28,7 +28,9 @@ def scene() -> Scene:
     albedo[:, 4:, 3] = 255
     plant = quad("plant", 0.1, 0.3, Material("leaf", albedo=albedo, alpha_mode="MASK", label=1))
     light = Light("sun", "area", np.array([0.0, 0.0, 3.0]), np.array([0.0, 0.0, -1.0]))
-    return Scene([floor, plant], [light], LabelTable([Label(0, "background", (0, 0, 0)), Label(1, "plant", (0, 255, 0))]))
+    return Scene(
+        [floor, plant], [light], LabelTable([Label(0, "background", (0, 0, 0)), Label(1, "plant", (0, 255, 0))])
+    )
 
 
 @pytest.fixture(scope="module")
@@ -96,8 +98,13 @@ def test_arms_are_drawn_at_their_link_poses(scene, cell, kin):
         cam = from_fov(90.0, 160, 120)
         T = look_at(np.array([0.3, -1.0, 1.6]), np.array([1.0, 0.0, 1.2]))
         with_arm = r.render(cam, T, poses)
-        far = {robot: {link: np.eye(4) @ np.diag([1, 1, 1, 1]) + np.array([[0, 0, 0, 50]] * 3 + [[0, 0, 0, 0]]) for link in links}
-               for robot, links in poses.items()}
+        far = {
+            robot: {
+                link: np.eye(4) @ np.diag([1, 1, 1, 1]) + np.array([[0, 0, 0, 50]] * 3 + [[0, 0, 0, 0]])
+                for link in links
+            }
+            for robot, links in poses.items()
+        }
         without = r.render(cam, T, far)
         assert (with_arm.depth != without.depth).mean() > 0.05
     finally:

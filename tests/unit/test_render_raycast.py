@@ -13,14 +13,14 @@ import numpy as np
 import open3d as o3d
 import pytest
 
-from agrisim.scene import texturing
-from agrisim.scene.camera import from_fov
 from agrisim.config import RenderConfig
 from agrisim.interfaces import CameraModel
-from agrisim.scene.model import Label, LabelTable, Light, Material, Mesh, Scene
-from agrisim.plugins.render.raycast.materials import SRGB_TO_LINEAR, MaterialTable
 from agrisim.plugins.render.raycast import RaycastOptions
+from agrisim.plugins.render.raycast.materials import SRGB_TO_LINEAR, MaterialTable
 from agrisim.plugins.render.raycast.renderer import RaycastRenderer
+from agrisim.scene import texturing
+from agrisim.scene.camera import from_fov
+from agrisim.scene.model import Label, LabelTable, Light, Material, Mesh, Scene
 
 CAMERA = from_fov(60.0, 160, 120)
 
@@ -205,7 +205,9 @@ def card_scene(with_labels: bool = True) -> Scene:
     # Card in the plane y = 0 facing -y; UV (0,0) top-left seen from the camera at -y.
     card = quad("plant", [[-0.3, 0, 0.8], [0.3, 0, 0.8], [0.3, 0, 0.2], [-0.3, 0, 0.2]], leaf)
     wall = quad("wall", [[-3, 1, -2], [3, 1, -2], [3, 1, 3], [-3, 1, 3]], Material("wall", color=(0.8, 0.1, 0.1, 1.0)))
-    table = LabelTable([Label(0, "background", (0, 0, 0)), Label(3, "leaf", (0, 255, 0)), Label(5, "vein", (80, 0, 80))])
+    table = LabelTable(
+        [Label(0, "background", (0, 0, 0)), Label(3, "leaf", (0, 255, 0)), Label(5, "vein", (80, 0, 80))]
+    )
     return Scene([card, wall], LIGHTS, table)
 
 

@@ -30,8 +30,8 @@ def assert_same_mesh(a, b) -> None:  # noqa: ANN001
     np.testing.assert_array_equal(a.vertices.astype(np.float32), b.vertices)
     names_a = [m.name for m in a.materials]
     names_b = [m.name for m in b.materials]
-    fa = sorted((names_a[i], tuple(f)) for i, f in zip(a.face_material.tolist(), a.faces.tolist()))
-    fb = sorted((names_b[i], tuple(f)) for i, f in zip(b.face_material.tolist(), b.faces.tolist()))
+    fa = sorted((names_a[i], tuple(f)) for i, f in zip(a.face_material.tolist(), a.faces.tolist(), strict=True))
+    fb = sorted((names_b[i], tuple(f)) for i, f in zip(b.face_material.tolist(), b.faces.tolist(), strict=True))
     assert fa == fb
     if a.uvs is None:
         assert b.uvs is None
@@ -50,8 +50,8 @@ def assert_same_mesh(a, b) -> None:  # noqa: ANN001
             else:
                 np.testing.assert_array_equal(getattr(ma, f), getattr(mb, f))
     if a.face_instance is not None:
-        order_a = sorted(zip(a.faces.tolist(), a.face_instance.tolist()))
-        order_b = sorted(zip(b.faces.tolist(), b.face_instance.tolist()))
+        order_a = sorted(zip(a.faces.tolist(), a.face_instance.tolist(), strict=True))
+        order_b = sorted(zip(b.faces.tolist(), b.face_instance.tolist(), strict=True))
         assert order_a == order_b
 
 
@@ -62,10 +62,10 @@ def test_the_lab_reads_back_as_it_was_written(lab, tmp_path):
     assert back.plant == lab.plant
     assert back.labels == lab.labels
     assert [m.name for m in back.meshes] == [m.name for m in lab.meshes if len(m.faces)]
-    for a, b in zip([m for m in lab.meshes if len(m.faces)], back.meshes):
+    for a, b in zip([m for m in lab.meshes if len(m.faces)], back.meshes, strict=True):
         assert_same_mesh(a, b)
     assert len(back.lights) == len(lab.lights)
-    for a, b in zip(lab.lights, back.lights):
+    for a, b in zip(lab.lights, back.lights, strict=True):
         assert dataclasses.astuple(a)[0:2] == dataclasses.astuple(b)[0:2]
         np.testing.assert_array_equal(a.position, b.position)
         np.testing.assert_array_equal(a.direction, b.direction)
@@ -73,7 +73,7 @@ def test_the_lab_reads_back_as_it_was_written(lab, tmp_path):
     assert list(back.arms) == list(lab.arms)
     for robot in lab.arms:
         assert [link for link, _ in back.arms[robot]] == [link for link, _ in lab.arms[robot]]
-        for (_, a), (_, b) in zip(lab.arms[robot], back.arms[robot]):
+        for (_, a), (_, b) in zip(lab.arms[robot], back.arms[robot], strict=True):
             assert_same_mesh(a, b)
 
 

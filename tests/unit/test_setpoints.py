@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import itertools
+
 import numpy as np
 import pytest
 
@@ -34,7 +36,7 @@ def test_hemisphere_matches_the_paper(cell):
 
 def test_snake_order_keeps_neighbours_adjacent(cell):
     points = hemisphere(cell, RoutineConfig())["r1"]
-    steps = [np.linalg.norm(a.world_T_camera[:3, 3] - b.world_T_camera[:3, 3]) for a, b in zip(points, points[1:])]
+    steps = [np.linalg.norm(a.world_T_camera[:3, 3] - b.world_T_camera[:3, 3]) for a, b in itertools.pairwise(points)]
     # consecutive setpoints are neighbours: no jump across the hemisphere between levels
     assert max(steps) < 0.2
     assert [p.frame for p in points[:2]] == ["r1_000", "r1_001"]

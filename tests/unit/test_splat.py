@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import trimesh
+from conftest import small_run
 from skimage.metrics import peak_signal_noise_ratio, structural_similarity
 
 from agrisim.errors import OutputError, UserError
@@ -20,7 +21,6 @@ from agrisim.plugins.recon.splat.quality import psnr, ssim
 from agrisim.plugins.recon.splat.split import minimum_views, split_views
 from agrisim.scene.model import Label, LabelTable
 from agrisim.scene.transforms import look_at
-from conftest import small_run
 
 FRAMES = [f"r{1 + i % 2}_{i // 2:03d}" for i in range(100)]
 
@@ -77,7 +77,9 @@ def test_psnr_and_ssim_agree_with_scikit_image() -> None:
     a = _natural(rng, (64, 80, 3))
     b = np.clip(a + rng.normal(0, 0.05, a.shape), 0, 1)
     assert psnr(a, b) == pytest.approx(peak_signal_noise_ratio(a, b, data_range=1.0), rel=1e-12)
-    reference = structural_similarity(a, b, data_range=1.0, channel_axis=2, gaussian_weights=True, sigma=1.5, use_sample_covariance=False)
+    reference = structural_similarity(
+        a, b, data_range=1.0, channel_axis=2, gaussian_weights=True, sigma=1.5, use_sample_covariance=False
+    )
     assert ssim(a, b) == pytest.approx(reference, abs=1e-9)
     assert ssim(a, a) == pytest.approx(1.0) and psnr(a, a) == float("inf")
     mask = rng.random(a.shape[:2]) < 0.3
@@ -117,7 +119,13 @@ def test_an_existing_splat_folder_needs_overwrite(tmp_path: Path) -> None:
 
 
 def _run(out: Path, hide_robots: bool) -> Path:
-    return small_run(out, plant="indian_cress", render={"hide_robots": hide_robots}, camera={"resolution": "64x36"}, recon={"backend": "none"})
+    return small_run(
+        out,
+        plant="indian_cress",
+        render={"hide_robots": hide_robots},
+        camera={"resolution": "64x36"},
+        recon={"backend": "none"},
+    )
 
 
 @pytest.fixture(scope="module")
@@ -182,5 +190,8 @@ def test_a_replaced_folder_keeps_nothing_stale(tmp_path: Path) -> None:
 
     write_reconstruction(tmp_path, Reconstruction(files={"splat/test/a.png": b"1", "splat/split.json": b"{}"}), {})
     write_reconstruction(tmp_path, Reconstruction(files={"splat/test/b.png": b"2", "splat/split.json": b"[]"}), {})
-    assert sorted(str(p.relative_to(tmp_path / "splat")) for p in (tmp_path / "splat").rglob("*") if p.is_file()) == ["split.json", "test/b.png"]
+    assert sorted(str(p.relative_to(tmp_path / "splat")) for p in (tmp_path / "splat").rglob("*") if p.is_file()) == [
+        "split.json",
+        "test/b.png",
+    ]
     assert (tmp_path / "splat" / "split.json").read_bytes() == b"[]"

@@ -45,7 +45,7 @@ def agrisim_physics() -> list[BackendSpec]:
     return [
         BackendSpec(
             name="kinematic",
-            factory=lazy('agrisim.plugins.physics.kinematic.backend:KinematicPhysics'),
+            factory=lazy("agrisim.plugins.physics.kinematic.backend:KinematicPhysics"),
             description="perfect tracking on Pinocchio kinematics with coal collision checks; no dynamics, no pybullet",
             options_model=KinematicOptions,
             limits="no dynamics: arms follow plans exactly and contacts are reported, never resolved or felt",

@@ -38,7 +38,7 @@ def agrisim_physics() -> list[BackendSpec]:
     return [
         BackendSpec(
             name="pybullet",
-            factory=lazy('agrisim.plugins.physics.pybullet_physics.backend:BulletPhysics'),
+            factory=lazy("agrisim.plugins.physics.pybullet_physics.backend:BulletPhysics"),
             description="pybullet dynamics (DIRECT), joint position motors with configurable gains and force limits",
             options_model=BulletOptions,
             limits="rigid bodies only; contacts are detected and reported, not resolved into the plan",

@@ -89,7 +89,9 @@ class _World:
         self.arms: dict[str, int] = {}
         self.self_pairs: dict[str, list[tuple[int, int]]] = {}
         self._self_index: dict[str, tuple[np.ndarray, np.ndarray]] = {}  # self_pairs as rows of bounds
-        self._others_cache: dict[tuple[str, str | None], tuple[list[tuple[int, list[int]]], np.ndarray, np.ndarray]] = {}
+        self._others_cache: dict[
+            tuple[str, str | None], tuple[list[tuple[int, list[int]]], np.ndarray, np.ndarray]
+        ] = {}
         self.joints: dict[str, list[int]] = {}
         self.links: dict[str, dict[int, str]] = {}
         flags = pb.URDF_USE_SELF_COLLISION | pb.URDF_USE_SELF_COLLISION_EXCLUDE_PARENT | pb.URDF_USE_INERTIA_FROM_FILE
@@ -120,6 +122,7 @@ class _World:
                     fixed.add(j)
             self.joints[arm.name] = [by_name[n] for n in arm.joints]
             self.links[arm.name] = links
+
             # Links welded by fixed joints form one rigid part (flange, ee_link, camera): each
             # link's part is named by its first ancestor behind a moving joint. Parts touching
             # themselves or their parent part is not a collision, nor the base part its stand.
@@ -142,7 +145,10 @@ class _World:
                         pairs.append((a, b))
             self.self_pairs[arm.name] = pairs
             index = {j: i for i, j in enumerate(shaped)}  # link -> row of its bounds
-            self._self_index[arm.name] = (np.array([index[a] for a, _ in pairs], np.intp), np.array([index[b] for _, b in pairs], np.intp))
+            self._self_index[arm.name] = (
+                np.array([index[a] for a, _ in pairs], np.intp),
+                np.array([index[b] for _, b in pairs], np.intp),
+            )
             self.shaped[arm.name] = shaped
             self.shaped_by_body[body] = shaped
             stand = self.bodies[arm.stand]
@@ -171,7 +177,11 @@ class _World:
         key = (robot, only)
         if key not in self._others_cache:
             body = self.arms[robot]
-            others = [(o, ol) for o, ol in self.shaped_by_body.items() if o != body] if only is None else [(self.arms[only], self.shaped[only])]
+            others = (
+                [(o, ol) for o, ol in self.shaped_by_body.items() if o != body]
+                if only is None
+                else [(self.arms[only], self.shaped[only])]
+            )
             owner = np.repeat(np.arange(len(others)), [len(ol) for _, ol in others])
             column = np.concatenate([np.arange(len(ol)) for _, ol in others])
             self._others_cache[key] = (others, owner, column)

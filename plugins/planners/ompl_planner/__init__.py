@@ -13,7 +13,6 @@ from agrisim import BackendSpec, Options, hookimpl
 from agrisim.kinds import lazy
 
 
-
 class OmplOptions(Options):
     """Options of the OMPL planner."""
 
@@ -50,7 +49,7 @@ def agrisim_planners() -> list[BackendSpec]:
     return [
         BackendSpec(
             name="ompl",
-            factory=lazy('agrisim.plugins.planners.ompl_planner.backend:OmplPlanner'),
+            factory=lazy("agrisim.plugins.planners.ompl_planner.backend:OmplPlanner"),
             description="any OMPL geometric planner by name (default RRTConnect), 2 s x 5 attempts, simplified",
             options_model=OmplOptions,
             limits="geometric planners of the installed OMPL, by name (an unknown name is refused with the list)",

@@ -29,11 +29,10 @@ from typing import Any, Literal
 import numpy as np
 from pydantic import Field
 
-from agrisim.scene.model import PLANT_FIT_HEIGHT, PLANT_FIT_RADIUS
 from agrisim import BackendSpec, Options, hookimpl
 from agrisim.errors import UserError
 from agrisim.interfaces import PlantSpecies
-from agrisim.scene.model import Mesh, Plant
+from agrisim.scene.model import PLANT_FIT_HEIGHT, PLANT_FIT_RADIUS, Mesh, Plant
 
 from . import convert as hc
 
@@ -203,7 +202,7 @@ def _fit(mesh: Mesh, name: str, age: float, fit: str) -> tuple[Mesh, str]:
     size = f"{name} at {age:g} days reaches {radius:.2f} m from its stem and {height:.2f} m high"
     limit = f"the routine's cameras allow {PLANT_FIT_RADIUS:.2f} m and {PLANT_FIT_HEIGHT:.2f} m"
     if fit == "refuse":
-        raise UserError(f"{size}; {limit}: give a younger --plant-age or set plants.\"{name}\".fit = \"scale\"")
+        raise UserError(f'{size}; {limit}: give a younger --plant-age or set plants."{name}".fit = "scale"')
     scaled = Mesh(mesh.name, v * scale, mesh.faces, mesh.materials, mesh.face_material, mesh.uvs, mesh.face_instance)
     return scaled, f"{size}; scaled by {scale:.3f} to fit ({limit})"
 
@@ -244,7 +243,7 @@ def agrisim_plants() -> list[BackendSpec]:
             factory=species_class(model),
             description=f"{model} grown by PyHelios {version} (default age {default_age(model):g} days)",
             options_model=HeliosPlantOptions,
-            limits="shrunk to fit the routine's 0.27 x 0.39 m cylinder when larger (fit = \"refuse\" refuses instead)",
+            limits='shrunk to fit the routine\'s 0.27 x 0.39 m cylinder when larger (fit = "refuse" refuses instead)',
         )
         for model in models
     ]
@@ -263,5 +262,5 @@ def agrisim_plant_unavailable(name: str) -> str | None:
         return f"plant {name!r}: {exc}"
     models = available_models()
     if name[len(PREFIX) :] not in models:
-        return f"unknown Helios model {name[len(PREFIX):]!r}; models: {', '.join(models)}"
+        return f"unknown Helios model {name[len(PREFIX) :]!r}; models: {', '.join(models)}"
     return None

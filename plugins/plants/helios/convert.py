@@ -31,17 +31,16 @@ from typing import Any
 
 import numpy as np
 
-from agrisim.scene.model import LEAF_ROUGHNESS, LEAF_TRANSMITTANCE, Label, LabelTable, Material, Mesh
-
 from agrisim.scene.colour import srgb_to_linear
+from agrisim.scene.model import LEAF_ROUGHNESS, LEAF_TRANSMITTANCE, Label, LabelTable, Material, Mesh
 from agrisim.scene.palette import PALETTE
-
 
 #: The organ labels of every Helios plant. Ids are fixed across models and ages, so a dataset of
 #: several Helios plants uses one id per organ; a plant's table lists only the organs it has.
 #: Colours are agrisim's one palette (the paper's); "stem" is Helios's internodes.
 ORGANS: tuple[Label, ...] = tuple(
-    Label(i, name, PALETTE[name]) for i, name in enumerate(("leaf", "stem", "petiole", "peduncle", "flower", "fruit"), 1)
+    Label(i, name, PALETTE[name])
+    for i, name in enumerate(("leaf", "stem", "petiole", "peduncle", "flower", "fruit"), 1)
 )
 ORGAN_IDS: dict[str, int] = {lab.name: lab.id for lab in ORGANS}
 

@@ -34,6 +34,7 @@ def grow_boston_fern(geo, tex, size, density) -> Grown:
         "rachis": (0.35, 0.45, 0.18),
     }
     aspect = 0.17
+
     def env(Y: np.ndarray) -> np.ndarray:
         return np.sin(np.pi * np.clip(Y, 0, 1) ** 0.5) ** 0.4
 
@@ -74,6 +75,7 @@ def grow_boston_fern(geo, tex, size, density) -> Grown:
     path[:, 0, 2] = -0.004
     add_tubes(b, path, 0.0016, 5)
     return Grown(b, atlas, labels_for("leaf", "stem"), (0.3, 0.35, 0.15))
+
 
 def grow_basket_grass(geo, tex, size, density) -> Grown:
     """Basket grass (Lomandra-like): a dense clump of fine, arching, strap-like blades; each
@@ -117,6 +119,7 @@ def grow_basket_grass(geo, tex, size, density) -> Grown:
     )
     return Grown(b, atlas, labels_for("leaf", "stem"), (0.6, 0.55, 0.32))
 
+
 def grow_common_fern(geo, tex, size, density) -> Grown:
     """Common (male) fern (Dryopteris filix-mas): a shuttlecock of upright, lanceolate, bipinnate
     fronds on short brown stipes."""
@@ -128,6 +131,7 @@ def grow_common_fern(geo, tex, size, density) -> Grown:
         "vein": (0.45, 0.62, 0.25),
         "rachis": (0.38, 0.42, 0.18),
     }
+
     def env(Y: np.ndarray) -> np.ndarray:
         return np.sin(np.pi * np.clip(Y, 0, 1) ** 0.75) ** 0.7
 

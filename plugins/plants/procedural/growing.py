@@ -24,7 +24,9 @@ CARDS, STEMS, WOOD = 0, 1, 2  # material slots
 
 def labels_for(*organs: str) -> LabelTable:
     """The label table of a species with these organs (ids in this order from 1)."""
-    return LabelTable([Label(0, "background", BACKGROUND)] + [Label(i + 1, n, PALETTE[n]) for i, n in enumerate(organs)])
+    return LabelTable(
+        [Label(0, "background", BACKGROUND)] + [Label(i + 1, n, PALETTE[n]) for i, n in enumerate(organs)]
+    )
 
 
 @dataclass

@@ -122,6 +122,7 @@ def grow_indian_cress(geo, tex, size, density) -> Grown:
     )
     return Grown(b, atlas, labels_for("leaf", "stem", "flower"), (0.42, 0.58, 0.24))
 
+
 # A species' recipe, organ by organ, reads top to bottom as the plant is built.
 def grow_amaryllis(geo, tex, size, density) -> Grown:
     """Amaryllis (Hippeastrum): a bulb with long arching strap leaves and a tall hollow scape
@@ -234,6 +235,7 @@ def grow_amaryllis(geo, tex, size, density) -> Grown:
     b.add(V, F, UV, CARDS, 0)
     return Grown(b, atlas, labels_for("leaf", "stem", "flower"), (0.3, 0.5, 0.2), wood_colour=(0.55, 0.4, 0.25))
 
+
 def grow_bog_marshcress(geo, tex, size, density) -> Grown:
     """Bog marshcress (Rorippa palustris): a small rosette of deeply lobed leaves with a couple
     of short branched stems bearing tiny yellow flowers."""
@@ -314,6 +316,7 @@ def grow_bog_marshcress(geo, tex, size, density) -> Grown:
     )
     return Grown(b, atlas, labels_for("leaf", "stem", "flower"), (0.36, 0.45, 0.2))
 
+
 def grow_chinese_evergreen(geo, tex, size, density) -> Grown:
     """Chinese evergreen (Aglaonema): broad, silver-patterned lanceolate leaves on sheathing
     petioles around a few short, thick canes."""
@@ -384,6 +387,7 @@ def grow_chinese_evergreen(geo, tex, size, density) -> Grown:
     )
     b.add(V, F, UV, CARDS, b.instances(n))
     return Grown(b, atlas, labels_for("leaf", "stem"), (0.45, 0.58, 0.38))
+
 
 def grow_coltsfoot(geo, tex, size, density) -> Grown:
     """Coltsfoot (Tussilago farfara): heart-shaped, coarsely toothed leaves on long petioles

@@ -78,6 +78,7 @@ def strip_cards(
     """
     base = np.asarray(base, float)
     n = len(base)
+
     def b(x: object) -> np.ndarray:
         return np.broadcast_to(np.asarray(x, float), (n,))
 

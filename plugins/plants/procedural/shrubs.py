@@ -176,6 +176,7 @@ def grow_hydrangea(geo, tex, size, density) -> Grown:
         wood_colour=(0.42, 0.33, 0.22),
     )
 
+
 def grow_boxwood(geo, tex, size, density) -> Grown:
     """Boxwood (Buxus sempervirens), clipped into a ball: tens of thousands of small, solid,
     glossy leaves as real polygons on a short trunk; opacity cuts (almost) nothing."""

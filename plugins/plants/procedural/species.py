@@ -48,4 +48,3 @@ SPECIES: dict[str, tuple[Callable[..., Grown], int, str]] = {
         "Common (male) fern: upright bipinnate fronds in a shuttlecock (alpha cards)",
     ),
 }
-

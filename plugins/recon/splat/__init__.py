@@ -35,7 +35,9 @@ def preflight(config: Any, options: SplatOptions) -> None:
     """Refuse before anything runs when gsplat is not installed (the core checks the GPU and
     the hidden arms, which the capabilities declare)."""
     if importlib.util.find_spec("gsplat") is None:
-        raise ConfigError("reconstructor 'splat' needs gsplat: pip install 'agrisim[splat]' (PyTorch with CUDA, gsplat)")
+        raise ConfigError(
+            "reconstructor 'splat' needs gsplat: pip install 'agrisim[splat]' (PyTorch with CUDA, gsplat)"
+        )
 
 
 @hookimpl
@@ -46,7 +48,9 @@ def agrisim_reconstructors() -> list[BackendSpec]:
             factory=lazy("agrisim.plugins.recon.splat.reconstructor:SplatReconstructor"),
             options_model=SplatOptions,
             description="3D Gaussian splatting (gsplat) on the views with true poses; held-out PSNR/SSIM, depth and splat-centre accuracy",
-            capabilities=ReconstructorCapabilities(clouds=True, needs_cuda=True, needs_hidden_robots=True, folder=FOLDER),
+            capabilities=ReconstructorCapabilities(
+                clouds=True, needs_cuda=True, needs_hidden_robots=True, folder=FOLDER
+            ),
             preflight=preflight,
         )
     ]

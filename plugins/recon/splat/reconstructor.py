@@ -38,7 +38,9 @@ VISIBLE_WITHIN = 0.01
 def error_ramp(error: np.ndarray) -> np.ndarray:
     """|truth - render| (0..1, H x W) as a black-red-yellow-white ramp, 4x amplified (H x W x 3)."""
     e = np.clip(error * 4.0, 0.0, 1.0)
-    return (np.stack([np.clip(3 * e, 0, 1), np.clip(3 * e - 1, 0, 1), np.clip(3 * e - 2, 0, 1)], -1) * 255 + 0.5).astype(np.uint8)
+    return (
+        np.stack([np.clip(3 * e, 0, 1), np.clip(3 * e - 1, 0, 1), np.clip(3 * e - 2, 0, 1)], -1) * 255 + 0.5
+    ).astype(np.uint8)
 
 
 def png(image: np.ndarray) -> bytes:
@@ -146,7 +148,7 @@ class SplatReconstructor(Reconstructor):
         rows = []
         depth_errors = []
         height, width = images[0].shape[:2]
-        for v, vm, K in zip(test, test_viewmats, test_Ks):
+        for v, vm, K in zip(test, test_viewmats, test_Ks, strict=True):
             truth = small(v.images.rgb)
             render, depth = gs.render_view(params, vm, K, width, height, o.sh_degree)
             plant = downscale_image((v.images.labels != 0).astype(np.float32), o.downscale) == 1.0
@@ -182,7 +184,10 @@ class SplatReconstructor(Reconstructor):
         geometry = {
             "plant_gaussians": int(plant.sum()),
             "truth_points": int(len(truth_points)),
-            **{f"precision@{t}mm": float(np.mean(precision_d <= t / 1000.0)) if len(precision_d) else 0.0 for t in (2, 5)},
+            **{
+                f"precision@{t}mm": float(np.mean(precision_d <= t / 1000.0)) if len(precision_d) else 0.0
+                for t in (2, 5)
+            },
             **{f"recall@{t}mm": float(np.mean(recall_d <= t / 1000.0)) for t in (2, 5)},
         }
 
@@ -215,7 +220,9 @@ class SplatReconstructor(Reconstructor):
         )
         split = {"seed": o.seed, "test_fraction": o.test_fraction, "train": train_frames, "test": test_frames}
         files[f"{FOLDER}/split.json"] = (json.dumps(split, indent=1) + "\n").encode()
-        files[f"{FOLDER}/loss.csv"] = ("step,loss,gaussians\n" + "".join(f"{s},{x:.6f},{n}\n" for s, x, n in splats.loss)).encode()
+        files[f"{FOLDER}/loss.csv"] = (
+            "step,loss,gaussians\n" + "".join(f"{s},{x:.6f},{n}\n" for s, x, n in splats.loss)
+        ).encode()
 
         colors = splats.colors
         sigma = np.exp(splats.log_scales[plant].mean(axis=1))

@@ -155,7 +155,14 @@ def fit(
     rgb = torch.as_tensor(init_colors, dtype=torch.float32, device=device) / 255.0
     n = len(points)
     k = (options.sh_degree + 1) ** 2 - 1
-    lrs = {"means": 1.6e-4 * scene_scale, "scales": 5e-3, "quats": 1e-3, "opacities": 5e-2, "sh0": 2.5e-3, "shN": 2.5e-3 / 20}
+    lrs = {
+        "means": 1.6e-4 * scene_scale,
+        "scales": 5e-3,
+        "quats": 1e-3,
+        "opacities": 5e-2,
+        "sh0": 2.5e-3,
+        "shN": 2.5e-3 / 20,
+    }
     params = torch.nn.ParameterDict(
         {
             "means": torch.nn.Parameter(points),
@@ -166,7 +173,10 @@ def fit(
             "shN": torch.nn.Parameter(torch.zeros((n, k, 3), device=device)),
         }
     )
-    optimizers = {name: torch.optim.Adam([{"params": params[name], "lr": lr, "name": name}], eps=1e-15) for name, lr in lrs.items()}
+    optimizers = {
+        name: torch.optim.Adam([{"params": params[name], "lr": lr, "name": name}], eps=1e-15)
+        for name, lr in lrs.items()
+    }
     decay = torch.optim.lr_scheduler.ExponentialLR(optimizers["means"], gamma=0.01 ** (1.0 / options.iterations))
     strategy = DefaultStrategy(verbose=False)
     strategy.check_sanity(params, optimizers)
@@ -184,7 +194,9 @@ def fit(
             background = torch.rand(3, generator=generator).to(device)
         else:
             background = torch.full((3,), 1.0 if options.background == "white" else 0.0, device=device)
-        image, _, _, info = render(params, vm[i], ks[i], width, height, min(step // 1000, options.sh_degree), background)
+        image, _, _, info = render(
+            params, vm[i], ks[i], width, height, min(step // 1000, options.sh_degree), background
+        )
         strategy.step_pre_backward(params, optimizers, state, step, info)
         l1 = F.l1_loss(image, target)
         ssim = _ssim(image.permute(2, 0, 1)[None], target.permute(2, 0, 1)[None])

@@ -83,4 +83,3 @@ def agrisim_renderers() -> list[BackendSpec]:
             preflight=preflight,
         )
     ]
-

@@ -26,7 +26,9 @@ CV_TO_MITSUBA = np.diag([-1.0, -1.0, 1.0, 1.0])
 def check_square_pixels(camera: CameraModel) -> None:
     """Mitsuba's perspective camera has square pixels: refuse fx != fy."""
     if not math.isclose(camera.fx, camera.fy, rel_tol=1e-9):
-        raise ConfigError(f"renderer 'mitsuba' needs square pixels (fx == fy); this camera has fx {camera.fx}, fy {camera.fy}")
+        raise ConfigError(
+            f"renderer 'mitsuba' needs square pixels (fx == fy); this camera has fx {camera.fx}, fy {camera.fy}"
+        )
 
 
 def load_sensor(mi, camera: CameraModel, world_T_camera: np.ndarray, spp: int):  # noqa: ANN001, ANN201 - mitsuba's types

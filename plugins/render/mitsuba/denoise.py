@@ -73,7 +73,12 @@ def denoise(colour, aux) -> np.ndarray:  # noqa: ANN001 - Dr.Jit tensors or arra
     if "cuda" in type(colour).__module__ and _cuda_torch() is not None:
         c, a = colour.torch(), aux.torch()
         albedo, normal = a[..., 0:3].contiguous(), a[..., 3:6].contiguous()
-        return pyoidn.denoise(c[..., :3].contiguous(), albedo, normal, hdr=True).cpu().numpy().astype(np.float32, copy=False)
+        return (
+            pyoidn.denoise(c[..., :3].contiguous(), albedo, normal, hdr=True)
+            .cpu()
+            .numpy()
+            .astype(np.float32, copy=False)
+        )
     c, a = np.asarray(colour, np.float32), np.asarray(aux, np.float32)
     albedo, normal = np.ascontiguousarray(a[..., 0:3]), np.ascontiguousarray(a[..., 3:6])
     return np.asarray(pyoidn.denoise(np.ascontiguousarray(c[..., :3]), albedo, normal, hdr=True), np.float32)

@@ -46,7 +46,10 @@ class MitsubaRenderer(Renderer):
         # re-render of it (agrisim render) trace exactly the same triangles.
         self._unrounded_arms = {} if settings.hide_robots else self._load_arms(scene, cell, options)
         self._arms = {
-            arm: [(link, Mesh(m.name, m.vertices.astype(F32), m.faces, m.materials, m.face_material, m.uvs)) for link, m in links]
+            arm: [
+                (link, Mesh(m.name, m.vertices.astype(F32), m.faces, m.materials, m.face_material, m.uvs))
+                for link, m in links
+            ]
             for arm, links in self._unrounded_arms.items()
         }
         self._tracer: SceneTracer | None = None
@@ -69,7 +72,9 @@ class MitsubaRenderer(Renderer):
             return {}
         from agrisim.robot.visuals import arm_link_meshes
 
-        return {a.name: [(lm.link, lm.mesh) for lm in arm_link_meshes(a.urdf, options.arm_triangles)] for a in cell.arms}
+        return {
+            a.name: [(lm.link, lm.mesh) for lm in arm_link_meshes(a.urdf, options.arm_triangles)] for a in cell.arms
+        }
 
     @property
     def tracer(self) -> SceneTracer:
@@ -78,7 +83,9 @@ class MitsubaRenderer(Renderer):
             from agrisim.plugins.render.raycast import RaycastOptions
             from agrisim.plugins.render.raycast.tracing import SceneTracer
 
-            options = RaycastOptions(near=self.options.near, arm_triangles=self.options.arm_triangles, variant=self.options.variant)
+            options = RaycastOptions(
+                near=self.options.near, arm_triangles=self.options.arm_triangles, variant=self.options.variant
+            )
             self._tracer = SceneTracer(self.scene, None, options, arms=self._unrounded_arms)
         return self._tracer
 
@@ -99,7 +106,7 @@ class MitsubaRenderer(Renderer):
         key = np.stack(poses).tobytes()
         if key == self._arm_key:
             return
-        for part, T in zip(self.arm_parts, poses):
+        for part, T in zip(self.arm_parts, poses, strict=True):
             v = part.vertices @ T[:3, :3].T + T[:3, 3]
             self.params[part.key] = self.mi.Float(np.ascontiguousarray(v, F32).ravel())
         self.params.update()
@@ -127,7 +134,9 @@ class MitsubaRenderer(Renderer):
         radiance = np.ascontiguousarray(self.radiance(camera, world_T_camera), F32)
         rgb = np.empty((H * W, 3), np.uint8)
         linear = radiance.reshape(-1, 3)
-        encode_srgb8(linear.copy() if self.options.radiance else linear, rgb, self.options.exposure, self.options.tonemap)
+        encode_srgb8(
+            linear.copy() if self.options.radiance else linear, rgb, self.options.exposure, self.options.tonemap
+        )
         return rgb.reshape(H, W, 3), (radiance.reshape(H, W, 3) if self.options.radiance else None)
 
     def render(
@@ -141,9 +150,13 @@ class MitsubaRenderer(Renderer):
         tracer = self.tracer
         if tracer.arms:
             tracer.place_arms(link_poses)
-        exact = tracer.exact(camera, world_T_camera, seg_mode=self.settings.seg_mode, label_map=label_map(self.settings.labels))
+        exact = tracer.exact(
+            camera, world_T_camera, seg_mode=self.settings.seg_mode, label_map=label_map(self.settings.labels)
+        )
         rgb, radiance = self.render_rgb(camera, world_T_camera, link_poses)
-        return Frame(rgb=rgb, labels=exact["labels"], depth=exact["depth"], instances=exact.get("instances"), radiance=radiance)
+        return Frame(
+            rgb=rgb, labels=exact["labels"], depth=exact["depth"], instances=exact.get("instances"), radiance=radiance
+        )
 
     def close(self) -> None:
         if self._tracer is not None:

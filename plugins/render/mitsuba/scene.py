@@ -22,8 +22,8 @@ import numpy as np
 from agrisim.errors import ConfigError
 from agrisim.scene.model import Light, Mesh
 
-from .options import MitsubaOptions
 from .materials import BsdfFactory, mirrored_faces
+from .options import MitsubaOptions
 
 F32 = np.float32
 #: readable environment maps
@@ -36,7 +36,9 @@ def check_envmap(path: Path) -> None:
     if not p.is_file():
         raise ConfigError(f"[renderer.mitsuba] envmap {p}: no such file")
     if p.suffix.lower() not in ENVMAP_SUFFIXES:
-        raise ConfigError(f"[renderer.mitsuba] envmap {p}: not an image Mitsuba reads (allowed: {', '.join(ENVMAP_SUFFIXES)})")
+        raise ConfigError(
+            f"[renderer.mitsuba] envmap {p}: not an image Mitsuba reads (allowed: {', '.join(ENVMAP_SUFFIXES)})"
+        )
     try:
         with p.open("rb") as f:
             f.read(16)
@@ -83,7 +85,11 @@ def light_dict(light: Light, transform: Any) -> dict:
             "cutoff_angle": cone,
             "beam_width": 0.9 * cone,
         }
-    return {"type": "point", "position": [float(x) for x in light.position], "intensity": {"type": "rgb", "value": intensity}}
+    return {
+        "type": "point",
+        "position": [float(x) for x in light.position],
+        "intensity": {"type": "rgb", "value": intensity},
+    }
 
 
 def _split(mesh: Mesh) -> Iterable[tuple[int, bool, np.ndarray, np.ndarray, np.ndarray | None]]:
@@ -134,13 +140,21 @@ def build(
 
     def texture(data: np.ndarray, filter_type: str) -> Any:
         return mi.load_dict(
-            {"type": "bitmap", "data": mi.TensorXf(data), "raw": True, "filter_type": filter_type, "wrap_mode": "repeat"}
+            {
+                "type": "bitmap",
+                "data": mi.TensorXf(data),
+                "raw": True,
+                "filter_type": filter_type,
+                "wrap_mode": "repeat",
+            }
         )
 
     bsdfs = BsdfFactory(texture)
     made: dict[tuple[int, bool], Any] = {}  # (id(material), mirrored) -> BSDF, shared by meshes
 
-    def shape(name: str, mesh: Mesh, m: int, mirrored: bool, v: np.ndarray, f: np.ndarray, uv: np.ndarray | None) -> Any:
+    def shape(
+        name: str, mesh: Mesh, m: int, mirrored: bool, v: np.ndarray, f: np.ndarray, uv: np.ndarray | None
+    ) -> Any:
         material = mesh.materials[m]
         if (id(material), mirrored) not in made:
             made[id(material), mirrored] = mi.load_dict(bsdfs.bsdf(material, mirrored))
@@ -160,7 +174,9 @@ def build(
         if len(mesh.faces) == 0:
             continue
         for m, mirrored, v, f, uv in _split(mesh):
-            scene[f"mesh_{i:03d}_{m:03d}" + ("_mirrored" if mirrored else "")] = shape(f"{mesh.name}/{m}", mesh, m, mirrored, v, f, uv)
+            scene[f"mesh_{i:03d}_{m:03d}" + ("_mirrored" if mirrored else "")] = shape(
+                f"{mesh.name}/{m}", mesh, m, mirrored, v, f, uv
+            )
     for i, light in enumerate(lights):
         d = light_dict(light, mi.ScalarTransform4f)
         scene[f"light_{i:02d}"] = d

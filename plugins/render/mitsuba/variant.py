@@ -70,8 +70,10 @@ def resolve_variant(choice: str, renderer: str = "mitsuba") -> str:
         raise ConfigError(f"[renderer.{renderer}] variant {choice!r} is unknown; allowed: auto, cuda, llvm")
     cuda, llvm = _backends()
     if choice == "cuda" and not cuda:
-        raise ConfigError(f"[renderer.{renderer}] variant 'cuda' needs a usable NVIDIA GPU and driver; none found "
-                          "(use variant = 'llvm' or 'auto' for the CPU)")
+        raise ConfigError(
+            f"[renderer.{renderer}] variant 'cuda' needs a usable NVIDIA GPU and driver; none found "
+            "(use variant = 'llvm' or 'auto' for the CPU)"
+        )
     if choice == "llvm" and not llvm:
         raise ConfigError(f"[renderer.{renderer}] variant 'llvm': Dr.Jit found no usable libLLVM; {LLVM_HELP}")
     if choice == "auto":

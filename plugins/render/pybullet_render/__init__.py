@@ -18,7 +18,6 @@ from agrisim.capabilities import RendererCapabilities
 from agrisim.kinds import lazy
 
 
-
 class PybulletRenderOptions(Options):
     """Options of the pybullet (TinyRenderer) renderer."""
 
@@ -39,11 +38,11 @@ def agrisim_renderers() -> list[BackendSpec]:
     return [
         BackendSpec(
             name="pybullet",
-            factory=lazy('agrisim.plugins.render.pybullet_render.renderer:PybulletRenderer'),
+            factory=lazy("agrisim.plugins.render.pybullet_render.renderer:PybulletRenderer"),
             description="pybullet TinyRenderer (getCameraImage): the baseline, one directional light",
             options_model=PybulletRenderOptions,
             limits="no opacity cut-outs (masks are RepOpa-like), object-level mask only (label 1 = plant, "
             "no organs), one directional light, hard shadows only, depth ~0.5% off on large tilted triangles",
-            capabilities=RendererCapabilities(seg_modes=frozenset({"repopa"}))  # TinyRenderer ignores opacity,
+            capabilities=RendererCapabilities(seg_modes=frozenset({"repopa"})),  # TinyRenderer ignores opacity,
         )
     ]

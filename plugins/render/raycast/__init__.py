@@ -55,7 +55,6 @@ from agrisim.capabilities import SEG_MODES, RendererCapabilities
 from agrisim.kinds import lazy
 
 
-
 class RaycastOptions(Options):
     """Options of the raycast renderer."""
 
@@ -112,7 +111,7 @@ def agrisim_renderers() -> list[BackendSpec]:
     return [
         BackendSpec(
             name="raycast",
-            factory=lazy('agrisim.plugins.render.raycast.renderer:RaycastRenderer'),
+            factory=lazy("agrisim.plugins.render.raycast.renderer:RaycastRenderer"),
             description="Exact ray tracing on Dr.Jit (Embree on the CPU, OptiX on NVIDIA GPUs): exact depth and "
             "texture labels, alpha-tested cards, soft shadows",
             options_model=RaycastOptions,

@@ -140,8 +140,15 @@ class Engine:
                     continue
                 index = np.array([mats.add(m) for m in mesh.materials], np.int32)
                 name = f"arm{a}_{j:02d}"
-                arm_shapes[name + "_group"] = {"type": "shapegroup", "mesh": self._mesh(name, mesh.vertices.astype(F32), mesh.faces)}
-                arm_shapes[name] = {"type": "instance", "shapegroup": {"type": "ref", "id": name + "_group"}, "to_world": mi.ScalarTransform4f(_PARKED)}
+                arm_shapes[name + "_group"] = {
+                    "type": "shapegroup",
+                    "mesh": self._mesh(name, mesh.vertices.astype(F32), mesh.faces),
+                }
+                arm_shapes[name] = {
+                    "type": "instance",
+                    "shapegroup": {"type": "ref", "id": name + "_group"},
+                    "to_world": mi.ScalarTransform4f(_PARKED),
+                }
                 first_face[name] = n_faces
                 self.links.append(_Link(arm_name, link_name, name, len(self.links) + 1))
                 face_mat.append(index[mesh.face_material])
@@ -181,7 +188,11 @@ class Engine:
             self.params.keep([f"{link.instance}.to_world" for link in self.links])
         # Instances are told apart by their Mitsuba registry ids (what a hit's ``instance``
         # holds; 0 for a hit on a shape placed directly: the static mesh's first face is 0).
-        ids = {sh.id(): int(dr.reinterpret_array(mi.UInt32, mi.ShapePtr(sh))[0]) for layer in self.layers for sh in layer.shapes()}
+        ids = {
+            sh.id(): int(dr.reinterpret_array(mi.UInt32, mi.ShapePtr(sh))[0])
+            for layer in self.layers
+            for sh in layer.shapes()
+        }
         ids = {name: i for name, i in ids.items() if name in first_face}
         face0 = np.zeros(max(ids.values(), default=0) + 1, np.uint32)
         for name, registry_id in ids.items():
@@ -228,7 +239,7 @@ class Engine:
             return
         mi = self.mi
         rotation = np.tile(np.eye(3), (len(self.links) + 1, 1, 1))
-        for link, T in zip(self.links, poses):
+        for link, T in zip(self.links, poses, strict=True):
             self.params[f"{link.instance}.to_world"] = mi.Transform4f(T)
             rotation[link.slot] = T[:3, :3]
         self.params.update()
@@ -335,11 +346,20 @@ class Engine:
 
         inf = dr.full(mi.Float, dr.inf, n)
         state = (
-            mi.UInt32(0), dr.full(mi.Bool, True, n), dr.zeros(mi.Float, n), inf,
-            zero_i, dr.zeros(mi.Vector2f, n), dr.copy(zero_i), dr.zeros(mi.Vector2f, n), dr.copy(inf),
+            mi.UInt32(0),
+            dr.full(mi.Bool, True, n),
+            dr.zeros(mi.Float, n),
+            inf,
+            zero_i,
+            dr.zeros(mi.Vector2f, n),
+            dr.copy(zero_i),
+            dr.zeros(mi.Vector2f, n),
+            dr.copy(inf),
         )
         if walk:
-            _, _, _, t, face, b, raw_face, raw_b, raw_t = dr.while_loop(state, lambda layer, active, *_: active, body, label="agrisim_walk")
+            _, _, _, t, face, b, raw_face, raw_b, raw_t = dr.while_loop(
+                state, lambda layer, active, *_: active, body, label="agrisim_walk"
+            )
         else:
             _, _, _, t, face, b, raw_face, raw_b, raw_t = body(*state)
         t = t / length  # back to units of the rays' own directions

@@ -32,7 +32,6 @@ F32 = np.float32
 SRGB_TO_LINEAR = srgb_to_linear(np.arange(256) / 255.0).astype(F32)
 
 
-
 class MaterialTable:
     """Materials by index, their textures in flat buffers (build with :meth:`add`, then
     :meth:`finish`)."""
@@ -131,7 +130,9 @@ class MaterialArrays:
         self.alb_rgb = mi.Float(table.alb_rgb.reshape(-1))
         self.alb_size = (mi.Float(table.alb_wf), mi.Float(table.alb_hf))
         self.lab_flat = mi.UInt32(table.lab_flat.astype(np.uint32))
-        self.alb = tuple(mi.UInt32(a.astype(np.uint32)) for a in (table.alb_off, table.alb_h, table.alb_w, table.alb_stride))
+        self.alb = tuple(
+            mi.UInt32(a.astype(np.uint32)) for a in (table.alb_off, table.alb_h, table.alb_w, table.alb_stride)
+        )
         self.lab = tuple(mi.UInt32(a.astype(np.uint32)) for a in (table.lab_off, table.lab_h, table.lab_w, table.lab_w))
 
     def texel(self, uv: Any, mat: Any, packed: tuple, size: int, active: Any = True) -> Any:

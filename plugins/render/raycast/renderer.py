@@ -38,7 +38,9 @@ class RaycastRenderer(Renderer):
         self.tracer = SceneTracer(scene, None if self.hide_robots else cell, options, arms=arms)
         self.lights = LightTable(scene.lights)
         o = self.options
-        self.shader = Shader(self.tracer, self.lights, ambient=o.ambient, bilinear=o.texture_filter == "bilinear", epsilon=o.epsilon)
+        self.shader = Shader(
+            self.tracer, self.lights, ambient=o.ambient, bilinear=o.texture_filter == "bilinear", epsilon=o.epsilon
+        )
         self.background = [int(c) for c in o.background]
 
     def _rgb(self, camera: CameraModel, T: np.ndarray, rows: tuple[int, int], o, d, s, seed: int):  # noqa: ANN001, ANN202
@@ -49,6 +51,7 @@ class RaycastRenderer(Renderer):
         pixel = dr.arange(mi.UInt32, n_pix) + dr.opaque(mi.UInt32, rows[0] * camera.width)
         state = dr.opaque(mi.UInt64, seed)
         ss, n = opts.supersample, opts.shadow_samples
+
         def stream(sequence):  # noqa: ANN001, ANN202 - seeded by the pixel's index in the image, not in the batch
             rng = mi.PCG32(n_pix)
             rng.seed(state + sequence, sequence)
@@ -123,7 +126,10 @@ class RaycastRenderer(Renderer):
             return {}
         if self.scene.arms:
             return self.scene.arms
-        return {arm.name: [(lm.link, lm.mesh) for lm in arm_link_meshes(arm.urdf, self.options.arm_triangles)] for arm in self.cell.arms}
+        return {
+            arm.name: [(lm.link, lm.mesh) for lm in arm_link_meshes(arm.urdf, self.options.arm_triangles)]
+            for arm in self.cell.arms
+        }
 
     def close(self) -> None:
         self.tracer.close()

@@ -52,7 +52,9 @@ def progressive_order(n: int) -> list[int]:
 class Shader:
     """Shades what a :class:`SceneTracer` traced, with the scene's ``lights``."""
 
-    def __init__(self, tracer: SceneTracer, lights: LightTable, *, ambient: float, bilinear: bool, epsilon: float) -> None:
+    def __init__(
+        self, tracer: SceneTracer, lights: LightTable, *, ambient: float, bilinear: bool, epsilon: float
+    ) -> None:
         self.tracer = tracer
         self.mi = mi = tracer.mi
         self.lights = lights
@@ -166,7 +168,10 @@ class Shader:
         for i in range(1, L.n):
             all_seen, all_tried = all_seen + seen[i], all_tried + tried[i]
         frac = mi.Float(all_seen) / mi.Float(dr.maximum(all_tried, 1))
-        early = [w[i] * dr.select(tried[i] > 0, mi.Float(seen[i]) / mi.Float(dr.maximum(tried[i], 1)), frac) for i in range(L.n)]
+        early = [
+            w[i] * dr.select(tried[i] > 0, mi.Float(seen[i]) / mi.Float(dr.maximum(tried[i], 1)), frac)
+            for i in range(L.n)
+        ]
         early = self._tinted(early)
         rng, acc, _ = run(adaptive_after, samples, lit & mixed, rng, acc, None)
         sampled = acc * (total / float(samples))

@@ -67,7 +67,9 @@ class SceneTracer:
         self.options = options
         self.mi = mi = use_variant(options.variant, "raycast")
         if arms is None and cell is not None:
-            arms = {a.name: [(lm.link, lm.mesh) for lm in arm_link_meshes(a.urdf, options.arm_triangles)] for a in cell.arms}
+            arms = {
+                a.name: [(lm.link, lm.mesh) for lm in arm_link_meshes(a.urdf, options.arm_triangles)] for a in cell.arms
+            }
         self.engine = Engine(mi, scene, arms or {}, max_layers=options.max_layers, epsilon=options.epsilon)
         self.points: PointTracer | None = None
         if scene.points is not None and len(scene.points):
@@ -77,7 +79,9 @@ class SceneTracer:
                     "a scene of their own); set variant = 'llvm' for this renderer"
                 )
             self.points = PointTracer(scene.points, mi)
-        self.has_instances = self.engine.has_instances or (self.points is not None and self.points.instances is not None)
+        self.has_instances = self.engine.has_instances or (
+            self.points is not None and self.points.instances is not None
+        )
         self._label_maps: dict[bytes, Any] = {}
 
     @property
@@ -90,8 +94,13 @@ class SceneTracer:
         self.engine.place_arms(link_poses)
 
     # --------------------------------------------------------------------- rays
-    def camera_rays(self, camera: CameraModel, world_T_camera: np.ndarray, rows: tuple[int, int] | None = None,
-                    offset: tuple[float, float] = (0.0, 0.0)) -> tuple[Any, Any]:
+    def camera_rays(
+        self,
+        camera: CameraModel,
+        world_T_camera: np.ndarray,
+        rows: tuple[int, int] | None = None,
+        offset: tuple[float, float] = (0.0, 0.0),
+    ) -> tuple[Any, Any]:
         """(origins, directions) of the rays through the pixel centres (moved by ``offset``
         pixels) of ``rows`` (first, end; all by default), row-major: from the near plane, with
         directions of unit camera z, so a hit's t is its planar depth less ``near``."""
@@ -112,7 +121,9 @@ class SceneTracer:
         v = k // wide
         u = k - v * wide
         Xd, Yd = mi.Float(X), mi.Float(Y)
-        d = mi.Vector3f(*(dr.gather(mi.Float, Xd, u + j * wide) + dr.gather(mi.Float, Yd, v + j * high) for j in range(3)))
+        d = mi.Vector3f(
+            *(dr.gather(mi.Float, Xd, u + j * wide) + dr.gather(mi.Float, Yd, v + j * high) for j in range(3))
+        )
         near = dr.opaque(mi.Float, self.options.near)
         o = mi.Point3f(*(d[j] * near + dr.opaque(mi.Float, c[j]) for j in range(3)))
         return o, d
@@ -181,7 +192,11 @@ class SceneTracer:
             lab_p = dr.gather(mi.UInt32, pts.labels, mi.UInt32(dr.maximum(point, 0)), on)
             labels = dr.select(on, dr.gather(mi.UInt32, lmap, lab_p, on), labels)
             if instances is not None:
-                inst_p = 0 if pts.instances is None else dr.gather(mi.UInt32, pts.instances, mi.UInt32(dr.maximum(point, 0)), on)
+                inst_p = (
+                    0
+                    if pts.instances is None
+                    else dr.gather(mi.UInt32, pts.instances, mi.UInt32(dr.maximum(point, 0)), on)
+                )
                 instances = dr.select(on, dr.select(lab_p > 0, inst_p, 0), instances)
         return labels, depth, instances
 

@@ -176,7 +176,6 @@ def recording_id(run: Run) -> str:
     return str(uuid.uuid5(uuid.NAMESPACE_URL, ident))
 
 
-
 def robot_color(run: Run, robot: str) -> tuple[int, int, int]:
     names = list(run.cell.arm_names)
     return ROBOT_COLORS[names.index(robot) % len(ROBOT_COLORS)] if robot in names else (200, 200, 200)
@@ -186,4 +185,3 @@ def rgba255(rgba: Sequence[float] | None, default: tuple[int, int, int, int]) ->
     if rgba is None:
         return default
     return tuple(int(round(255 * min(max(c, 0.0), 1.0))) for c in rgba)  # type: ignore[return-value]
-

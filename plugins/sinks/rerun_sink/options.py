@@ -31,7 +31,9 @@ class RerunOptions(Options):
         if self.connect is not None:
             url = urlparse(self.connect)
             if url.scheme not in ("rerun+http", "rerun+https") or not url.hostname or url.port is None:
-                raise ValueError(f"connect {self.connect!r} is not a Rerun gRPC URL such as rerun+http://127.0.0.1:9876/proxy")
+                raise ValueError(
+                    f"connect {self.connect!r} is not a Rerun gRPC URL such as rerun+http://127.0.0.1:9876/proxy"
+                )
         return self
 
     def recording_path(self, out_dir: Path) -> Path:

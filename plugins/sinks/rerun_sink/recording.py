@@ -6,8 +6,8 @@ import importlib.util
 import json
 import logging
 import socket
-from datetime import timedelta
 from collections.abc import Mapping, Sequence
+from datetime import timedelta
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 from urllib.parse import urlparse
@@ -71,7 +71,10 @@ ARM_ROWS_PER_CHUNK = 4096
 
 def _time_columns(setpoint: np.ndarray, sim_time: np.ndarray) -> list[Any]:
     seq = np.asarray(setpoint, np.int64)
-    return [rr.TimeColumn(TIMELINE_SETPOINT, sequence=seq), rr.TimeColumn(TIMELINE_SIM_TIME, duration=np.asarray(sim_time, float))]
+    return [
+        rr.TimeColumn(TIMELINE_SETPOINT, sequence=seq),
+        rr.TimeColumn(TIMELINE_SIM_TIME, duration=np.asarray(sim_time, float)),
+    ]
 
 
 def _listening(port: int, host: str = "127.0.0.1") -> bool:
@@ -88,7 +91,6 @@ def _load_rerun() -> None:
     global rr, rrb
     import rerun as rr
     import rerun.blueprint as rrb
-
 
 
 class RerunSink:
@@ -176,7 +178,9 @@ class RerunSink:
         memory)."""
         batcher = None
         if not self.live:  # nobody watches live: favour few, large chunks over latency
-            batcher = rr.ChunkBatcherConfig(flush_tick=timedelta(seconds=FILE_FLUSH_TICK_S), flush_num_bytes=FILE_CHUNK_BYTES)
+            batcher = rr.ChunkBatcherConfig(
+                flush_tick=timedelta(seconds=FILE_FLUSH_TICK_S), flush_num_bytes=FILE_CHUNK_BYTES
+            )
         rec = rr.RecordingStream(APPLICATION_ID, recording_id=recording_id(self.run), batcher_config=batcher)
         sinks: list[Any] = []
         if self.save:
@@ -193,7 +197,11 @@ class RerunSink:
             if _listening(SPAWN_PORT):
                 sinks.append(rr.GrpcSink(f"rerun+http://127.0.0.1:{SPAWN_PORT}/proxy"))
             else:
-                log.warning("no Rerun viewer listens on port %d; %s", SPAWN_PORT, "recording to file only" if self.save else "nothing is recorded")
+                log.warning(
+                    "no Rerun viewer listens on port %d; %s",
+                    SPAWN_PORT,
+                    "recording to file only" if self.save else "nothing is recorded",
+                )
         if self.connect is not None:
             url = urlparse(self.connect)
             if _listening(url.port or 0, url.hostname or "127.0.0.1"):
@@ -242,9 +250,22 @@ class RerunSink:
         # The keep-out zone is virtual: drawn as a wire cage, not as a solid.
         fill = "transparentfillmajorwireframe" if ob.name == "plant_keepout" else "solid"
         if isinstance(ob, Box):
-            shape: Any = rr.Boxes3D(half_sizes=[np.asarray(ob.size) / 2], colors=[color], fill_mode=fill, labels=[ob.name], show_labels=False)
+            shape: Any = rr.Boxes3D(
+                half_sizes=[np.asarray(ob.size) / 2],
+                colors=[color],
+                fill_mode=fill,
+                labels=[ob.name],
+                show_labels=False,
+            )
         else:
-            shape = rr.Cylinders3D(lengths=[ob.height], radii=[ob.radius], colors=[color], fill_mode=fill, labels=[ob.name], show_labels=False)
+            shape = rr.Cylinders3D(
+                lengths=[ob.height],
+                radii=[ob.radius],
+                colors=[color],
+                fill_mode=fill,
+                labels=[ob.name],
+                show_labels=False,
+            )
         self.rec.log(path, shape, static=True)
 
     def _log_scene(self, scene: Scene) -> None:
@@ -315,16 +336,30 @@ class RerunSink:
                         continue
                     # A URDF material tints the mesh; its own (glTF) colours stay otherwise.
                     albedo = None if v.rgba is None else rgba255(v.rgba, (255, 255, 255, 255))
-                    self.rec.log(path, rr.Asset3D(contents=contents, media_type=media_type, albedo_factor=albedo), static=True)
+                    self.rec.log(
+                        path, rr.Asset3D(contents=contents, media_type=media_type, albedo_factor=albedo), static=True
+                    )
                 elif v.kind == "box" and v.size is not None:
                     color = rgba255(v.rgba, PRIMITIVE_COLOR)
-                    self.rec.log(path, rr.Boxes3D(half_sizes=[np.asarray(v.size) / 2], colors=[color], fill_mode="solid"), static=True)
+                    self.rec.log(
+                        path,
+                        rr.Boxes3D(half_sizes=[np.asarray(v.size) / 2], colors=[color], fill_mode="solid"),
+                        static=True,
+                    )
                 elif v.kind == "cylinder" and v.radius is not None and v.length is not None:
                     color = rgba255(v.rgba, PRIMITIVE_COLOR)
-                    self.rec.log(path, rr.Cylinders3D(lengths=[v.length], radii=[v.radius], colors=[color], fill_mode="solid"), static=True)
+                    self.rec.log(
+                        path,
+                        rr.Cylinders3D(lengths=[v.length], radii=[v.radius], colors=[color], fill_mode="solid"),
+                        static=True,
+                    )
                 elif v.kind == "sphere" and v.radius is not None:
                     color = rgba255(v.rgba, PRIMITIVE_COLOR)
-                    self.rec.log(path, rr.Ellipsoids3D(half_sizes=[[v.radius] * 3], colors=[color], fill_mode="solid"), static=True)
+                    self.rec.log(
+                        path,
+                        rr.Ellipsoids3D(half_sizes=[[v.radius] * 3], colors=[color], fill_mode="solid"),
+                        static=True,
+                    )
 
     def _log_setpoints(self) -> None:
         assert self.rec is not None
@@ -340,12 +375,21 @@ class RerunSink:
             )
             self.rec.log(
                 paths.setpoint_views(robot),
-                rr.Arrows3D(origins=origins, vectors=T[:, :3, 2] * SETPOINT_ARROW, colors=robot_color(self.run, robot), radii=0.002),
+                rr.Arrows3D(
+                    origins=origins,
+                    vectors=T[:, :3, 2] * SETPOINT_ARROW,
+                    colors=robot_color(self.run, robot),
+                    radii=0.002,
+                ),
                 static=True,
             )
             self._status[robot] = ["pending"] * len(sps)
             self._log_setpoint_status(robot)
-            self.rec.log(paths.metric(robot, "ee_error_mm"), rr.SeriesPoints(colors=[robot_color(self.run, robot)], names=[robot]), static=True)
+            self.rec.log(
+                paths.metric(robot, "ee_error_mm"),
+                rr.SeriesPoints(colors=[robot_color(self.run, robot)], names=[robot]),
+                static=True,
+            )
 
     def _log_setpoint_status(self, robot: str) -> None:
         assert self.rec is not None
@@ -459,7 +503,9 @@ class RerunSink:
         if result.reached:
             self.rec.log(paths.log(robot), rr.TextLog(f"{result.frame}: reached ({error})", level="INFO"))
         else:
-            self.rec.log(paths.log(robot), rr.TextLog(f"{result.frame}: not reached ({error}): {result.reason}", level="WARN"))
+            self.rec.log(
+                paths.log(robot), rr.TextLog(f"{result.frame}: not reached ({error}): {result.reason}", level="WARN")
+            )
 
     @hookimpl
     def agrisim_capture(self, run: Run, capture: Capture) -> None:
@@ -470,7 +516,9 @@ class RerunSink:
         self._set_time(capture.setpoint, capture.sim_time)
         T = np.asarray(capture.world_T_camera, float)
         cam = capture.camera
-        rec.log(paths.camera(capture.robot), rr.Transform3D(translation=T[:3, 3], quaternion=quaternions_xyzw(T[:3, :3])[0]))
+        rec.log(
+            paths.camera(capture.robot), rr.Transform3D(translation=T[:3, 3], quaternion=quaternions_xyzw(T[:3, :3])[0])
+        )
         rec.log(
             paths.camera(capture.robot),
             rr.Pinhole(
@@ -531,10 +579,13 @@ class RerunSink:
         if run is not self.run or self.rec is None:
             return
         try:
-            self.rec.log(paths.RUN_SUMMARY, rr.TextDocument(_summary_markdown(summary), media_type=rr.MediaType.MARKDOWN), static=True)
+            self.rec.log(
+                paths.RUN_SUMMARY,
+                rr.TextDocument(_summary_markdown(summary), media_type=rr.MediaType.MARKDOWN),
+                static=True,
+            )
         finally:
             self.close()
-
 
 
 def _cloud_arrays(cloud: Any) -> tuple[np.ndarray | None, np.ndarray | None]:
@@ -568,4 +619,3 @@ def _summary_markdown(summary: RunSummary) -> str:
     if wall:
         text += f"\n## Wall time per stage (s)\n\n| stage | s |\n|---|---|\n{wall}\n"
     return text
-
