@@ -7,6 +7,8 @@ high-sample render of the same view (error falls with samples), PROSPECT-D's lea
 
 from __future__ import annotations
 
+import itertools
+
 import numpy as np
 import pytest
 
@@ -173,3 +175,34 @@ def test_environment_map_lights_what_the_camera_sees_of_the_sky(tmp_path):
     np.testing.assert_allclose(sky.reshape(-1, 3).mean(axis=0), expected, rtol=0.02)
     brighter = renderer(empty, spp=4, envmap=path, envmap_scale=2.0, denoise="off").radiance(camera, T)
     np.testing.assert_allclose(brighter.mean(), 2.0 * sky.mean(), rtol=1e-4)
+
+
+@pytest.mark.parametrize("denoise", ["off", "on"])
+def test_frozen_views_are_the_traced_views_bit_for_bit(cell, kin, lab_scene, denoise):
+    """Three views, the camera and both arms moving between them: the renderer that records its
+    kernels and replays them (``freeze``) gives the bytes of one that traces every view anew."""
+    camera = CameraModel(48, 36, 40.0, 40.0, 23.5, 17.5)
+    target = lab_scene.mesh("plant").vertices.mean(axis=0)
+    views = [look_at(target + np.array(o), target) for o in ((0.9, -0.9, 0.6), (-0.8, -0.7, 0.8), (0.2, 1.0, 0.5))]
+    arms = [{a.name: kin[a.name].link_poses(np.array(a.home) + s) for a in cell.arms} for s in (0.0, 0.15, -0.2)]
+    frozen = renderer(lab_scene, cell, spp=2, denoise=denoise, freeze="on")
+    traced = renderer(lab_scene, cell, spp=2, denoise=denoise, freeze="off")
+    images = []
+    for T, poses in zip(views, arms, strict=True):
+        rgb, _ = frozen.render_rgb(camera, T, poses)
+        np.testing.assert_array_equal(rgb, traced.render_rgb(camera, T, poses)[0])
+        images.append(rgb)
+    assert all((a != b).any() for a, b in itertools.pairwise(images))  # the views differ
+    assert "image" in frozen._frozen and not traced._frozen  # each took its own path
+
+
+def test_a_frozen_render_replays_as_the_camera_moves(lab_scene):
+    """Five views of the camera alone moving: two recordings (Dr.Jit records a second time to
+    make the values that changed opaque), then replays; each view's own noise (the seed an
+    opaque variable, not a new recording)."""
+    camera = CameraModel(48, 36, 40.0, 40.0, 23.5, 17.5)
+    target = lab_scene.mesh("plant").vertices.mean(axis=0)
+    r = renderer(lab_scene, spp=2, denoise="off", freeze="on")
+    for k in range(5):
+        r.render_rgb(camera, look_at(target + np.array([0.9 - 0.3 * k, -0.9, 0.6]), target), {})
+    assert r._frozen["image"].n_recordings == 2  # type: ignore[attr-defined]

@@ -29,6 +29,12 @@ class MitsubaOptions(Options):
     interactions) without spending path depth on them. Measured on the lab at 16 spp denoised:
     volpath 0.3 dB closer to the converged image (34.2 against 33.9 dB), at 1.7x the time on
     the CPU and 2.2x on an H100 (bench/mitsuba_render.py, bench/rerender_speed.py)."""
+    freeze: Literal["auto", "on", "off"] = "auto"
+    """Record a view's kernels once (Dr.Jit's ``dr.freeze``) and replay them for the next views,
+    the camera and arms moved in place: the same images bit for bit, without tracing the render
+    in Python again (an H100 at 1080p: 150 -> 24 ms a view; bench/mitsuba_frame_cost.py).
+    ``auto``: on with the CUDA variant; off with LLVM, where moving the arms rebuilds Embree's
+    scene and every view is recorded anew (the CPU gains nothing)."""
     exposure: float = Field(1.0, gt=0.0, le=1e6)
     """Scale of the linear radiance before tone mapping, one for the whole run (NeRF and
     photogrammetry want constant exposure). 1: a white surface lit with irradiance 1 in the

@@ -20,7 +20,7 @@ from agrisim.scene.colour import encode_srgb8
 from agrisim.scene.model import Mesh, Scene
 
 from . import denoise
-from .camera import load_sensor
+from .camera import CV_TO_MITSUBA, load_sensor
 from .options import MitsubaOptions
 from .scene import build
 from .variant import use_variant
@@ -61,6 +61,10 @@ class MitsubaRenderer(Renderer):
         self.mi_scene = mi.load_dict(parts.scene)
         self.params = mi.traverse(self.mi_scene)
         self._arm_key: bytes | None = None
+        # One sensor per camera, moved from view to view (mi.traverse), so that a frozen render
+        # sees the same objects every time and replays its recording.
+        self._sensor: tuple[tuple[float, ...], object, object] | None = None
+        self._frozen: dict[str, object] = {}
 
     @staticmethod
     def _load_arms(scene: Scene, cell: Cell | None, options: MitsubaOptions) -> dict[str, list[tuple[str, Mesh]]]:
@@ -112,14 +116,46 @@ class MitsubaRenderer(Renderer):
         self.params.update()
         self._arm_key = key
 
+    def _placed_sensor(self, camera: CameraModel, world_T_camera: np.ndarray):  # noqa: ANN202 - Mitsuba's Sensor
+        """The camera's sensor at ``world_T_camera``: built for a new camera, else moved."""
+        key = (camera.width, camera.height, camera.fx, camera.fy, camera.cx, camera.cy)
+        if self._sensor is None or self._sensor[0] != key:
+            sensor = load_sensor(self.mi, camera, world_T_camera, self.options.spp)
+            self._sensor = (key, sensor, self.mi.traverse(sensor))
+            self._frozen.clear()  # recorded with the old sensor
+        # moved even when just built: its transform is then held as the replays will see it
+        # (a frozen function records again when its inputs' layout changes)
+        _, sensor, params = self._sensor
+        params["to_world"] = self.mi.ScalarTransform4f(np.asarray(world_T_camera, np.float64) @ CV_TO_MITSUBA)
+        params.update()
+        return sensor
+
+    def _render(self, name: str, sensor, seed: int, integrator=None):  # noqa: ANN001, ANN202 - Mitsuba's types
+        """``mi.render`` of the scene, through a frozen function when ``freeze`` is on (the seed
+        an opaque variable: a new seed replays the recording rather than making another)."""
+        mi, o = self.mi, self.options
+        if o.freeze == "off" or (o.freeze == "auto" and not mi.variant().startswith("cuda")):
+            return mi.render(self.mi_scene, sensor=sensor, integrator=integrator, spp=o.spp, seed=seed)
+        import drjit as dr
+
+        frozen = self._frozen.get(name)
+        if frozen is None:
+            spp = o.spp
+
+            def render(scene, sensor, seed):  # noqa: ANN001, ANN202
+                return mi.render(scene, sensor=sensor, integrator=integrator, spp=spp, seed=seed)
+
+            frozen = self._frozen[name] = dr.freeze(render)
+        return frozen(self.mi_scene, sensor, dr.opaque(mi.UInt32, seed))  # type: ignore[operator]
+
     def radiance(self, camera: CameraModel, world_T_camera: np.ndarray) -> np.ndarray:
         """Linear RGB radiance, H x W x 3 float32, of one view (arms where last placed)."""
-        mi, o = self.mi, self.options
-        sensor = load_sensor(mi, camera, world_T_camera, o.spp)
+        o = self.options
+        sensor = self._placed_sensor(camera, world_T_camera)
         seed = view_seed(camera, world_T_camera, o.seed) & 0xFFFFFFFF
-        image = mi.render(self.mi_scene, sensor=sensor, spp=o.spp, seed=seed)
+        image = self._render("image", sensor, seed)
         if self.denoise:  # (on the GPU when the image is there and PyTorch can pass it to OIDN)
-            aux = mi.render(self.mi_scene, sensor=sensor, integrator=self.aov, spp=o.spp, seed=seed ^ 0x5A5A5A5A)
+            aux = self._render("guide", sensor, seed ^ 0x5A5A5A5A, self.aov)
             return denoise.denoise(image, aux)
         return np.asarray(image, F32)[..., :3]
 
@@ -161,5 +197,7 @@ class MitsubaRenderer(Renderer):
     def close(self) -> None:
         if self._tracer is not None:
             self._tracer.close()
+        self._frozen.clear()
+        self._sensor = None
         self.params = None
         self.mi_scene = None

@@ -1,0 +1,160 @@
+"""Where one ``mitsuba`` view's time goes, from a saved run, on the GPU or the CPU: per frame the
+sensor built, ``mi.render`` traced and launched (Python), its kernels, the guide pass (albedo and
+normals for the denoiser), the denoiser, the copy to host, the 8-bit encoding and the PNG. Then
+the same frames rendered by a frozen function (``dr.freeze``: one sensor moved through
+``mi.traverse``, the seed an opaque variable), and whether its images are the unfrozen ones bit
+for bit. Prints figures; asserts nothing. Runs from a minimal install (no Open3D).
+
+    python bench/mitsuba_frame_cost.py RUN_DIR [--variant cuda] [--spp 16] [--frames 10] [--denoise off]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).parent))
+from machine import cpu_model, gpu_name  # noqa: E402
+
+from agrisim.app.render import _link_poses  # noqa: E402
+from agrisim.config import build_config  # noqa: E402
+from agrisim.files import layout  # noqa: E402
+from agrisim.files.png import encode_png  # noqa: E402
+from agrisim.files.rundir import camera_from_json  # noqa: E402
+from agrisim.files.scene_glb import read_scene  # noqa: E402
+from agrisim.plugins.render.mitsuba import denoise  # noqa: E402
+from agrisim.plugins.render.mitsuba.camera import load_sensor  # noqa: E402
+from agrisim.plugins.render.mitsuba.options import MitsubaOptions  # noqa: E402
+from agrisim.plugins.render.mitsuba.renderer import MitsubaRenderer  # noqa: E402
+from agrisim.scene.camera import view_seed  # noqa: E402
+from agrisim.scene.colour import encode_srgb8  # noqa: E402
+
+
+class Clock:
+    """Seconds per named step, summed over frames."""
+
+    def __init__(self) -> None:
+        self.total: dict[str, float] = {}
+        self.t = time.perf_counter()
+
+    def lap(self, name: str) -> None:
+        now = time.perf_counter()
+        self.total[name] = self.total.get(name, 0.0) + now - self.t
+        self.t = now
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("run_dir", type=Path)
+    parser.add_argument("--variant", default="auto")
+    parser.add_argument("--spp", type=int, default=16)
+    parser.add_argument("--frames", type=int, default=10)
+    parser.add_argument("--denoise", default="off")
+    parser.add_argument("--integrator", default="path", choices=["path", "volpath"])
+    args = parser.parse_args()
+    # What agrisim render reads of a run (the scene, cameras, link poses, its render settings),
+    # without its check that the run's own images are there: a run carried to a GPU machine
+    # leaves them behind.
+    run = json.loads((args.run_dir / layout.RUN_JSON).read_text())
+    cameras = json.loads((args.run_dir / layout.CAMERAS_JSON).read_text())
+    saved = {k: v for k, v in run["config"].items() if k not in ("output", "renderer")}
+    settings = build_config(saved).render
+    options = MitsubaOptions(spp=args.spp, variant=args.variant, denoise=args.denoise, integrator=args.integrator)
+    renderer = MitsubaRenderer(read_scene(args.run_dir / layout.SCENE_GLB), None, settings, options)
+    import drjit as dr
+
+    mi, o = renderer.mi, renderer.options
+    camera = camera_from_json(cameras["intrinsics"])
+    frames = sorted(cameras["frames"])[: args.frames + 1]  # the first compiles: reported apart
+    poses = {f: np.asarray(cameras["frames"][f]["world_T_camera"], np.float64) for f in frames}
+    links = {f: _link_poses(args.run_dir, f) for f in frames}
+    print(f"CPU: {cpu_model()}; GPU: {gpu_name()}; variant {mi.variant()}")
+    print(
+        f"{camera.width}x{camera.height}, {args.integrator}, {args.spp} spp, denoise {args.denoise}, {len(frames) - 1} frames after the first"
+    )
+
+    def finish(clock: Clock, image, aux) -> np.ndarray:  # noqa: ANN001
+        linear = denoise.denoise(image, aux) if aux is not None else np.asarray(image, np.float32)[..., :3]
+        clock.lap("denoise + copy to host" if aux is not None else "copy to host")
+        rgb = np.empty((linear.shape[0] * linear.shape[1], 3), np.uint8)
+        encode_srgb8(np.ascontiguousarray(linear, np.float32).reshape(-1, 3), rgb, o.exposure, o.tonemap)
+        clock.lap("8-bit encoding")
+        encode_png(rgb.reshape(camera.height, camera.width, 3))
+        clock.lap("PNG")
+        return linear
+
+    # ---- as the renderer draws a frame today
+    plain: dict[str, np.ndarray] = {}
+    clock = Clock()
+    for i, f in enumerate(frames):
+        if i == 1:
+            first, clock = clock, Clock()
+        renderer._place_arms(links[f])
+        dr.sync_thread()
+        clock.lap("arms posed")
+        sensor = load_sensor(mi, camera, poses[f], o.spp)
+        clock.lap("sensor built")
+        seed = view_seed(camera, poses[f], o.seed) & 0xFFFFFFFF
+        image = mi.render(renderer.mi_scene, sensor=sensor, spp=o.spp, seed=seed)
+        clock.lap("render traced + launched (Python)")
+        dr.eval(image)
+        dr.sync_thread()
+        clock.lap("path-tracing kernels")
+        aux = None
+        if renderer.denoise:
+            aux = mi.render(
+                renderer.mi_scene, sensor=sensor, integrator=renderer.aov, spp=o.spp, seed=seed ^ 0x5A5A5A5A
+            )
+            dr.eval(aux)
+            dr.sync_thread()
+            clock.lap("guide pass")
+        plain[f] = finish(clock, image, aux)
+    report("unfrozen", first, clock, len(frames) - 1)
+
+    # ---- frozen: the renderer's own path with freeze on (one sensor, moved; the seed a variable)
+    frozen = MitsubaRenderer(renderer.scene, None, settings, options.model_copy(update={"freeze": "on"}))
+    same = 0
+    clock = Clock()
+    for i, f in enumerate(frames):
+        if i == 1:
+            first, clock = clock, Clock()
+        frozen._place_arms(links[f])
+        sensor = frozen._placed_sensor(camera, poses[f])
+        dr.sync_thread()
+        clock.lap("arms posed + sensor moved")
+        seed = view_seed(camera, poses[f], o.seed) & 0xFFFFFFFF
+        image = frozen._render("image", sensor, seed)
+        clock.lap("frozen render replayed (Python)")
+        dr.eval(image)
+        dr.sync_thread()
+        clock.lap("path-tracing kernels")
+        aux = None
+        if frozen.denoise:
+            aux = frozen._render("guide", sensor, seed ^ 0x5A5A5A5A, frozen.aov)
+            dr.eval(aux)
+            dr.sync_thread()
+            clock.lap("guide pass")
+        same += int(np.array_equal(finish(clock, image, aux), plain[f]))
+    report("frozen", first, clock, len(frames) - 1)
+    recordings = frozen._frozen["image"].n_recordings
+    print(f"frozen images equal to unfrozen bit for bit: {same} of {len(frames)}; recordings made: {recordings}")
+    renderer.close()
+    frozen.close()
+
+
+def report(what: str, first: Clock, clock: Clock, n: int) -> None:
+    per = {k: v / max(n, 1) for k, v in clock.total.items()}
+    total = sum(per.values())
+    parts = ", ".join(f"{k} {1e3 * v:.1f}" for k, v in per.items())
+    print(
+        f"{what}: first frame {sum(first.total.values()):.2f} s; then {1e3 * total:.1f} ms a view ({1 / total:.2f} views/s): {parts} ms"
+    )
+
+
+if __name__ == "__main__":
+    main()
