@@ -5,7 +5,7 @@ the same frames rendered by a frozen function (``dr.freeze``: one sensor moved t
 ``mi.traverse``, the seed an opaque variable), and whether its images are the unfrozen ones bit
 for bit. Prints figures; asserts nothing. Runs from a minimal install (no Open3D).
 
-    python bench/mitsuba_frame_cost.py RUN_DIR [--variant cuda] [--spp 16] [--frames 10] [--denoise off]
+    python bench/mitsuba_frame_cost.py RUN_DIR [--variant cuda] [--spp 16] [--frames 10] [--denoise off] [--max-depth 8]
 """
 
 from __future__ import annotations
@@ -56,6 +56,7 @@ def main() -> None:
     parser.add_argument("--frames", type=int, default=10)
     parser.add_argument("--denoise", default="off")
     parser.add_argument("--integrator", default="path", choices=["path", "volpath"])
+    parser.add_argument("--max-depth", type=int, default=MitsubaOptions().max_depth)
     args = parser.parse_args()
     # What agrisim render reads of a run (the scene, cameras, link poses, its render settings),
     # without its check that the run's own images are there: a run carried to a GPU machine
@@ -64,7 +65,9 @@ def main() -> None:
     cameras = json.loads((args.run_dir / layout.CAMERAS_JSON).read_text())
     saved = {k: v for k, v in run["config"].items() if k not in ("output", "renderer")}
     settings = build_config(saved).render
-    options = MitsubaOptions(spp=args.spp, variant=args.variant, denoise=args.denoise, integrator=args.integrator)
+    options = MitsubaOptions(
+        spp=args.spp, variant=args.variant, denoise=args.denoise, integrator=args.integrator, max_depth=args.max_depth
+    )
     renderer = MitsubaRenderer(read_scene(args.run_dir / layout.SCENE_GLB), None, settings, options)
     import drjit as dr
 
@@ -75,7 +78,7 @@ def main() -> None:
     links = {f: _link_poses(args.run_dir, f) for f in frames}
     print(f"CPU: {cpu_model()}; GPU: {gpu_name()}; variant {mi.variant()}")
     print(
-        f"{camera.width}x{camera.height}, {args.integrator}, {args.spp} spp, denoise {args.denoise}, {len(frames) - 1} frames after the first"
+        f"{camera.width}x{camera.height}, {args.integrator}, max depth {args.max_depth}, {args.spp} spp, denoise {args.denoise}, {len(frames) - 1} frames after the first"
     )
 
     def finish(clock: Clock, image, aux) -> np.ndarray:  # noqa: ANN001

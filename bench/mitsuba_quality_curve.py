@@ -6,7 +6,7 @@ nothing. The curve the defaults are chosen from (the kernels' time scales with t
 see bench/mitsuba_frame_cost.py for a GPU's).
 
     python bench/mitsuba_quality_curve.py [--size 480x270] [--plants boston_fern hydrangea indian_cress]
-        [--spp 4 8 16 32 64] [--reference-spp 1024] [--variant auto]
+        [--spp 4 8 16 32 64] [--reference-spp 1024] [--max-depths 8] [--variant auto]
 """
 
 from __future__ import annotations
@@ -50,6 +50,13 @@ def main() -> None:
     parser.add_argument("--plants", nargs="+", default=["boston_fern", "hydrangea", "indian_cress"])
     parser.add_argument("--spp", type=int, nargs="+", default=[4, 8, 16, 32, 64])
     parser.add_argument("--reference-spp", type=int, default=1024)
+    parser.add_argument(
+        "--max-depths",
+        type=int,
+        nargs="+",
+        default=[MitsubaOptions().max_depth],
+        help="path lengths to try (the reference keeps the default)",
+    )
     parser.add_argument("--variant", default="auto")
     args = parser.parse_args()
     W, H = (int(v) for v in args.size.split("x"))
@@ -73,14 +80,14 @@ def main() -> None:
         target = scene.mesh("plant").vertices.mean(axis=0)
         T = look_at(target + np.array([0.35, -0.35, 0.3]), target)  # the plant filling the view
         reference, ref_s = render(scene, T, spp=args.reference_spp, seed=9, denoise="off")
-        rows = []
-        for spp in args.spp:
-            for denoise in ("on", "off"):
-                image, seconds = render(scene, T, spp=spp, denoise=denoise)
-                rows.append(
-                    f"{spp}{' denoised' if denoise == 'on' else ' raw'} {psnr(image, reference):.1f} dB ({seconds:.2f} s)"
-                )
-        print(f"{plant} (reference {ref_s:.0f} s): " + "; ".join(rows), flush=True)
+        for depth in args.max_depths:
+            rows = []
+            for spp in args.spp:
+                for denoise in ("on", "off"):
+                    image, seconds = render(scene, T, spp=spp, denoise=denoise, max_depth=depth)
+                    kind = "denoised" if denoise == "on" else "raw"
+                    rows.append(f"{spp} {kind} {psnr(image, reference):.1f} dB ({seconds:.2f} s)")
+            print(f"{plant}, max depth {depth} (reference {ref_s:.0f} s): " + "; ".join(rows), flush=True)
 
 
 if __name__ == "__main__":
