@@ -7,6 +7,14 @@ see bench/mitsuba_frame_cost.py for a GPU's).
 
     python bench/mitsuba_quality_curve.py [--size 480x270] [--plants boston_fern hydrangea indian_cress]
         [--spp 4 8 16 32 64] [--reference-spp 1024] [--max-depths 8] [--variant auto]
+
+On a GPU machine without the denoiser (pyoidn does not fit beside Mitsuba in one carry), render
+there and score here: ``--runs RUN...`` takes the scenes saved by runs (no plant building),
+``--save DIR`` writes the renders' centre crops (noisy colour, albedo, normal, the reference) as
+float16, one file a run, instead of scoring, and ``--score DIR`` denoises and scores what was saved.
+
+    python bench/mitsuba_quality_curve.py --runs A B C --size 1920x1080 --variant cuda --save OUT
+    python bench/mitsuba_quality_curve.py --score OUT
 """
 
 from __future__ import annotations
@@ -58,11 +66,17 @@ def main() -> None:
         help="path lengths to try (the reference keeps the default)",
     )
     parser.add_argument("--variant", default="auto")
+    parser.add_argument("--runs", type=Path, nargs="+", help="scenes of saved runs instead of --plants")
+    parser.add_argument("--save", type=Path, help="write the renders' centre crops here instead of scoring")
+    parser.add_argument("--score", type=Path, help="denoise and score the crops --save wrote")
+    parser.add_argument("--crop", default="960x540", help="centre crop saved with --save")
     args = parser.parse_args()
+    if args.score:
+        score(args.score)
+        return
     W, H = (int(v) for v in args.size.split("x"))
     # the rpi3-wide preset's field of view (fx = 0.7 W) at any size, centred
     camera = CameraModel(W, H, 0.7 * W, 0.7 * W, (W - 1) / 2, (H - 1) / 2)
-    cell = build_cell(CellConfig())
     print(f"CPU: {cpu_model()}; GPU: {gpu_name()}; {W}x{H}; reference {args.reference_spp} spp")
 
     def render(scene, T: np.ndarray, **options) -> tuple[np.ndarray, float]:  # noqa: ANN001
@@ -75,6 +89,10 @@ def main() -> None:
         r.close()
         return shown(image), seconds
 
+    if args.save:
+        save(args, camera)
+        return
+    cell = build_cell(CellConfig())
     for plant in args.plants:
         scene = build_scene(cell, grow(plant, 0), labels="plant")
         target = scene.mesh("plant").vertices.mean(axis=0)
@@ -88,6 +106,84 @@ def main() -> None:
                     kind = "denoised" if denoise == "on" else "raw"
                     rows.append(f"{spp} {kind} {psnr(image, reference):.1f} dB ({seconds:.2f} s)")
             print(f"{plant}, max depth {depth} (reference {ref_s:.0f} s): " + "; ".join(rows), flush=True)
+
+
+def _crop(image: np.ndarray, size: str) -> np.ndarray:
+    w, h = (int(v) for v in size.split("x"))
+    y0, x0 = (image.shape[0] - h) // 2, (image.shape[1] - w) // 2
+    return np.ascontiguousarray(image[y0 : y0 + h, x0 : x0 + w])
+
+
+def save(args: argparse.Namespace, camera: CameraModel) -> None:
+    """Render the saved runs' plants and write one ``<run>.npz`` of centre crops, float16: the
+    reference, and per samples and path length the colour and the guide pass's albedo and
+    normal (one file a run: the GPU machine returns few files)."""
+    import drjit as dr
+
+    from agrisim.files import layout
+    from agrisim.files.scene_glb import read_scene
+    from agrisim.scene.camera import view_seed
+
+    args.save.mkdir(parents=True, exist_ok=True)
+    for run in args.runs:
+        scene = read_scene(run / layout.SCENE_GLB)
+        target = scene.mesh(scene.plant).vertices.mean(axis=0)
+        T = look_at(target + np.array([0.35, -0.35, 0.3]), target)
+
+        def renderer(scene: object = scene, **options: object) -> MitsubaRenderer:
+            return MitsubaRenderer(
+                scene, None, RenderConfig(hide_robots=True), MitsubaOptions(variant=args.variant, **options)
+            )
+
+        t0 = time.perf_counter()
+        ref = renderer(spp=args.reference_spp, seed=9, denoise="off").radiance(camera, T)
+        print(f"{run.name}: reference {time.perf_counter() - t0:.1f} s", flush=True)
+        arrays = {"ref": _crop(ref, args.crop).astype(np.float16)}
+        for depth in args.max_depths:
+            for spp in args.spp:
+                r = renderer(spp=spp, denoise="off", max_depth=depth)
+                aov = r.mi.load_dict({"type": "aov", "aovs": "albedo:albedo,nn:sh_normal"})
+                sensor = r._placed_sensor(camera, T)
+                seed = view_seed(camera, T, r.options.seed) & 0xFFFFFFFF
+                t0 = time.perf_counter()
+                colour = r._render("image", sensor, seed)
+                dr.eval(colour)
+                dr.sync_thread()
+                seconds = time.perf_counter() - t0
+                aux = np.asarray(r._render("guide", sensor, seed ^ 0x5A5A5A5A, aov), np.float32)
+                key = f"{spp}_d{depth}"
+                arrays[f"colour_{key}"] = _crop(np.asarray(colour, np.float32)[..., :3], args.crop).astype(np.float16)
+                arrays[f"albedo_{key}"] = _crop(aux[..., 0:3], args.crop).astype(np.float16)
+                arrays[f"normal_{key}"] = _crop(aux[..., 3:6], args.crop).astype(np.float16)
+                arrays[f"seconds_{key}"] = np.float64(seconds)
+                print(f"  {spp} spp, depth {depth}: {1e3 * seconds:.0f} ms of rendering", flush=True)
+                r.close()
+        np.savez(args.save / f"{run.name}.npz", **arrays)
+
+
+def score(folder: Path) -> None:
+    """PSNR of what :func:`save` wrote, raw and denoised (pyoidn, as the renderer calls it)."""
+    import pyoidn
+
+    for path in sorted(folder.glob("*.npz")):
+        d = np.load(path)
+        reference = shown(d["ref"].astype(np.float32))
+        keys = sorted(
+            (k[len("colour_") :] for k in d.files if k.startswith("colour_")),
+            key=lambda k: (int(k.split("_d")[1]), int(k.split("_")[0])),
+        )
+        rows = []
+        for key in keys:
+            colour, albedo, normal = (
+                np.ascontiguousarray(d[f"{k}_{key}"].astype(np.float32)) for k in ("colour", "albedo", "normal")
+            )
+            clean = np.asarray(pyoidn.denoise(colour, albedo, normal, hdr=True), np.float32)
+            spp, depth = key.split("_d")
+            rows.append(
+                f"{spp} spp depth {depth}: denoised {psnr(shown(clean), reference):.1f} dB, raw "
+                f"{psnr(shown(colour), reference):.1f} dB ({1e3 * float(d[f'seconds_{key}']):.0f} ms)"
+            )
+        print(f"{path.stem}: " + "; ".join(rows))
 
 
 if __name__ == "__main__":
