@@ -1,9 +1,8 @@
 """Where one ``mitsuba`` view's time goes, from a saved run, on the GPU or the CPU: per frame the
-sensor built, ``mi.render`` traced and launched (Python), its kernels, the guide pass (albedo and
-normals for the denoiser), the denoiser, the copy to host, the 8-bit encoding and the PNG. Then
-the same frames rendered by a frozen function (``dr.freeze``: one sensor moved through
-``mi.traverse``, the seed an opaque variable), and whether its images are the unfrozen ones bit
-for bit. Prints figures; asserts nothing. Runs from a minimal install (no Open3D).
+arms and the sensor moved, ``mi.render`` traced and launched (Python), its kernels, the guide
+pass (albedo and normals for the denoiser), the denoiser, the copy to host, the 8-bit encoding
+and the PNG; the renderer's own steps with ``freeze`` off, then on (``dr.freeze``: the kernels
+recorded and replayed), and whether the frozen images are the traced ones bit for bit. Prints figures; asserts nothing. Runs from a minimal install (no Open3D).
 
     python bench/mitsuba_frame_cost.py RUN_DIR [--variant cuda] [--spp 16] [--frames 10] [--denoise off] [--max-depth 8]
 """
@@ -28,7 +27,6 @@ from agrisim.files.png import encode_png  # noqa: E402
 from agrisim.files.rundir import camera_from_json  # noqa: E402
 from agrisim.files.scene_glb import read_scene  # noqa: E402
 from agrisim.plugins.render.mitsuba import denoise  # noqa: E402
-from agrisim.plugins.render.mitsuba.camera import load_sensor  # noqa: E402
 from agrisim.plugins.render.mitsuba.options import MitsubaOptions  # noqa: E402
 from agrisim.plugins.render.mitsuba.renderer import MitsubaRenderer  # noqa: E402
 from agrisim.scene.camera import view_seed  # noqa: E402
@@ -68,85 +66,64 @@ def main() -> None:
     options = MitsubaOptions(
         spp=args.spp, variant=args.variant, denoise=args.denoise, integrator=args.integrator, max_depth=args.max_depth
     )
-    renderer = MitsubaRenderer(read_scene(args.run_dir / layout.SCENE_GLB), None, settings, options)
+    scene = read_scene(args.run_dir / layout.SCENE_GLB)
     import drjit as dr
 
-    mi, o = renderer.mi, renderer.options
     camera = camera_from_json(cameras["intrinsics"])
     frames = sorted(cameras["frames"])[: args.frames + 1]  # the first compiles: reported apart
     poses = {f: np.asarray(cameras["frames"][f]["world_T_camera"], np.float64) for f in frames}
     links = {f: _link_poses(args.run_dir, f) for f in frames}
-    print(f"CPU: {cpu_model()}; GPU: {gpu_name()}; variant {mi.variant()}")
+
+    def frames_of(renderer: MitsubaRenderer) -> tuple[Clock, Clock, dict[str, np.ndarray]]:
+        """The renderer's own steps for every frame, timed (first frame apart), and the images."""
+        o = renderer.options
+        images: dict[str, np.ndarray] = {}
+        first = clock = Clock()
+        for i, f in enumerate(frames):
+            if i == 1:
+                clock = Clock()
+            renderer._place_arms(links[f])
+            sensor = renderer._placed_sensor(camera, poses[f])
+            dr.sync_thread()
+            clock.lap("arms posed + sensor moved")
+            seed = view_seed(camera, poses[f], o.seed) & 0xFFFFFFFF
+            image = renderer._render("image", sensor, seed)
+            clock.lap("render traced or replayed + launched (Python)")
+            dr.eval(image)
+            dr.sync_thread()
+            clock.lap("path-tracing kernels")
+            aux = None
+            if renderer.denoise:
+                aux = renderer._render("guide", sensor, seed ^ 0x5A5A5A5A, renderer.aov)
+                dr.eval(aux)
+                dr.sync_thread()
+                clock.lap("guide pass")
+            linear = denoise.denoise(image, aux) if aux is not None else np.asarray(image, np.float32)[..., :3]
+            clock.lap("denoise + copy to host" if aux is not None else "copy to host")
+            rgb = np.empty((linear.shape[0] * linear.shape[1], 3), np.uint8)
+            encode_srgb8(np.array(linear, np.float32).reshape(-1, 3), rgb, o.exposure, o.tonemap)
+            clock.lap("8-bit encoding")
+            encode_png(rgb.reshape(camera.height, camera.width, 3))
+            clock.lap("PNG")
+            images[f] = linear
+        return first, clock, images
+
+    # one renderer at a time: a second scene on the device slowed the first's tracing (H100)
+    traced = MitsubaRenderer(scene, None, settings, options.model_copy(update={"freeze": "off"}))
+    print(f"CPU: {cpu_model()}; GPU: {gpu_name()}; variant {traced.mi.variant()}")
     print(
-        f"{camera.width}x{camera.height}, {args.integrator}, max depth {args.max_depth}, {args.spp} spp, denoise {args.denoise}, {len(frames) - 1} frames after the first"
+        f"{camera.width}x{camera.height}, {args.integrator}, max depth {args.max_depth}, {args.spp} spp, "
+        f"denoise {args.denoise}, {len(frames) - 1} frames after the first"
     )
-
-    def finish(clock: Clock, image, aux) -> np.ndarray:  # noqa: ANN001
-        linear = denoise.denoise(image, aux) if aux is not None else np.asarray(image, np.float32)[..., :3]
-        clock.lap("denoise + copy to host" if aux is not None else "copy to host")
-        rgb = np.empty((linear.shape[0] * linear.shape[1], 3), np.uint8)
-        encode_srgb8(np.ascontiguousarray(linear, np.float32).reshape(-1, 3), rgb, o.exposure, o.tonemap)
-        clock.lap("8-bit encoding")
-        encode_png(rgb.reshape(camera.height, camera.width, 3))
-        clock.lap("PNG")
-        return linear
-
-    # ---- as the renderer draws a frame today
-    plain: dict[str, np.ndarray] = {}
-    clock = Clock()
-    for i, f in enumerate(frames):
-        if i == 1:
-            first, clock = clock, Clock()
-        renderer._place_arms(links[f])
-        dr.sync_thread()
-        clock.lap("arms posed")
-        sensor = load_sensor(mi, camera, poses[f], o.spp)
-        clock.lap("sensor built")
-        seed = view_seed(camera, poses[f], o.seed) & 0xFFFFFFFF
-        image = mi.render(renderer.mi_scene, sensor=sensor, spp=o.spp, seed=seed)
-        clock.lap("render traced + launched (Python)")
-        dr.eval(image)
-        dr.sync_thread()
-        clock.lap("path-tracing kernels")
-        aux = None
-        if renderer.denoise:
-            aux = mi.render(
-                renderer.mi_scene, sensor=sensor, integrator=renderer.aov, spp=o.spp, seed=seed ^ 0x5A5A5A5A
-            )
-            dr.eval(aux)
-            dr.sync_thread()
-            clock.lap("guide pass")
-        plain[f] = finish(clock, image, aux)
-    report("unfrozen", first, clock, len(frames) - 1)
-
-    # ---- frozen: the renderer's own path with freeze on (one sensor, moved; the seed a variable)
-    frozen = MitsubaRenderer(renderer.scene, None, settings, options.model_copy(update={"freeze": "on"}))
-    same = 0
-    clock = Clock()
-    for i, f in enumerate(frames):
-        if i == 1:
-            first, clock = clock, Clock()
-        frozen._place_arms(links[f])
-        sensor = frozen._placed_sensor(camera, poses[f])
-        dr.sync_thread()
-        clock.lap("arms posed + sensor moved")
-        seed = view_seed(camera, poses[f], o.seed) & 0xFFFFFFFF
-        image = frozen._render("image", sensor, seed)
-        clock.lap("frozen render replayed (Python)")
-        dr.eval(image)
-        dr.sync_thread()
-        clock.lap("path-tracing kernels")
-        aux = None
-        if frozen.denoise:
-            aux = frozen._render("guide", sensor, seed ^ 0x5A5A5A5A, frozen.aov)
-            dr.eval(aux)
-            dr.sync_thread()
-            clock.lap("guide pass")
-        same += int(np.array_equal(finish(clock, image, aux), plain[f]))
+    first, clock, plain = frames_of(traced)
+    report("traced anew", first, clock, len(frames) - 1)
+    traced.close()
+    frozen = MitsubaRenderer(scene, None, settings, options.model_copy(update={"freeze": "on"}))
+    first, clock, replayed = frames_of(frozen)
     report("frozen", first, clock, len(frames) - 1)
+    same = sum(int(np.array_equal(replayed[f], plain[f])) for f in frames)
     recordings = frozen._frozen["image"].n_recordings
-    print(f"frozen images equal to unfrozen bit for bit: {same} of {len(frames)}; recordings made: {recordings}")
-    renderer.close()
+    print(f"frozen images equal to traced ones bit for bit: {same} of {len(frames)}; recordings made: {recordings}")
     frozen.close()
 
 

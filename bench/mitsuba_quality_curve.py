@@ -32,6 +32,7 @@ from machine import cpu_model, gpu_name  # noqa: E402
 from agrisim.config import CellConfig, RenderConfig  # noqa: E402
 from agrisim.lab.room import build_scene  # noqa: E402
 from agrisim.plugins.plants.procedural import grow  # noqa: E402
+from agrisim.plugins.render.mitsuba.denoise import AOVS  # noqa: E402
 from agrisim.plugins.render.mitsuba.options import MitsubaOptions  # noqa: E402
 from agrisim.plugins.render.mitsuba.renderer import MitsubaRenderer  # noqa: E402
 from agrisim.scene.camera import CameraModel  # noqa: E402
@@ -142,7 +143,7 @@ def save(args: argparse.Namespace, camera: CameraModel) -> None:
         for depth in args.max_depths:
             for spp in args.spp:
                 r = renderer(spp=spp, denoise="off", max_depth=depth)
-                aov = r.mi.load_dict({"type": "aov", "aovs": "albedo:albedo,nn:sh_normal"})
+                aov = r.mi.load_dict({"type": "aov", "aovs": AOVS})  # the renderer's guide pass
                 sensor = r._placed_sensor(camera, T)
                 seed = view_seed(camera, T, r.options.seed) & 0xFFFFFFFF
                 t0 = time.perf_counter()

@@ -188,3 +188,13 @@ def test_no_renderer_imports_open3d() -> None:
         "    assert (r.render(cam, T, {}).depth > 0).mean() > 0.5\n"
     )
     assert "open3d" not in {m.split(".")[0] for m in _loaded_after(code)}
+
+
+def test_the_public_api_lists_every_name_it_serves() -> None:
+    """``agrisim.__all__`` is spelt out for linters: it must hold every lazily served name, and
+    each name in it must resolve."""
+    import agrisim
+
+    assert set(agrisim._LAZY) <= set(agrisim.__all__)
+    for name in agrisim.__all__:
+        assert getattr(agrisim, name) is not None, name

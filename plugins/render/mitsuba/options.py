@@ -32,7 +32,7 @@ class MitsubaOptions(Options):
     freeze: Literal["auto", "on", "off"] = "auto"
     """Record a view's kernels once (Dr.Jit's ``dr.freeze``) and replay them for the next views,
     the camera and arms moved in place: the same images bit for bit, without tracing the render
-    in Python again (an H100 at 1080p: 150 -> 24 ms a view; bench/mitsuba_frame_cost.py).
+    in Python again (an H100 at 1080p: 115 -> 15 ms a view; bench/mitsuba_frame_cost.py).
     ``auto``: on with the CUDA variant; off with LLVM, where moving the arms rebuilds Embree's
     scene and every view is recorded anew (the CPU gains nothing)."""
     exposure: float = Field(1.0, gt=0.0, le=1e6)
