@@ -53,7 +53,8 @@ def main() -> None:
     parser.add_argument("--spp", type=int, default=16)
     parser.add_argument("--frames", type=int, default=10)
     parser.add_argument("--denoise", default="off")
-    parser.add_argument("--integrator", default="path", choices=["path", "volpath"])
+    parser.add_argument("--integrator", default=MitsubaOptions().integrator, choices=["cutout_path", "path", "volpath"])
+    parser.add_argument("--sampler", default=MitsubaOptions().sampler, choices=["multijitter", "independent"])
     parser.add_argument("--max-depth", type=int, default=MitsubaOptions().max_depth)
     args = parser.parse_args()
     # What agrisim render reads of a run (the scene, cameras, link poses, its render settings),
@@ -64,7 +65,12 @@ def main() -> None:
     saved = {k: v for k, v in run["config"].items() if k not in ("output", "renderer")}
     settings = build_config(saved).render
     options = MitsubaOptions(
-        spp=args.spp, variant=args.variant, denoise=args.denoise, integrator=args.integrator, max_depth=args.max_depth
+        spp=args.spp,
+        variant=args.variant,
+        denoise=args.denoise,
+        integrator=args.integrator,
+        sampler=args.sampler,
+        max_depth=args.max_depth,
     )
     scene = read_scene(args.run_dir / layout.SCENE_GLB)
     import drjit as dr
@@ -92,14 +98,16 @@ def main() -> None:
             dr.eval(image)
             dr.sync_thread()
             clock.lap("path-tracing kernels")
-            aux = None
             if renderer.denoise:
-                aux = renderer._render("guide", sensor, seed ^ 0x5A5A5A5A, renderer.aov)
-                dr.eval(aux)
+                colour, aux = renderer._guides(image, sensor, seed)
+                dr.eval(colour, aux)
                 dr.sync_thread()
-                clock.lap("guide pass")
-            linear = denoise.denoise(image, aux) if aux is not None else np.asarray(image, np.float32)[..., :3]
-            clock.lap("denoise + copy to host" if aux is not None else "copy to host")
+                clock.lap("guides split" if renderer.guided else "guide pass")
+                linear = denoise.denoise(colour, aux)
+                clock.lap("denoise + copy to host")
+            else:
+                linear = np.asarray(image, np.float32)[..., :3]
+                clock.lap("copy to host")
             rgb = np.empty((linear.shape[0] * linear.shape[1], 3), np.uint8)
             encode_srgb8(np.array(linear, np.float32).reshape(-1, 3), rgb, o.exposure, o.tonemap)
             clock.lap("8-bit encoding")
@@ -113,7 +121,7 @@ def main() -> None:
     print(f"CPU: {cpu_model()}; GPU: {gpu_name()}; variant {traced.mi.variant()}")
     print(
         f"{camera.width}x{camera.height}, {args.integrator}, max depth {args.max_depth}, {args.spp} spp, "
-        f"denoise {args.denoise}, {len(frames) - 1} frames after the first"
+        f"{args.sampler}, denoise {'on' if traced.denoise else 'off'}, {len(frames) - 1} frames after the first"
     )
     first, clock, plain = frames_of(traced)
     report("traced anew", first, clock, len(frames) - 1)

@@ -32,7 +32,7 @@ from machine import cpu_model, gpu_name  # noqa: E402
 from agrisim.config import CellConfig, RenderConfig  # noqa: E402
 from agrisim.lab.room import build_scene  # noqa: E402
 from agrisim.plugins.plants.procedural import grow  # noqa: E402
-from agrisim.plugins.render.mitsuba.denoise import AOVS  # noqa: E402
+from agrisim.plugins.render.mitsuba import integrator as cutout  # noqa: E402
 from agrisim.plugins.render.mitsuba.options import MitsubaOptions  # noqa: E402
 from agrisim.plugins.render.mitsuba.renderer import MitsubaRenderer  # noqa: E402
 from agrisim.scene.camera import CameraModel  # noqa: E402
@@ -66,11 +66,19 @@ def main() -> None:
         default=[MitsubaOptions().max_depth],
         help="path lengths to try (the reference keeps the default)",
     )
+    parser.add_argument(
+        "--integrators",
+        nargs="+",
+        default=[MitsubaOptions().integrator],
+        help="integrators to compare, each against its own reference",
+    )
+    parser.add_argument("--sampler", default=None, help="Mitsuba sampler of the renders (default: the renderer's)")
     parser.add_argument("--variant", default="auto")
     parser.add_argument("--runs", type=Path, nargs="+", help="scenes of saved runs instead of --plants")
     parser.add_argument("--save", type=Path, help="write the renders' centre crops here instead of scoring")
     parser.add_argument("--score", type=Path, help="denoise and score the crops --save wrote")
-    parser.add_argument("--crop", default="960x540", help="centre crop saved with --save")
+    parser.add_argument("--crop", default="480x270", help="centre crop saved with --save")
+    parser.add_argument("--views", nargs="+", default=list(VIEWS), choices=list(VIEWS), help="views of --save")
     args = parser.parse_args()
     if args.score:
         score(args.score)
@@ -98,15 +106,21 @@ def main() -> None:
         scene = build_scene(cell, grow(plant, 0), labels="plant")
         target = scene.mesh("plant").vertices.mean(axis=0)
         T = look_at(target + np.array([0.35, -0.35, 0.3]), target)  # the plant filling the view
-        reference, ref_s = render(scene, T, spp=args.reference_spp, seed=9, denoise="off")
-        for depth in args.max_depths:
-            rows = []
-            for spp in args.spp:
-                for denoise in ("on", "off"):
-                    image, seconds = render(scene, T, spp=spp, denoise=denoise, max_depth=depth)
-                    kind = "denoised" if denoise == "on" else "raw"
-                    rows.append(f"{spp} {kind} {psnr(image, reference):.1f} dB ({seconds:.2f} s)")
-            print(f"{plant}, max depth {depth} (reference {ref_s:.0f} s): " + "; ".join(rows), flush=True)
+        for integrator in args.integrators:
+            reference, ref_s = render(scene, T, spp=args.reference_spp, seed=9, denoise="off", integrator=integrator)
+            for depth in args.max_depths:
+                rows = []
+                for spp in args.spp:
+                    for denoise in ("on", "off"):
+                        image, seconds = render(
+                            scene, T, spp=spp, denoise=denoise, max_depth=depth, integrator=integrator
+                        )
+                        kind = "denoised" if denoise == "on" else "raw"
+                        rows.append(f"{spp} {kind} {psnr(image, reference):.1f} dB ({seconds:.2f} s)")
+                print(
+                    f"{plant}, {integrator}, max depth {depth} (reference {ref_s:.0f} s): " + "; ".join(rows),
+                    flush=True,
+                )
 
 
 def _crop(image: np.ndarray, size: str) -> np.ndarray:
@@ -115,10 +129,15 @@ def _crop(image: np.ndarray, size: str) -> np.ndarray:
     return np.ascontiguousarray(image[y0 : y0 + h, x0 : x0 + w])
 
 
+#: where views look from, relative to the plant's centre: close up, and from further on the other side
+VIEWS = {"near": np.array([0.35, -0.35, 0.3]), "far": np.array([-0.5, 0.3, 0.45])}
+
+
 def save(args: argparse.Namespace, camera: CameraModel) -> None:
-    """Render the saved runs' plants and write one ``<run>.npz`` of centre crops, float16: the
-    reference, and per samples and path length the colour and the guide pass's albedo and
-    normal (one file a run: the GPU machine returns few files)."""
+    """Render the saved runs' plants from each of VIEWS and write one ``<run>_<view>.npz`` of
+    centre crops, float16: the reference, and per samples and path length the colour and the
+    integrator's albedo and normal (OIDN denoises and scores them with ``--score``, where pyoidn
+    is: it does not fit beside Mitsuba on the GPU machine)."""
     import drjit as dr
 
     from agrisim.files import layout
@@ -126,40 +145,65 @@ def save(args: argparse.Namespace, camera: CameraModel) -> None:
     from agrisim.scene.camera import view_seed
 
     args.save.mkdir(parents=True, exist_ok=True)
+    size = f"{camera.width}x{camera.height}"
     for run in args.runs:
         scene = read_scene(run / layout.SCENE_GLB)
         target = scene.mesh(scene.plant).vertices.mean(axis=0)
-        T = look_at(target + np.array([0.35, -0.35, 0.3]), target)
+        for view in args.views:
+            T = look_at(target + VIEWS[view], target)
 
-        def renderer(scene: object = scene, **options: object) -> MitsubaRenderer:
-            return MitsubaRenderer(
-                scene, None, RenderConfig(hide_robots=True), MitsubaOptions(variant=args.variant, **options)
-            )
+            def renderer(scene: object = scene, **options: object) -> MitsubaRenderer:
+                return MitsubaRenderer(
+                    scene, None, RenderConfig(hide_robots=True), MitsubaOptions(variant=args.variant, **options)
+                )
 
-        t0 = time.perf_counter()
-        ref = renderer(spp=args.reference_spp, seed=9, denoise="off").radiance(camera, T)
-        print(f"{run.name}: reference {time.perf_counter() - t0:.1f} s", flush=True)
-        arrays = {"ref": _crop(ref, args.crop).astype(np.float16)}
-        for depth in args.max_depths:
-            for spp in args.spp:
-                r = renderer(spp=spp, denoise="off", max_depth=depth)
-                aov = r.mi.load_dict({"type": "aov", "aovs": AOVS})  # the renderer's guide pass
-                sensor = r._placed_sensor(camera, T)
-                seed = view_seed(camera, T, r.options.seed) & 0xFFFFFFFF
-                t0 = time.perf_counter()
-                colour = r._render("image", sensor, seed)
-                dr.eval(colour)
-                dr.sync_thread()
-                seconds = time.perf_counter() - t0
-                aux = np.asarray(r._render("guide", sensor, seed ^ 0x5A5A5A5A, aov), np.float32)
-                key = f"{spp}_d{depth}"
-                arrays[f"colour_{key}"] = _crop(np.asarray(colour, np.float32)[..., :3], args.crop).astype(np.float16)
-                arrays[f"albedo_{key}"] = _crop(aux[..., 0:3], args.crop).astype(np.float16)
-                arrays[f"normal_{key}"] = _crop(aux[..., 3:6], args.crop).astype(np.float16)
-                arrays[f"seconds_{key}"] = np.float64(seconds)
-                print(f"  {spp} spp, depth {depth}: {1e3 * seconds:.0f} ms of rendering", flush=True)
-                r.close()
-        np.savez(args.save / f"{run.name}.npz", **arrays)
+            t0 = time.perf_counter()
+            ref = renderer(spp=args.reference_spp, seed=9, denoise="off").radiance(camera, T)
+            print(f"{run.name} {view} {size}: reference {time.perf_counter() - t0:.1f} s", flush=True)
+            arrays = {"ref": _crop(ref, args.crop).astype(np.float16)}
+            for depth in args.max_depths:
+                for spp in args.spp:
+                    r = renderer(spp=spp, denoise="off", max_depth=depth)
+                    # the renderer's integrator, returning the denoiser's guides as it does when denoising
+                    guided = r.mi.load_dict({"type": cutout.NAME, "max_depth": depth, "guide": True})
+                    sensor = r._placed_sensor(camera, T)
+                    seed = view_seed(camera, T, r.options.seed) & 0xFFFFFFFF
+                    r._render("image", sensor, seed, guided)  # compiled apart from the timing
+                    dr.sync_thread()
+                    t0 = time.perf_counter()
+                    image = r._render("image", sensor, seed, guided)
+                    dr.eval(image)
+                    dr.sync_thread()
+                    seconds = time.perf_counter() - t0
+                    colour, aux = image[..., 0:3], image[..., 3:9]
+                    line = f"  {spp} spp, depth {depth}: {1e3 * seconds:.0f} ms of rendering"
+                    colour, aux = np.asarray(colour, np.float32), np.asarray(aux, np.float32)
+                    key = f"{spp}_d{depth}"
+                    arrays[f"colour_{key}"] = _crop(colour, args.crop).astype(np.float16)
+                    arrays[f"albedo_{key}"] = _crop(aux[..., 0:3], args.crop).astype(np.float16)
+                    arrays[f"normal_{key}"] = _crop(aux[..., 3:6], args.crop).astype(np.float16)
+                    arrays[f"seconds_{key}"] = np.float64(seconds)
+                    if "path" in args.integrators:  # Mitsuba's own path tracer's time, for comparison
+                        line += f" (path: {1e3 * _time_path(renderer(spp=spp, denoise='off', max_depth=depth), camera, T):.0f} ms)"
+                    print(line, flush=True)
+                    r.close()
+            np.savez_compressed(args.save / f"{run.name}_{view}_{size}.npz", **arrays)
+
+
+def _time_path(r: MitsubaRenderer, camera: CameraModel, T: np.ndarray) -> float:
+    """Seconds of Mitsuba's ``path`` rendering the view (compiled first), the renderer closed."""
+    import drjit as dr
+
+    integrator = r.mi.load_dict({"type": "path", "max_depth": r.options.max_depth})
+    sensor = r._placed_sensor(camera, T)
+    r._render("path", sensor, 1, integrator)
+    dr.sync_thread()
+    t0 = time.perf_counter()
+    dr.eval(r._render("path", sensor, 2, integrator))
+    dr.sync_thread()
+    seconds = time.perf_counter() - t0
+    r.close()
+    return seconds
 
 
 def score(folder: Path) -> None:

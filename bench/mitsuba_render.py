@@ -59,7 +59,7 @@ def main() -> None:
     defaults = MitsubaOptions()
     print(
         f"CPU: {cpu_model()}; plant {args.plant} ({len(plant.mesh.faces):,} triangles); mitsuba defaults: "
-        f"{defaults.spp} spp, {defaults.integrator}, max depth {defaults.max_depth}, denoise {defaults.denoise}"
+        f"{defaults.spp} spp ({defaults.sampler}), {defaults.integrator}, max depth {defaults.max_depth}, denoise {defaults.denoise}"
     )
 
     if not args.skip_quality:
@@ -86,8 +86,9 @@ def quality(scene, cell, settings, views, poses, reference_spp: int) -> None:  #
     )
     candidates = {
         "mitsuba defaults": MitsubaRenderer(scene, cell, settings, defaults),
+        "mitsuba path": MitsubaRenderer(scene, cell, settings, MitsubaOptions(integrator="path")),
         "mitsuba volpath": MitsubaRenderer(scene, cell, settings, MitsubaOptions(integrator="volpath")),
-        "mitsuba 16, raw": MitsubaRenderer(scene, cell, settings, MitsubaOptions(denoise="off")),
+        f"mitsuba {defaults.spp}, raw": MitsubaRenderer(scene, cell, settings, MitsubaOptions(denoise="off")),
         "mitsuba 64 spp": MitsubaRenderer(scene, cell, settings, MitsubaOptions(spp=64)),
         "mitsuba 64, raw": MitsubaRenderer(scene, cell, settings, MitsubaOptions(spp=64, denoise="off")),
         "mitsuba 256, raw": MitsubaRenderer(scene, cell, settings, MitsubaOptions(spp=256, denoise="off")),

@@ -28,7 +28,7 @@ def main() -> None:
     parser.add_argument("--spp", type=int, nargs="+", default=[16, 64, 256])
     parser.add_argument("--variant", default="auto")
     parser.add_argument("--denoise", default="auto")
-    parser.add_argument("--integrator", nargs="+", default=["volpath"], choices=["path", "volpath"])
+    parser.add_argument("--integrator", nargs="+", default=["volpath"], choices=["cutout_path", "path", "volpath"])
     args = parser.parse_args()
     print(f"CPU: {cpu_model()}; GPU: {gpu_name()}")
     for integrator, spp in ((i, s) for i in args.integrator for s in args.spp):

@@ -18,6 +18,9 @@ What each part does:
 * :mod:`.scene` builds the Mitsuba scene: every mesh split by material, the lab's lights with
   the raycast renderer's radiometric meaning, an optional environment map, and the arms, whose
   vertices are moved to each frame's link poses.
+* :mod:`.integrator` is ``cutout_path``, Mitsuba's path tracer with camera, bounce and shadow
+  rays walking past cut-out texels exactly (Mitsuba's own spend a path vertex on each and stop
+  shadow rays there), returning the denoiser's albedo and normal guides in the same samples.
 * :mod:`.renderer` renders a view: path tracing (box filter: no pixel blurs into its
   neighbour), the linear radiance to 8-bit sRGB through the same encoder as raycast (one
   exposure for the run), and the exact pass for labels, depth and instances.

@@ -31,10 +31,11 @@ def check_square_pixels(camera: CameraModel) -> None:
         )
 
 
-def load_sensor(mi, camera: CameraModel, world_T_camera: np.ndarray, spp: int):  # noqa: ANN001, ANN201 - mitsuba's types
+def load_sensor(mi, camera: CameraModel, world_T_camera: np.ndarray, spp: int, sampler: str = "independent"):  # noqa: ANN001, ANN201 - mitsuba's types
     """Mitsuba's ``perspective`` sensor of ``camera`` at ``world_T_camera`` (OpenCV optical
     frame), with an ``hdrfilm`` of the camera's size and a box filter (each pixel averages its
-    own area, nothing of its neighbours'); ``mi`` is the mitsuba module, its variant set."""
+    own area, nothing of its neighbours) and ``sampler`` placing the ``spp`` samples; ``mi`` is
+    the mitsuba module, its variant set."""
     check_square_pixels(camera)
     W, H = camera.width, camera.height
     to_world = np.asarray(world_T_camera, np.float64) @ CV_TO_MITSUBA
@@ -56,6 +57,6 @@ def load_sensor(mi, camera: CameraModel, world_T_camera: np.ndarray, spp: int): 
                 "rfilter": {"type": "box"},
                 "sample_border": False,
             },
-            "sampler": {"type": "independent", "sample_count": int(spp)},
+            "sampler": {"type": sampler, "sample_count": int(spp)},
         }
     )

@@ -20,6 +20,7 @@ from agrisim.scene.colour import encode_srgb8
 from agrisim.scene.model import Mesh, Scene
 
 from . import denoise
+from . import integrator as cutout
 from .camera import CV_TO_MITSUBA, load_sensor
 from .options import MitsubaOptions
 from .scene import build
@@ -53,9 +54,15 @@ class MitsubaRenderer(Renderer):
             for arm, links in self._unrounded_arms.items()
         }
         self._tracer: SceneTracer | None = None
-        integrator = {"type": options.integrator, "max_depth": int(options.max_depth)}
+        integrator: dict = {"type": options.integrator, "max_depth": int(options.max_depth)}
         self.denoise = denoise.wanted(options)
-        self.aov = mi.load_dict({"type": "aov", "aovs": denoise.AOVS}) if self.denoise else None
+        # cutout_path gives the denoiser's guides in its own samples; Mitsuba's integrators need
+        # a second pass (the aov integrator) for them
+        self.guided = self.denoise and options.integrator == cutout.NAME
+        if options.integrator == cutout.NAME:
+            cutout.register()
+            integrator["guide"] = self.guided
+        self.aov = mi.load_dict({"type": "aov", "aovs": denoise.AOVS}) if self.denoise and not self.guided else None
         parts = build(mi, scene.meshes, scene.lights, self._arms, options, integrator)
         self.arm_parts = parts.arms
         self.mi_scene = mi.load_dict(parts.scene)
@@ -120,7 +127,7 @@ class MitsubaRenderer(Renderer):
         """The camera's sensor at ``world_T_camera``: built for a new camera, else moved."""
         key = (camera.width, camera.height, camera.fx, camera.fy, camera.cx, camera.cy)
         if self._sensor is None or self._sensor[0] != key:
-            sensor = load_sensor(self.mi, camera, world_T_camera, self.options.spp)
+            sensor = load_sensor(self.mi, camera, world_T_camera, self.options.spp, self.options.sampler)
             self._sensor = (key, sensor, self.mi.traverse(sensor))
             self._frozen.clear()  # recorded with the old sensor
         # moved even when just built: its transform is then held as the replays will see it
@@ -154,10 +161,17 @@ class MitsubaRenderer(Renderer):
         sensor = self._placed_sensor(camera, world_T_camera)
         seed = view_seed(camera, world_T_camera, o.seed) & 0xFFFFFFFF
         image = self._render("image", sensor, seed)
-        if self.denoise:  # (on the GPU when the image is there and PyTorch can pass it to OIDN)
-            aux = self._render("guide", sensor, seed ^ 0x5A5A5A5A, self.aov)
-            return denoise.denoise(image, aux)
-        return np.asarray(image, F32)[..., :3]
+        if not self.denoise:
+            return np.asarray(image, F32)[..., :3]
+        # (on the GPU when the image is there and PyTorch can pass it to OIDN)
+        return denoise.denoise(*self._guides(image, sensor, seed))
+
+    def _guides(self, image, sensor, seed: int):  # noqa: ANN001, ANN202 - Dr.Jit tensors
+        """(radiance, albedo and normal) of a rendered ``image``: its own channels with
+        cutout_path, else the aov integrator's pass."""
+        if self.guided:
+            return image[..., 0:3], image[..., 3:9]
+        return image[..., 0:3], self._render("guide", sensor, seed ^ 0x5A5A5A5A, self.aov)
 
     def render_rgb(
         self,
