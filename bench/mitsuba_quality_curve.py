@@ -78,6 +78,7 @@ def main() -> None:
     parser.add_argument("--save", type=Path, help="write the renders' centre crops here instead of scoring")
     parser.add_argument("--score", type=Path, help="denoise and score the crops --save wrote")
     parser.add_argument("--crop", default="480x270", help="centre crop saved with --save")
+    parser.add_argument("--references", type=Path, help="reuse the references --save wrote there (same crop)")
     parser.add_argument("--views", nargs="+", default=list(VIEWS), choices=list(VIEWS), help="views of --save")
     args = parser.parse_args()
     if args.score:
@@ -157,15 +158,23 @@ def save(args: argparse.Namespace, camera: CameraModel) -> None:
                     scene, None, RenderConfig(hide_robots=True), MitsubaOptions(variant=args.variant, **options)
                 )
 
-            t0 = time.perf_counter()
-            ref = renderer(spp=args.reference_spp, seed=9, denoise="off").radiance(camera, T)
-            print(f"{run.name} {view} {size}: reference {time.perf_counter() - t0:.1f} s", flush=True)
-            arrays = {"ref": _crop(ref, args.crop).astype(np.float16)}
+            name = f"{run.name}_{view}_{size}.npz"
+            if args.references and (args.references / name).is_file():  # (Russian roulette and
+                # the sampler leave the converged image as it is: a reference can serve again)
+                arrays = {"ref": np.load(args.references / name)["ref"]}
+                print(f"{run.name} {view} {size}: reference from {args.references / name}", flush=True)
+            else:
+                t0 = time.perf_counter()
+                ref = renderer(spp=args.reference_spp, seed=9, denoise="off").radiance(camera, T)
+                print(f"{run.name} {view} {size}: reference {time.perf_counter() - t0:.1f} s", flush=True)
+                arrays = {"ref": _crop(ref, args.crop).astype(np.float16)}
             for depth in args.max_depths:
                 for spp in args.spp:
                     r = renderer(spp=spp, denoise="off", max_depth=depth)
                     # the renderer's integrator, returning the denoiser's guides as it does when denoising
-                    guided = r.mi.load_dict({"type": cutout.NAME, "max_depth": depth, "guide": True})
+                    guided = r.mi.load_dict(
+                        {"type": cutout.NAME, "max_depth": depth, "rr_depth": r.options.rr_depth, "guide": True}
+                    )
                     sensor = r._placed_sensor(camera, T)
                     seed = view_seed(camera, T, r.options.seed) & 0xFFFFFFFF
                     r._render("image", sensor, seed, guided)  # compiled apart from the timing
@@ -187,7 +196,7 @@ def save(args: argparse.Namespace, camera: CameraModel) -> None:
                         line += f" (path: {1e3 * _time_path(renderer(spp=spp, denoise='off', max_depth=depth), camera, T):.0f} ms)"
                     print(line, flush=True)
                     r.close()
-            np.savez_compressed(args.save / f"{run.name}_{view}_{size}.npz", **arrays)
+            np.savez_compressed(args.save / name, **arrays)
 
 
 def _time_path(r: MitsubaRenderer, camera: CameraModel, T: np.ndarray) -> float:

@@ -54,7 +54,11 @@ class MitsubaRenderer(Renderer):
             for arm, links in self._unrounded_arms.items()
         }
         self._tracer: SceneTracer | None = None
-        integrator: dict = {"type": options.integrator, "max_depth": int(options.max_depth)}
+        integrator: dict = {
+            "type": options.integrator,
+            "max_depth": int(options.max_depth),
+            "rr_depth": int(options.rr_depth),
+        }
         self.denoise = denoise.wanted(options)
         # cutout_path gives the denoiser's guides in its own samples; Mitsuba's integrators need
         # a second pass (the aov integrator) for them
