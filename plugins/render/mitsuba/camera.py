@@ -31,32 +31,36 @@ def check_square_pixels(camera: CameraModel) -> None:
         )
 
 
-def load_sensor(mi, camera: CameraModel, world_T_camera: np.ndarray, spp: int, sampler: str = "independent"):  # noqa: ANN001, ANN201 - mitsuba's types
+def sensor_dict(camera: CameraModel, world_T_camera: np.ndarray, spp: int, sampler: str = "independent") -> dict:
     """Mitsuba's ``perspective`` sensor of ``camera`` at ``world_T_camera`` (OpenCV optical
-    frame), with an ``hdrfilm`` of the camera's size and a box filter (each pixel averages its
-    own area, nothing of its neighbours) and ``sampler`` placing the ``spp`` samples; ``mi`` is
-    the mitsuba module, its variant set."""
+    frame) as a dict for ``mitsuba.load_dict``, with an ``hdrfilm`` of the camera's size and a
+    box filter (each pixel averages its own area, nothing of its neighbours') and ``sampler``
+    placing the ``spp`` samples. The transform is a 4 x 4 array: Mitsuba takes it as such."""
     check_square_pixels(camera)
     W, H = camera.width, camera.height
-    to_world = np.asarray(world_T_camera, np.float64) @ CV_TO_MITSUBA
-    return mi.load_dict(
-        {
-            "type": "perspective",
-            "fov_axis": "x",
-            "fov": math.degrees(2.0 * math.atan(W / (2.0 * camera.fx))),
-            "principal_point_offset_x": (W / 2.0 - (camera.cx + 0.5)) / W,
-            "principal_point_offset_y": (H / 2.0 - (camera.cy + 0.5)) / H,
-            "near_clip": 1e-3,
-            "far_clip": 1e4,
-            "to_world": mi.ScalarTransform4f(to_world),
-            "film": {
-                "type": "hdrfilm",
-                "width": W,
-                "height": H,
-                "pixel_format": "rgb",
-                "rfilter": {"type": "box"},
-                "sample_border": False,
-            },
-            "sampler": {"type": sampler, "sample_count": int(spp)},
-        }
-    )
+    return {
+        "type": "perspective",
+        "fov_axis": "x",
+        "fov": math.degrees(2.0 * math.atan(W / (2.0 * camera.fx))),
+        "principal_point_offset_x": (W / 2.0 - (camera.cx + 0.5)) / W,
+        "principal_point_offset_y": (H / 2.0 - (camera.cy + 0.5)) / H,
+        "near_clip": 1e-3,
+        "far_clip": 1e4,
+        "to_world": np.asarray(world_T_camera, np.float64) @ CV_TO_MITSUBA,
+        "film": {
+            "type": "hdrfilm",
+            "width": W,
+            "height": H,
+            "pixel_format": "rgb",
+            "rfilter": {"type": "box"},
+            "sample_border": False,
+        },
+        "sampler": {"type": sampler, "sample_count": int(spp)},
+    }
+
+
+def load_sensor(mi, camera: CameraModel, world_T_camera: np.ndarray, spp: int, sampler: str = "independent"):  # noqa: ANN001, ANN201 - mitsuba's types
+    """:func:`sensor_dict` loaded; ``mi`` is the mitsuba module, its variant set."""
+    d = sensor_dict(camera, world_T_camera, spp, sampler)
+    d["to_world"] = mi.ScalarTransform4f(d["to_world"])
+    return mi.load_dict(d)
