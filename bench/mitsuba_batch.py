@@ -9,7 +9,6 @@ Frozen renders, kernels timed after ``dr.eval`` and a sync. Prints figures; asse
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 import time
 from pathlib import Path
@@ -18,11 +17,9 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).parent))
 from machine import cpu_model, gpu_name  # noqa: E402
+from saved_run import saved_run  # noqa: E402
 
 from agrisim.config import RenderConfig  # noqa: E402
-from agrisim.files import layout  # noqa: E402
-from agrisim.files.rundir import camera_from_json  # noqa: E402
-from agrisim.files.scene_glb import read_scene  # noqa: E402
 from agrisim.plugins.render.mitsuba.camera import sensor_dict  # noqa: E402
 from agrisim.plugins.render.mitsuba.options import MitsubaOptions  # noqa: E402
 from agrisim.plugins.render.mitsuba.renderer import MitsubaRenderer  # noqa: E402
@@ -38,11 +35,11 @@ def main() -> None:
     args = parser.parse_args()
     import drjit as dr
 
-    cameras = json.loads((args.run_dir / layout.CAMERAS_JSON).read_text())
-    camera = camera_from_json(cameras["intrinsics"])
+    saved = saved_run(args.run_dir)
+    cameras, camera = saved.cameras, saved.camera
     views = [np.asarray(cameras["frames"][f]["world_T_camera"]) for f in sorted(cameras["frames"])[: args.views]]
     options = MitsubaOptions(variant=args.variant, spp=args.spp, denoise="off", freeze="on")
-    r = MitsubaRenderer(read_scene(args.run_dir / layout.SCENE_GLB), None, RenderConfig(hide_robots=True), options)
+    r = MitsubaRenderer(saved.scene, None, RenderConfig(hide_robots=True), options)
     mi = r.mi
     print(f"CPU: {cpu_model()}; GPU: {gpu_name()}; variant {mi.variant()}")
 

@@ -10,7 +10,6 @@ recorded and replayed), and whether the frozen images are the traced ones bit fo
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 import time
 from pathlib import Path
@@ -19,13 +18,10 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).parent))
 from machine import cpu_model, gpu_name  # noqa: E402
+from saved_run import saved_run  # noqa: E402
 
 from agrisim.app.render import _link_poses  # noqa: E402
-from agrisim.config import build_config  # noqa: E402
-from agrisim.files import layout  # noqa: E402
 from agrisim.files.png import encode_png  # noqa: E402
-from agrisim.files.rundir import camera_from_json  # noqa: E402
-from agrisim.files.scene_glb import read_scene  # noqa: E402
 from agrisim.plugins.render.mitsuba import denoise  # noqa: E402
 from agrisim.plugins.render.mitsuba.options import MitsubaOptions  # noqa: E402
 from agrisim.plugins.render.mitsuba.renderer import MitsubaRenderer  # noqa: E402
@@ -57,13 +53,8 @@ def main() -> None:
     parser.add_argument("--sampler", default=MitsubaOptions().sampler, choices=["multijitter", "independent"])
     parser.add_argument("--max-depth", type=int, default=MitsubaOptions().max_depth)
     args = parser.parse_args()
-    # What agrisim render reads of a run (the scene, cameras, link poses, its render settings),
-    # without its check that the run's own images are there: a run carried to a GPU machine
-    # leaves them behind.
-    run = json.loads((args.run_dir / layout.RUN_JSON).read_text())
-    cameras = json.loads((args.run_dir / layout.CAMERAS_JSON).read_text())
-    saved = {k: v for k, v in run["config"].items() if k not in ("output", "renderer")}
-    settings = build_config(saved).render
+    saved = saved_run(args.run_dir)
+    cameras, settings, scene, camera = saved.cameras, saved.settings, saved.scene, saved.camera
     options = MitsubaOptions(
         spp=args.spp,
         variant=args.variant,
@@ -72,10 +63,8 @@ def main() -> None:
         sampler=args.sampler,
         max_depth=args.max_depth,
     )
-    scene = read_scene(args.run_dir / layout.SCENE_GLB)
     import drjit as dr
 
-    camera = camera_from_json(cameras["intrinsics"])
     frames = sorted(cameras["frames"])[: args.frames + 1]  # the first compiles: reported apart
     poses = {f: np.asarray(cameras["frames"][f]["world_T_camera"], np.float64) for f in frames}
     links = {f: _link_poses(args.run_dir, f) for f in frames}

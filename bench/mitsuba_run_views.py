@@ -12,7 +12,6 @@ bench/robot_episode.py and bench/recon_views.py. Prints figures; asserts nothing
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 import tempfile
 import time
@@ -23,13 +22,10 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).parent))
 from machine import cpu_model, gpu_name  # noqa: E402
+from saved_run import saved_run  # noqa: E402
 
 from agrisim.app.render import _link_poses  # noqa: E402
-from agrisim.config import build_config  # noqa: E402
-from agrisim.files import layout  # noqa: E402
 from agrisim.files.dataset import write_frame  # noqa: E402
-from agrisim.files.rundir import camera_from_json  # noqa: E402
-from agrisim.files.scene_glb import read_scene  # noqa: E402
 from agrisim.interfaces import Frame  # noqa: E402
 from agrisim.plugins.render.mitsuba.options import MitsubaOptions  # noqa: E402
 from agrisim.plugins.render.mitsuba.renderer import MitsubaRenderer  # noqa: E402
@@ -44,12 +40,8 @@ def main() -> None:
     parser.add_argument("--frames", type=int, default=100)
     parser.add_argument("--spp", type=int, default=MitsubaOptions().spp)
     args = parser.parse_args()
-    run = json.loads((args.run_dir / layout.RUN_JSON).read_text())
-    cameras = json.loads((args.run_dir / layout.CAMERAS_JSON).read_text())
-    saved = {k: v for k, v in run["config"].items() if k not in ("output", "renderer")}
-    settings = build_config(saved).render
-    scene = read_scene(args.run_dir / layout.SCENE_GLB)
-    camera = camera_from_json(cameras["intrinsics"])
+    saved = saved_run(args.run_dir)
+    run, cameras, settings, scene, camera = saved.run, saved.cameras, saved.settings, saved.scene, saved.camera
     palette = LabelTable.from_json(run["labels"]).palette() if run.get("labels") else None
     frames = sorted(cameras["frames"])[: args.frames]
     renderer = MitsubaRenderer(scene, None, settings, MitsubaOptions(variant=args.variant, spp=args.spp))
