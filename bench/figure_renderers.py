@@ -41,7 +41,8 @@ def main(out: Path) -> None:
         assert np.array_equal(frames["raycast"].labels, frames["mitsuba"].labels)
         sheet.paste(Image.fromarray(scene.labels.palette()[frames["mitsuba"].labels]), (2 * W, row * H))
         draw.text((6, row * H + 4), f"raycast: {seconds['raycast']:.2f} s", fill="white")
-        draw.text((W + 6, row * H + 4), f"mitsuba, 16 spp denoised: {seconds['mitsuba']:.1f} s", fill="white")
+        spp = views.registry.get("renderer", "mitsuba").options_model().spp
+        draw.text((W + 6, row * H + 4), f"mitsuba, {spp} spp denoised: {seconds['mitsuba']:.1f} s", fill="white")
         draw.text((2 * W + 6, row * H + 4), f"{name}: labels ({labels}), identical from both", fill="white")
     out.parent.mkdir(parents=True, exist_ok=True)
     sheet.save(out)
