@@ -105,8 +105,9 @@ def _integrator_class() -> type:
         def _visible(self, scene: Any, ray: Any, target: Any, active: Any) -> Any:
             """Bool: does the shadow ray ``ray`` reach ``target`` through cut-out texels alone?
             Past ``max_layers`` cut cards the point counts as shadowed."""
-            blocked = scene.ray_test(ray, active)
-            walk = mi.Bool(blocked)
+            # (no any-hit test first: a blocked ray would need the closest hit after it anyway)
+            blocked = mi.Bool(active)
+            walk = mi.Bool(active)
             layer = mi.UInt32(0)
             while walk:
                 pi = scene.ray_intersect_preliminary(ray)
