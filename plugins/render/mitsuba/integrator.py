@@ -8,8 +8,9 @@ the holes: slow to converge, with fireflies. ``volpath`` treats the texels as nu
 correctly, at 2.2x the time on an H100.
 
 This integrator walks every ray (camera, bounce and shadow) past the texels the label pass cuts,
-as :meth:`agrisim.plugins.render.raycast.engine.Engine.trace` does: a cheap loop of ray casts
-with one opacity lookup per layer, no shading, no path vertex spent. The rest is ``path``'s
+as :meth:`agrisim.plugins.render.raycast.engine.Engine.trace` does: a loop of ray casts with one
+opacity lookup per layer, no shading, no path vertex spent (each layer is a whole ray cast, so a
+fern's canopy is what the integrator pays for: bench/mitsuba_walk_cost.py). The rest is ``path``'s
 algorithm (next event estimation and BSDF sampling combined by multiple importance sampling,
 Russian roulette from ``rr_depth``). Masks here are 0 or 1 texel by texel (nearest filtering of
 the label pass's test, :mod:`.materials`), so walking is exact, not stochastic.
