@@ -102,13 +102,7 @@ def build_parser() -> argparse.ArgumentParser:
         default=None,
         help="continue the unfinished run in --out with its saved configuration",
     )
-    run.add_argument(
-        "--set",
-        action="append",
-        default=[],
-        metavar="KEY=VALUE",
-        help="any setting by its dotted name, e.g. physics.pybullet.position_gain=0.5",
-    )
+    _set_flag(run, "any setting by its dotted name, e.g. physics.pybullet.position_gain=0.5")
 
     plants = sub.add_parser("plants", help="list the plant species: triangles, organs, area cut away by opacity")
     plants.add_argument("--seed", type=int, default=0, metavar="N", help="seed to grow each species with (0)")
@@ -123,13 +117,7 @@ def build_parser() -> argparse.ArgumentParser:
     recon.add_argument("--recon", metavar="NAME", help="reconstructor (default: the run's own)")
     recon.add_argument("--out", type=Path, metavar="DIR", help="write clouds/ and metrics.json here (default: RUN_DIR)")
     recon.add_argument("--overwrite", action="store_true", help="replace existing clouds and metrics.json")
-    recon.add_argument(
-        "--set",
-        action="append",
-        default=[],
-        metavar="KEY=VALUE",
-        help="recon.* or metrics.* settings, e.g. recon.tsdf.voxel_size=0.003",
-    )
+    _set_flag(recon, "recon.* or metrics.* settings, e.g. recon.tsdf.voxel_size=0.003")
     render = sub.add_parser(
         "render",
         help="re-render a finished run's RGB with another renderer (e.g. path-traced), keeping its labels and depth",
@@ -147,13 +135,7 @@ def build_parser() -> argparse.ArgumentParser:
         help="several runs: join this Ray cluster (default: a local one), one GPU a run",
     )
     render.add_argument("--overwrite", action="store_true", help="replace an existing --out (or RUN_DIR's own RGB)")
-    render.add_argument(
-        "--set",
-        action="append",
-        default=[],
-        metavar="KEY=VALUE",
-        help="renderer.* settings, e.g. renderer.mitsuba.spp=64",
-    )
+    _set_flag(render, "renderer.* settings, e.g. renderer.mitsuba.spp=64")
     export = sub.add_parser(
         "export",
         help="export a run directory to another tool's format",
@@ -203,9 +185,7 @@ def build_parser() -> argparse.ArgumentParser:
     compare.add_argument("--config", type=Path, metavar="TOML", help="configuration file shared by the episodes")
     for flag, meta, kind, text in COMPARE_EPISODE_FLAGS:
         compare.add_argument(flag, metavar=meta, type=kind, help=text)
-    compare.add_argument(
-        "--set", action="append", default=[], metavar="KEY=VALUE", help="any setting by its dotted name"
-    )
+    _set_flag(compare, "any setting by its dotted name")
     return p
 
 
@@ -246,6 +226,11 @@ def parse_value(text: str) -> Any:
         return tomllib.loads(f"v = {text}")["v"]
     except tomllib.TOMLDecodeError:
         return text
+
+
+def _set_flag(parser: argparse.ArgumentParser, text: str) -> None:
+    """``--set KEY=VALUE``, repeatable: settings by their dotted names (``text`` says which)."""
+    parser.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", help=text)
 
 
 def _web_flags(parser: argparse.ArgumentParser) -> None:

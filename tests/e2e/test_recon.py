@@ -20,6 +20,7 @@ from agrisim.evaluation.views import View, backproject, load_view
 from agrisim.files.rundir import camera_from_json, read_run
 from agrisim.interfaces import Cloud, Reconstruction
 from agrisim.lab.room import build_scene
+from agrisim.plugins.plants.procedural.species import SPECIES
 from agrisim.plugins.recon.pointcloud import PointCloudReconstructor
 from agrisim.plugins.recon.voxel_grid import VoxelGrid
 from agrisim.registry import Registry, make_plugin_manager
@@ -27,19 +28,6 @@ from agrisim.robot.setpoints import hemisphere
 from agrisim.scene.camera import preset
 from agrisim.scene.cell import build_cell
 from agrisim.scene.model import Label, LabelTable, Material, Mesh
-
-SPECIES = [
-    "indian_cress",
-    "boston_fern",
-    "amaryllis",
-    "bog_marshcress",
-    "chinese_evergreen",
-    "hydrangea",
-    "boxwood",
-    "coltsfoot",
-    "basket_grass",
-    "common_fern",
-]
 
 
 @pytest.fixture(scope="module")

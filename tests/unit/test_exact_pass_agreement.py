@@ -20,6 +20,7 @@ from reference_tracer import ReferenceTracer
 from agrisim.config import RoutineConfig, build_config
 from agrisim.episode import resolve_plant
 from agrisim.lab.room import build_scene
+from agrisim.plugins.plants.procedural.species import SPECIES as PROCEDURAL
 from agrisim.plugins.render.raycast import RaycastOptions
 from agrisim.plugins.render.raycast.tracing import SceneTracer, label_map
 from agrisim.registry import Registry, make_plugin_manager
@@ -27,18 +28,7 @@ from agrisim.robot.setpoints import hemisphere
 from agrisim.robot.visuals import arm_link_meshes
 from agrisim.scene.camera import preset
 
-SPECIES = [
-    "amaryllis",
-    "basket_grass",
-    "bog_marshcress",
-    "boston_fern",
-    "boxwood",
-    "chinese_evergreen",
-    "coltsfoot",
-    "common_fern",
-    "hydrangea",
-    "indian_cress",
-]
+SPECIES = sorted(PROCEDURAL)
 CAMERA = preset("rpi3-wide-1080p", "320x180")
 #: a nudge of the reference's ray, in pixels, that tells a grazing ray
 NUDGE = 0.01

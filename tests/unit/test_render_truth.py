@@ -10,23 +10,11 @@ import pytest
 from agrisim.config import CellConfig, RenderConfig, RoutineConfig, build_config
 from agrisim.episode import resolve_plant
 from agrisim.lab.room import build_scene
+from agrisim.plugins.plants.procedural.species import SPECIES
 from agrisim.registry import Registry, make_plugin_manager
 from agrisim.robot.setpoints import hemisphere
 from agrisim.scene.camera import preset
 from agrisim.scene.cell import build_cell
-
-SPECIES = [
-    "indian_cress",
-    "boston_fern",
-    "amaryllis",
-    "bog_marshcress",
-    "chinese_evergreen",
-    "hydrangea",
-    "boxwood",
-    "coltsfoot",
-    "basket_grass",
-    "common_fern",
-]
 
 
 @pytest.fixture(scope="module")
