@@ -13,6 +13,7 @@ from .growing import (
     Grown,
     add_tubes,
     count,
+    curvature,
     golden_azimuths,
     labels_for,
     pick,
@@ -67,6 +68,7 @@ def grow_boston_fern(geo, tex, size, density) -> Grown:
         curl=geo.normal(0, 0.25, n),
         twist=geo.normal(0, 0.4, n),
         fold=0.12,
+        **curvature(geo, n, cup=(0.1, 0.3)),
     )
     b.add(V, F, UV, CARDS, b.instances(n))
     stipe = np.linspace(0, 1, 4)
@@ -105,6 +107,7 @@ def grow_basket_grass(geo, tex, size, density) -> Grown:
         bend_power=1.5,
         twist=geo.normal(0, 0.6, n),
         curl=geo.normal(0, 0.3, n),
+        **curvature(geo, n, cup=(-0.15, 0.0)),  # a channel: the margins up
     )
     b.add(V, F, UV, CARDS, b.instances(n))
     # a few culms
@@ -172,6 +175,7 @@ def grow_common_fern(geo, tex, size, density) -> Grown:
         fold=0.12,
         twist=geo.normal(0, 0.3, n),
         curl=geo.normal(0, 0.2, n),
+        **curvature(geo, n, cup=(0.05, 0.2)),
     )
     b.add(V, F, UV, CARDS, b.instances(n))
     seg = 1.0 / 8

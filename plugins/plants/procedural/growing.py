@@ -75,6 +75,22 @@ def roll_towards(az: np.ndarray, elev: np.ndarray, lateral: np.ndarray) -> np.nd
     return np.arctan2(np.sum(lateral * dxl, axis=1), np.sum(lateral * lat0, axis=1))
 
 
+def curvature(
+    geo: np.random.Generator,
+    n: int,
+    cup: tuple[float, float] = (0.0, 0.0),
+    wave: tuple[float, float] = (0.0, 0.0),
+    droop: tuple[float, float] | None = None,
+) -> dict[str, np.ndarray]:
+    """Per-leaf blade curvature for :func:`.shapes.strip_cards` and :func:`.shapes.plate_cards`,
+    each leaf drawn within the species' ranges: ``cup`` (a trough across), ``wave`` (rippled
+    margins, at a random phase) and, for plates, ``droop`` (the tip hanging)."""
+    out = {"cup": geo.uniform(*cup, n), "wave": geo.uniform(*wave, n), "phase": geo.uniform(0.0, 2 * np.pi, n)}
+    if droop is not None:
+        out["droop"] = geo.uniform(*droop, n)
+    return out
+
+
 def golden_azimuths(geo: np.random.Generator, n: int, jitter: float = 0.35) -> np.ndarray:
     """Phyllotaxis: successive organs 137.5 degrees apart, jittered."""
     return geo.uniform(0, 2 * np.pi) + np.arange(n) * 2.39996 + geo.normal(0, jitter, n)

@@ -17,6 +17,7 @@ from .growing import (
     add_tubes,
     azel,
     count,
+    curvature,
     golden_azimuths,
     labels_for,
     pick,
@@ -98,7 +99,15 @@ def grow_indian_cress(geo, tex, size, density) -> Grown:
     add_cards(
         b,
         plate_cards(
-            centre, normal, geo.uniform(0, 2 * np.pi, nl), diam, pick(geo, leaf_t, nl), size, cup=-0.06, corner=0.92
+            centre,
+            normal,
+            geo.uniform(0, 2 * np.pi, nl),
+            diam,
+            pick(geo, leaf_t, nl),
+            size,
+            corner=0.8,
+            waves=8,
+            **curvature(geo, nl, cup=(-0.12, -0.03), wave=(0.01, 0.05), droop=(0.0, 0.08)),
         ),
     )
     # flowers on pedicels, facing out and up
@@ -189,6 +198,8 @@ def grow_amaryllis(geo, tex, size, density) -> Grown:
         fold=0.3,
         twist=geo.normal(0, 0.5, n),
         curl=geo.normal(0, 0.2, n),
+        waves=3,
+        **curvature(geo, n, cup=(-0.2, 0.0), wave=(0.0, 0.06)),  # keeled, channelled
     )
     b.add(V, F, UV, CARDS, b.instances(n))
     # scape
@@ -272,6 +283,8 @@ def grow_bog_marshcress(geo, tex, size, density) -> Grown:
         fold=0.15,
         twist=geo.normal(0, 0.3, n),
         curl=geo.normal(0, 0.3, n),
+        waves=4,
+        **curvature(geo, n, cup=(0.05, 0.25), wave=(0.05, 0.15)),
     )
     b.add(V, F, UV, CARDS, b.instances(n))
     # flowering stems with a few stem leaves and racemes of tiny flowers
@@ -384,6 +397,8 @@ def grow_chinese_evergreen(geo, tex, size, density) -> Grown:
         bend_power=1.5,
         fold=0.18,
         twist=geo.normal(0, 0.25, n),
+        waves=3,
+        **curvature(geo, n, cup=(0.05, 0.2), wave=(0.05, 0.15)),
     )
     b.add(V, F, UV, CARDS, b.instances(n))
     return Grown(b, atlas, labels_for("leaf", "stem"), (0.45, 0.58, 0.38))
@@ -434,9 +449,10 @@ def grow_coltsfoot(geo, tex, size, density) -> Grown:
         geo.uniform(0.08, 0.13, n),
         pick(geo, leaf_t, n),
         size,
-        cup=-0.05,
         anchor=anchor,
-        corner=0.82,
+        corner=0.7,
+        waves=9,
+        **curvature(geo, n, cup=(-0.1, 0.02), wave=(0.02, 0.06), droop=(0.05, 0.25)),
     )
     # rotate each leaf about its normal so that its e2 axis follows "outward"
     V = spin_towards(V, attach, normal, outward, anchor_dir=plate_e2(normal))

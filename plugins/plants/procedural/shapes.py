@@ -7,6 +7,8 @@ across (-1..1) and ``s`` along (0..1, base to tip).
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 
 from .textures import tile_uv
@@ -47,6 +49,49 @@ def grid_faces(rows: int, cols: int) -> np.ndarray:
     return np.concatenate([np.stack([a, b, e], 1), np.stack([a, e, d], 1)])
 
 
+#: How far a blade's triangles may stray from the smooth surface they stand for, m: half a
+#: pixel of the paper's camera at 1080p from 0.3 m (818.6 px focal length: 0.37 mm a pixel).
+#: Blades are subdivided until their mesh is this close to one twice as fine.
+SAG = 0.18e-3
+
+
+def grid_errors(coarse: np.ndarray, fine: np.ndarray) -> tuple[float, float, float]:
+    """How far the triangles :func:`grid_faces` makes of ``coarse`` (N x R+1 x C+1 x 3) stray
+    from ``fine``, the same surface at twice the rows and columns, off the surface (along the
+    fine grid's normals: what a silhouette shows, not how the texture slides): the largest
+    distance, m, at the midpoints of the edges along the rows, of those across, and of the
+    cells' diagonals."""
+    normals = unit(np.cross(np.gradient(fine, axis=1), np.gradient(fine, axis=2)))
+
+    def worst(p: np.ndarray, rows: slice, cols: slice) -> float:
+        off = np.sum((p - fine[:, rows, cols]) * normals[:, rows, cols], axis=-1)
+        return float(np.max(np.abs(off), initial=0.0))
+
+    along = worst(0.5 * (coarse[:, :-1] + coarse[:, 1:]), slice(1, None, 2), slice(0, None, 2))
+    across = worst(0.5 * (coarse[:, :, :-1] + coarse[:, :, 1:]), slice(0, None, 2), slice(1, None, 2))
+    diagonal = worst(0.5 * (coarse[:, :-1, :-1] + coarse[:, 1:, 1:]), slice(1, None, 2), slice(1, None, 2))
+    return along, across, diagonal
+
+
+def refined(
+    surface: Callable[[int, int], np.ndarray], rows: int, cols: int, tolerance: float | None = None, limit: int = 128
+) -> tuple[int, int]:
+    """The (rows, cols), doubled from those given, at which the grid ``surface(rows, cols)``
+    (N x rows+1 x cols+1 x 3) is within ``tolerance`` (default :data:`SAG`) of the same surface
+    twice as fine: rows and columns are doubled separately, whichever strays (neither past
+    ``limit``)."""
+    tolerance = SAG if tolerance is None else tolerance
+    while True:
+        along, across, diagonal = grid_errors(surface(rows, cols), surface(2 * rows, 2 * cols))
+        if max(along, across, diagonal) <= tolerance:
+            return rows, cols
+        more_rows = rows < limit and (along > tolerance or (diagonal > tolerance and along >= across))
+        more_cols = cols < limit and (across > tolerance or (diagonal > tolerance and across >= along))
+        if not (more_rows or more_cols):
+            return rows, cols
+        rows, cols = rows * (2 if more_rows else 1), cols * (2 if more_cols else 1)
+
+
 def strip_cards(
     base: np.ndarray,
     az: np.ndarray,
@@ -61,20 +106,25 @@ def strip_cards(
     roll: np.ndarray | float = 0.0,
     twist: np.ndarray | float = 0.0,
     fold: np.ndarray | float = 0.0,
-    hug: np.ndarray | None = None,
+    cup: np.ndarray | float = 0.0,
+    wave: np.ndarray | float = 0.0,
+    waves: float = 4.0,
+    phase: np.ndarray | float = 0.0,
     bend_power: float = 1.0,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Leaf, frond and blade cards: strips of ``segments`` quads, two across (a midrib fold).
+    """Leaf, frond and blade cards: curved strips, subdivided until smooth (:data:`SAG`).
 
     Each card starts at ``base`` heading at azimuth ``az`` and elevation ``elev`` and is
     ``length`` long; its width follows its tile's aspect (rects N x 4). Along the card its
     elevation falls by ``bend`` (radians, an arch; ``bend_power`` > 1 droops toward the tip),
-    its heading turns by ``curl``, it rolls by ``roll`` + ``twist * s`` and its halves rise by
-    ``fold`` (fraction of the half-width) along the card's normal. ``hug`` (segments + 1 values
-    per card, or shared) narrows the card to hug the drawn shape, as artists cut cards to save
-    overdraw; UVs narrow with it.
+    its heading turns by ``curl`` and it rolls by ``roll`` + ``twist * s``. Across it the blade
+    rises from the midrib along its normal, as fractions of the half-width at the margin:
+    ``fold`` (a crease at the midrib, rising linearly), ``cup`` (a rounded trough, rising as the
+    square of the distance) and ``wave`` (a margin rippling ``waves`` times along the blade,
+    shifted by ``phase``, rising as the cube). ``segments`` is the fewest segments along; more
+    are made, and more across, until the triangles are within :data:`SAG` of the surface.
 
-    Returns (vertices N x V x 3, faces F x 3, uvs N x V x 2, centrelines N x segments+1 x 3).
+    Returns (vertices N x V x 3, faces F x 3, uvs N x V x 2, centrelines N x rows+1 x 3).
     """
     base = np.asarray(base, float)
     n = len(base)
@@ -84,40 +134,45 @@ def strip_cards(
 
     az, elev, length = b(az), b(elev), b(length)
     bend, curl, roll, twist, fold = b(bend), b(curl), b(roll), b(twist), b(fold)
+    cup, wave, phase = b(cup), b(wave), b(phase)
     rects = np.asarray(rects, float)
-    aspect = (rects[:, 3] - 1) / (rects[:, 2] - 1)
-    half = 0.5 * aspect * length
-    s = np.linspace(0.0, 1.0, segments + 1)
-    if hug is None:
-        hug_k = np.ones((n, segments + 1))
-    else:
-        hug_k = np.broadcast_to(np.asarray(hug, float), (n, segments + 1))
-    # centreline: heading and elevation at segment midpoints, integrated
-    sm = 0.5 * (s[1:] + s[:-1])
-    th_m = elev[:, None] - bend[:, None] * sm[None] ** bend_power
-    az_m = az[:, None] + curl[:, None] * sm[None]
-    d_m = direction(az_m, th_m)  # N x S x 3
-    steps = d_m * (length / segments)[:, None, None]
-    P = np.concatenate([base[:, None], base[:, None] + np.cumsum(steps, axis=1)], axis=1)  # N x S+1 x 3
-    th = elev[:, None] - bend[:, None] * s[None] ** bend_power
-    azs = az[:, None] + curl[:, None] * s[None]
-    d = direction(azs, th)
-    lat = np.stack([-np.sin(azs), np.cos(azs), np.zeros_like(azs)], axis=-1)
-    phi = (roll[:, None] + twist[:, None] * s[None])[..., None]
-    dxl = np.cross(d, lat)
-    lat_r = np.cos(phi) * lat + np.sin(phi) * dxl
-    nrm = np.cross(lat_r, d)
-    across = np.array([-1.0, 0.0, 1.0])
-    w = (half[:, None] * hug_k)[..., None, None]  # N x S+1 x 1 x 1
-    V = (
-        P[:, :, None, :]
-        + across[None, None, :, None] * w * lat_r[:, :, None, :]
-        + (fold[:, None, None, None] * np.abs(across)[None, None, :, None] * w) * nrm[:, :, None, :]
-    )
-    t_uv = across[None, None, :] * hug_k[..., None]
-    s_uv = np.broadcast_to(s[None, :, None], t_uv.shape)
+    half = 0.5 * (rects[:, 3] - 1) / (rects[:, 2] - 1) * length
+
+    def centreline(rows: int) -> np.ndarray:
+        """N x rows+1 x 3: the headings integrated (midpoint rule) 16 times finer than the rows
+        are, so that every row count samples nearly the same curve and the refinement measures
+        facets, not the integration's drift."""
+        k = 16
+        s = np.linspace(0.0, 1.0, k * rows + 1)
+        sm = 0.5 * (s[1:] + s[:-1])
+        d_m = direction(az[:, None] + curl[:, None] * sm[None], elev[:, None] - bend[:, None] * sm[None] ** bend_power)
+        steps = d_m * (length / (k * rows))[:, None, None]
+        return np.concatenate([base[:, None], base[:, None] + np.cumsum(steps, axis=1)], axis=1)[:, ::k]
+
+    def surface(rows: int, cols: int) -> np.ndarray:
+        s = np.linspace(0.0, 1.0, rows + 1)[None, :]
+        t = np.linspace(-1.0, 1.0, cols + 1)[None, None, :, None]
+        azs = az[:, None] + curl[:, None] * s
+        d = direction(azs, elev[:, None] - bend[:, None] * s**bend_power)
+        lat = np.stack([-np.sin(azs), np.cos(azs), np.zeros_like(azs)], axis=-1)
+        phi = (roll[:, None] + twist[:, None] * s)[..., None]
+        lat_r = np.cos(phi) * lat + np.sin(phi) * np.cross(d, lat)
+        nrm = np.cross(lat_r, d)
+        ripple = np.sin(2 * np.pi * waves * s + phase[:, None]) * np.clip(s / 0.15, 0.0, 1.0)
+        rise = (
+            fold[:, None, None, None] * np.abs(t)
+            + cup[:, None, None, None] * t**2
+            + (wave[:, None] * ripple)[:, :, None, None] * np.abs(t) ** 3
+        )
+        w = half[:, None, None, None]
+        return centreline(rows)[:, :, None] + w * (t * lat_r[:, :, None] + rise * nrm[:, :, None])
+
+    rows, cols = refined(surface, max(1, int(segments)), 2)
+    V = surface(rows, cols)
+    t_uv = np.broadcast_to(np.linspace(-1.0, 1.0, cols + 1)[None, None, :], (n, rows + 1, cols + 1))
+    s_uv = np.broadcast_to(np.linspace(0.0, 1.0, rows + 1)[None, :, None], t_uv.shape)
     uv = tile_uv(rects, atlas_size, atlas_size, t_uv, s_uv)
-    return V.reshape(n, -1, 3), grid_faces(segments, 2), uv.reshape(n, -1, 2), P
+    return V.reshape(n, -1, 3), grid_faces(rows, cols), uv.reshape(n, -1, 2), centreline(rows)
 
 
 def plate_cards(
@@ -129,42 +184,69 @@ def plate_cards(
     atlas_size: int,
     *,
     cup: np.ndarray | float = 0.0,
+    wave: np.ndarray | float = 0.0,
+    waves: float = 7.0,
+    phase: np.ndarray | float = 0.0,
+    droop: np.ndarray | float = 0.0,
     anchor: float = 0.5,
     cells: int = 2,
     corner: float = 1.0,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Flat (slightly cupped) cards around ``centre`` facing ``normal``: peltate leaves, flower
-    heads. ``size`` is the card's length (along ``s``); ``anchor`` is the ``s`` of the centre
-    (0.5: centred, 0: the card grows from the centre). ``cup`` lifts the rim along the normal
-    (fraction of the size). A (cells+1)^2 vertex grid; ``corner`` < 1 pulls the four corner
-    vertices toward the middle (an octagonal card hugging a round leaf: at 0.78 a disc of
-    radius 0.47 card lengths still fits). Returns (vertices, faces, uvs)."""
+    """Cards around ``centre`` facing ``normal``, curved: peltate and heart-shaped leaves,
+    flower heads. ``size`` is the card's length (along ``s``); ``anchor`` is the ``s`` of the
+    centre (0.5: centred, 0: the card grows from the centre). Along the normal, as fractions of
+    the size: ``cup`` lifts the rim as the square of the distance from the centre, ``wave``
+    ripples it ``waves`` times around (shifted by ``phase``) as the cube, and ``droop`` lowers
+    the half beyond the centre (the tip) as the square. ``cells`` is the fewest cells a side;
+    more are made until the triangles are within :data:`SAG` of the surface. ``corner`` < 1
+    draws the card in onto an octagon whose corners are cut through (corner, corner) of the
+    square's (-1..1) half-widths (a card hugging a round leaf: at 0.78 a disc of radius 0.47
+    card lengths still fits, at 0.7 too); the texture follows, so nothing drawn moves. Returns (vertices, faces, uvs)."""
     centre = np.asarray(centre, float)
     n = len(centre)
-    size = np.broadcast_to(np.asarray(size, float), (n,))
-    cup = np.broadcast_to(np.asarray(cup, float), (n,))
+
+    def b(x: object) -> np.ndarray:
+        return np.broadcast_to(np.asarray(x, float), (n,))
+
+    size, cup, wave, phase, droop = b(size), b(cup), b(wave), b(phase), b(droop)
     rects = np.asarray(rects, float)
     aspect = (rects[:, 3] - 1) / (rects[:, 2] - 1)
-    e1, e2 = frame(normal, np.broadcast_to(np.asarray(spin, float), (n,)))
+    e1, e2 = frame(normal, b(spin))
     nrm = unit(np.asarray(normal, float))
-    g = np.linspace(0.0, 1.0, cells + 1)
-    S, T = np.meshgrid(g, 2 * g - 1, indexing="ij")  # rows along s, cols across t
-    S, T = S.ravel(), T.ravel()
-    if corner != 1.0:
-        at_corner = (np.abs(T) == 1.0) & (np.abs(2 * S - 1) == 1.0)
-        T = np.where(at_corner, T * corner, T)
-        S = np.where(at_corner, 0.5 + (S - 0.5) * corner, S)
-    x = T[None] * (0.5 * aspect * size)[:, None]
-    y = (S[None] - anchor) * size[:, None]
-    r2 = (x**2 + y**2) / np.maximum(size[:, None] ** 2, 1e-12)
-    V = (
-        centre[:, None]
-        + x[..., None] * e1[:, None]
-        + y[..., None] * e2[:, None]
-        + (cup[:, None] * size[:, None] * r2)[..., None] * nrm[:, None]
+
+    def params(rows: int, cols: int) -> tuple[np.ndarray, np.ndarray]:
+        S, T = np.meshgrid(np.linspace(0.0, 1.0, rows + 1), np.linspace(-1.0, 1.0, cols + 1), indexing="ij")
+        if corner != 1.0:  # the square drawn in toward its middle onto the octagon
+            Y = 2 * S - 1
+            edge = np.maximum(np.abs(T), np.abs(Y))
+            k = edge / np.maximum(np.maximum(edge, (np.abs(T) + np.abs(Y)) / (2 * corner)), 1e-12)
+            T, S = T * k, 0.5 + 0.5 * Y * k
+        return S, T
+
+    def surface(rows: int, cols: int) -> np.ndarray:
+        S, T = params(rows, cols)
+        x = T[None] * (0.5 * aspect * size)[:, None, None]
+        y = (S[None] - anchor) * size[:, None, None]
+        u, v = x / size[:, None, None], y / size[:, None, None]
+        r = np.hypot(u, v)
+        lift = (
+            cup[:, None, None] * r**2
+            + wave[:, None, None] * r**3 * np.sin(waves * np.arctan2(u, v) + phase[:, None, None])
+            - droop[:, None, None] * np.maximum(v, 0.0) ** 2
+        ) * size[:, None, None]
+        return (
+            centre[:, None, None]
+            + x[..., None] * e1[:, None, None]
+            + y[..., None] * e2[:, None, None]
+            + lift[..., None] * nrm[:, None, None]
+        )
+
+    rows, cols = refined(surface, max(1, int(cells)), max(1, int(cells)))
+    S, T = params(rows, cols)
+    uv = tile_uv(
+        rects, atlas_size, atlas_size, np.broadcast_to(T.ravel(), (n, T.size)), np.broadcast_to(S.ravel(), (n, S.size))
     )
-    uv = tile_uv(rects, atlas_size, atlas_size, np.broadcast_to(T, (n, len(T))), np.broadcast_to(S, (n, len(S))))
-    return V, grid_faces(cells, cells), uv
+    return surface(rows, cols).reshape(n, -1, 3), grid_faces(rows, cols), uv
 
 
 def solid_leaves(

@@ -18,6 +18,7 @@ from .growing import (
     add_tubes,
     azel,
     count,
+    curvature,
     golden_azimuths,
     labels_for,
     pick,
@@ -135,6 +136,8 @@ def grow_hydrangea(geo, tex, size, density) -> Grown:
         bend=geo.uniform(0.3, 0.8, n),
         fold=0.2,
         twist=geo.normal(0, 0.3, n),
+        waves=6,
+        **curvature(geo, n, cup=(0.1, 0.25), wave=(0.0, 0.05)),
     )
     b.add(V, F, UV, CARDS, b.instances(n))
     # flower heads: florets on a spherical cap above each cane tip, four solid petals each

@@ -1,0 +1,96 @@
+"""The README's plant figures: every procedural species close up, in the lab, one row a species
+and one column a plant seed (``--seeds 0 1 2 3``: four individuals), drawn by a renderer at its
+defaults; ``--leaf`` adds a macro view of one leaf of each species. Prints the CPU model and
+seconds; writes one PNG.
+
+    python bench/figure_species.py docs/species.png [--renderer mitsuba] [--seeds 0 1 2 3]
+        [--size 480x360] [--distance 0.42] [--species boston_fern ...] [--leaf]
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+from PIL import Image, ImageDraw
+
+from agrisim.config import RenderConfig, build_config
+from agrisim.lab.room import build_scene, soil_pose
+from agrisim.plugins.plants.procedural.species import SPECIES
+from agrisim.scene.camera import preset
+from agrisim.scene.plant_choice import resolve_plant
+from agrisim.scene.transforms import look_at
+
+sys.path.insert(0, str(Path(__file__).parent))
+from figure_views import figure_views  # noqa: E402
+from machine import cpu_model  # noqa: E402
+
+
+def leaf_target(scene_plant, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:  # noqa: ANN001
+    """(centre, normal) of a leaf near the top of the plant, in the plant's frame."""
+    mesh = scene_plant.mesh
+    if mesh.face_instance is None:
+        faces = np.arange(len(mesh.faces))
+    else:
+        ids = np.unique(mesh.face_instance[mesh.face_instance > 0])
+        tops = {i: mesh.vertices[mesh.faces[mesh.face_instance == i]].reshape(-1, 3)[:, 2].max() for i in ids}
+        best = sorted(ids, key=lambda i: -tops[i])[: max(1, len(ids) // 5)]
+        faces = np.flatnonzero(mesh.face_instance == rng.choice(best))
+    tri = mesh.vertices[mesh.faces[faces]]
+    normal = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    n = normal.sum(axis=0)
+    n = n / max(np.linalg.norm(n), 1e-12)
+    return tri.reshape(-1, 3).mean(axis=0), n if n[2] >= 0 else -n
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("out", type=Path)
+    parser.add_argument("--renderer", default="mitsuba")
+    parser.add_argument("--seeds", type=int, nargs="+", default=[0])
+    parser.add_argument("--size", default="480x360")
+    parser.add_argument("--distance", type=float, default=0.3, help="camera to plant centre, m")
+    parser.add_argument("--species", nargs="+", default=list(SPECIES))
+    parser.add_argument("--leaf", action="store_true", help="add a column: one leaf at 0.1 m")
+    args = parser.parse_args()
+    views = figure_views(64, 64)
+    camera = preset("rpi3-wide-1080p", args.size)
+    W, H = camera.width, camera.height
+    cols = len(args.seeds) + int(args.leaf)
+    sheet = Image.new("RGB", (cols * W, len(args.species) * H), "white")
+    draw = ImageDraw.Draw(sheet)
+    spec = views.registry.get("renderer", args.renderer)
+    print(f"CPU: {cpu_model()}; renderer {args.renderer}, {W}x{H}")
+    soil = soil_pose(views.cell)
+    for row, name in enumerate(args.species):
+        for col, seed in enumerate(args.seeds):
+            t0 = time.perf_counter()
+            plant = resolve_plant(views.registry, build_config({"plant": name, "seed": seed}))
+            scene = build_scene(views.cell, plant)
+            target = soil[:3, 3] + np.array([0.0, 0.0, 0.12])
+            az = np.radians(35.0 + 20 * col)
+            eye = target + args.distance * np.array([np.cos(az) * 0.8, np.sin(az) * 0.8, 0.6])
+            r = spec.factory(scene, views.cell, RenderConfig(), spec.options_model())
+            frame = r.render(camera, look_at(eye, target), views.poses)
+            if args.leaf and col == 0:
+                leaf, normal = leaf_target(plant, np.random.default_rng(seed))
+                leaf = soil[:3, :3] @ leaf + soil[:3, 3]
+                side = np.cross(normal, [0.0, 0.0, 1.0]) if abs(normal[2]) < 0.99 else np.array([1.0, 0, 0])
+                eye_leaf = leaf + 0.1 * (0.85 * normal + 0.5 * side / max(np.linalg.norm(side), 1e-9))
+                macro = r.render(camera, look_at(eye_leaf, leaf), views.poses)
+                sheet.paste(Image.fromarray(macro.rgb), (len(args.seeds) * W, row * H))
+                draw.text((len(args.seeds) * W + 6, row * H + 4), f"{name}: a leaf from 0.1 m", fill="white")
+            r.close()
+            sheet.paste(Image.fromarray(frame.rgb), (col * W, row * H))
+            draw.text((col * W + 6, row * H + 4), f"{name}, seed {seed}", fill="white")
+            print(f"{name} seed {seed}: {time.perf_counter() - t0:.1f} s, {len(plant.mesh.faces):,} triangles")
+    args.out.parent.mkdir(parents=True, exist_ok=True)
+    sheet.save(args.out)
+    print(f"wrote {args.out}")
+
+
+if __name__ == "__main__":
+    main()
