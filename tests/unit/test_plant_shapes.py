@@ -30,9 +30,9 @@ def off_surface(coarse: np.ndarray, shape: tuple[int, int], fine: np.ndarray, fi
     g = coarse.reshape(-1, r + 1, c + 1, 3)
     f = fine.reshape(-1, R + 1, C + 1, 3)
     normals = shapes.unit(np.cross(np.gradient(f, axis=1), np.gradient(f, axis=2)))
-    I, J = np.meshgrid(np.arange(R + 1), np.arange(C + 1), indexing="ij")
-    i, j = np.minimum(I // kr, r - 1), np.minimum(J // kc, c - 1)
-    u, v = (I - i * kr) / kr, (J - j * kc) / kc  # within the cell: u along the rows, v across
+    rows_f, cols_f = np.meshgrid(np.arange(R + 1), np.arange(C + 1), indexing="ij")
+    i, j = np.minimum(rows_f // kr, r - 1), np.minimum(cols_f // kc, c - 1)
+    u, v = (rows_f - i * kr) / kr, (cols_f - j * kc) / kc  # within the cell: u along the rows, v across
     a, b, d, e = g[:, i, j], g[:, i, j + 1], g[:, i + 1, j], g[:, i + 1, j + 1]
     upper = (v >= u)[None, ..., None]
     p = np.where(
