@@ -86,6 +86,7 @@ def grow(species: str, seed: int, options: ProceduralPlantOptions | None = None)
         double_sided=True,
         roughness=LEAF_ROUGHNESS,
         transmittance=LEAF_TRANSMITTANCE,
+        normal_map=grown.atlas.normals if grown.atlas.relief else None,
     )
     stem_label = grown.labels.by_name("stem").id
     stems = Material(

@@ -12,7 +12,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from .textures import coverage, leaf_colour, line_mask, mix, radial_veins, value_noise, veins
+from .textures import coverage, groove, leaf_colour, line_mask, mix, radial_veins, tissue, value_noise, veins
 
 Shape = Callable[[np.ndarray], np.ndarray]  # Y -> half-width as a fraction of the tile's half-width
 
@@ -80,17 +80,20 @@ def lamina(
         hw = shape(Y) * half * 0.96
         cov = coverage(hw - np.abs(X), px) * (Y > 0.002) * (Y < 0.998)
         if parallel > 0:
-            v = line_mask((X / parallel - np.round(X / parallel)) * parallel, vein_width) * 0.5
+            lateral = line_mask((X / parallel - np.round(X / parallel)) * parallel, vein_width) * 0.5
         else:
-            v = veins(X, Y, vein_spacing, vein_slope, vein_width, start=0.03) * (np.abs(X) < 0.92 * hw)
-        v = np.maximum(v, line_mask(X, midrib * (1.2 - 0.7 * Y))) * vein_strength
+            lateral = veins(X, Y, vein_spacing, vein_slope, vein_width, start=0.03) * (np.abs(X) < 0.92 * hw)
+        rib = midrib * (1.2 - 0.7 * Y)
+        mid = line_mask(X, rib)
+        v = np.maximum(lateral, mid) * vein_strength
+        relief = groove(mid, 0.6 * rib) + groove(lateral, 0.5 * vein_width)
         rgb = leaf_colour(X, Y, rng, base, light, dark, v, vein_colour, noise_cells)
         if base_tint is not None:
             rgb = mix(rgb, base_tint, 0.6 * np.clip(1 - Y / 0.25, 0, 1))
         if pattern is not None:
             rgb = pattern(X, Y, hw, rgb, rng)
         rgb = rgb * (0.85 + 0.15 * _smooth(np.abs(X) / np.maximum(hw, 1e-6)))[..., None]  # darker margin
-        return cov, rgb, _full(X, label)
+        return cov, rgb, _full(X, label), relief + tissue(rng, X.shape)
 
     return paint
 
@@ -119,10 +122,10 @@ def peltate(label: int, colours: dict):
         r, th = np.hypot(dx, dy), np.arctan2(dx, dy)
         R = 0.47 * (1 + 0.025 * np.sin(7 * th + rng.uniform(0, 6.28)))
         cov = coverage(R - r, px)
-        v = radial_veins(X, Y, 0.015, 0.51, 9, 0.004, rng.uniform(0, 1)) * 0.8
-        rgb = leaf_colour(X, Y, rng, colours["base"], colours["light"], colours["dark"], v, colours["vein"], 3)
+        rays = radial_veins(X, Y, 0.015, 0.51, 9, 0.004, rng.uniform(0, 1))
+        rgb = leaf_colour(X, Y, rng, colours["base"], colours["light"], colours["dark"], 0.8 * rays, colours["vein"], 3)
         rgb = mix(rgb, colours["light"], 0.4 * np.clip(1 - r / 0.08, 0, 1))
-        return cov, rgb, _full(X, label)
+        return cov, rgb, _full(X, label), groove(rays, 0.0025) + tissue(rng, X.shape)
 
     return paint
 
@@ -137,9 +140,9 @@ def cordate(label: int, colours: dict):
         edge = cordate_edge(th)
         cov = coverage(edge - r, px)
         ay = cordate_anchor()
-        v = radial_veins(X, Y, 0.0, ay, 11, 0.004, 0.5) * (Y > ay - 0.05) * 0.7
-        rgb = leaf_colour(X, Y, rng, colours["base"], colours["light"], colours["dark"], v, colours["vein"], 4)
-        return cov, rgb, _full(X, label)
+        rays = radial_veins(X, Y, 0.0, ay, 11, 0.004, 0.5) * (Y > ay - 0.05)
+        rgb = leaf_colour(X, Y, rng, colours["base"], colours["light"], colours["dark"], 0.7 * rays, colours["vein"], 4)
+        return cov, rgb, _full(X, label), groove(rays, 0.0025) + tissue(rng, X.shape)
 
     return paint
 
@@ -168,10 +171,11 @@ def lobed(label: int, colours: dict, lobes: float, aspect_hint: float = 0.5):
         lob = np.maximum(lob, 0.12 / np.maximum(env, 1e-3))  # keep the rachis
         hw = np.clip(env * lob, 0, 1) * half * 0.96
         cov = coverage(hw - np.abs(X), px) * (Y < 0.998)
-        v = np.maximum(line_mask(X, 0.006), veins(X, Y, 0.72 / lobes / 2, 0.5, 0.002, 0.05) * 0.5) * 0.7
+        mid, lateral = line_mask(X, 0.006), veins(X, Y, 0.72 / lobes / 2, 0.5, 0.002, 0.05)
+        v = np.maximum(mid, lateral * 0.5) * 0.7
         rgb = leaf_colour(X, Y, rng, colours["base"], colours["light"], colours["dark"], v, colours["vein"], 3)
         rgb = mix(rgb, colours["tint"], 0.5 * np.clip(1 - Y / 0.3, 0, 1))
-        return cov, rgb, _full(X, label)
+        return cov, rgb, _full(X, label), groove(mid, 0.0035) + groove(lateral, 0.001) + tissue(rng, X.shape)
 
     return paint
 
@@ -184,13 +188,14 @@ def ellipse_leaf(label: int, colours: dict, midrib: float = 0.03):
         a = X.max()
         e = np.sqrt((X / a) ** 2 + ((Y - 0.5) / 0.5) ** 2)
         cov = coverage((1 - e) * min(a, 0.5), px)
-        v = line_mask(X, midrib * a) * 0.5 * (np.abs(Y - 0.5) < 0.45)
+        mid = line_mask(X, midrib * a) * (np.abs(Y - 0.5) < 0.45)
+        v = 0.5 * mid
         rgb = leaf_colour(X, Y, rng, colours["base"], colours["light"], colours["dark"], v, colours["vein"], 2, 0.8)
         if "rim" in colours:
             rgb = mix(rgb, colours["rim"], 0.7 * _smooth((e - 0.55) / 0.45))
         if "centre" in colours:
             rgb = mix(rgb, colours["centre"], 0.7 * _smooth((0.45 - e) / 0.45))
-        return cov, rgb, _full(X, label)
+        return cov, rgb, _full(X, label), groove(mid, 0.6 * midrib * a) + tissue(rng, X.shape)
 
     return paint
 
@@ -242,10 +247,13 @@ def frond(
         rgb = mix(rgb, colours["light"], 0.35 * rel)  # lighter pinna tips
         vein = line_mask(d, 0.12 * pinna_width * sp) * (ll < length)
         rgb = mix(rgb, colours["vein"], 0.35 * vein)
-        rgb = np.where((f_rachis > f_pinna)[..., None], np.asarray(colours["rachis"], float), rgb)
+        on_rachis = f_rachis > f_pinna
+        rgb = np.where(on_rachis[..., None], np.asarray(colours["rachis"], float), rgb)
         fine = value_noise(rng, X.shape, 30, octaves=2)
         rgb = rgb * (0.9 + 0.2 * fine)[..., None]
-        return cov, rgb, _full(X, label)
+        # a grooved rachis, and each pinna's midvein sunk into it
+        relief = np.where(on_rachis, groove(line_mask(X, rachis * (1.1 - 0.6 * Y)), rachis * 0.5), groove(vein, 0.001))
+        return cov, rgb, _full(X, label), relief + tissue(rng, X.shape, 0.0001)
 
     return paint
 
@@ -257,6 +265,7 @@ def grass_blades(label: int, colours: dict, blades: int, width: float):
         half = X.max()
         f = np.full(X.shape, -1.0)
         shade = np.zeros(X.shape)
+        crease = np.zeros(X.shape)
         for i in range(blades):
             x0 = rng.uniform(-0.15, 0.15) * half
             lean = rng.uniform(-0.7, 0.7) * half
@@ -269,6 +278,7 @@ def grass_blades(label: int, colours: dict, blades: int, width: float):
             fi = np.where(Y < length, hw - np.abs(X - cx), -1.0)
             better = fi > f
             shade = np.where(better, np.clip(0.5 + (X - cx) / np.maximum(2 * hw, 1e-6), 0, 1) + 0.15 * i, shade)
+            crease = np.where(better, groove(line_mask(X - cx, 0.5 * hw), 0.4 * hw), crease)
             f = np.maximum(f, fi)
         cov = coverage(f, px) * (Y > 0.002)
         n = value_noise(rng, X.shape, 3)
@@ -277,7 +287,7 @@ def grass_blades(label: int, colours: dict, blades: int, width: float):
         )
         rgb = mix(rgb, colours["tip"], _smooth((Y - 0.6) / 0.4) * 0.7)
         rgb = rgb * (0.85 + 0.2 * (shade % 1.0))[..., None]
-        return cov, rgb, _full(X, label)
+        return cov, rgb, _full(X, label), crease + tissue(rng, X.shape, 0.0001)
 
     return paint
 
@@ -300,9 +310,9 @@ def petal(label: int, colours: dict, shape: Shape):
         rgb = mix(rgb, colours["stripe"], 0.8 * stripe)
         rgb = mix(rgb, colours["throat"], _smooth((0.15 - Y) / 0.12))
         rel = np.abs(X) / np.maximum(hw, 1e-6)
-        lines = line_mask(((X * 60) % 1.0) - 0.5, 0.15) * 0.15
-        rgb = rgb * (1 - lines * (1 - rel))[..., None]
-        return cov, rgb, _full(X, label)
+        lines = line_mask(((X * 60) % 1.0) - 0.5, 0.15)
+        rgb = rgb * (1 - 0.15 * lines * (1 - rel))[..., None]
+        return cov, rgb, _full(X, label), groove(lines, 0.0008) + groove(stripe, 0.003)
 
     return paint
 

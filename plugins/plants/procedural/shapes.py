@@ -172,7 +172,9 @@ def strip_cards(
     t_uv = np.broadcast_to(np.linspace(-1.0, 1.0, cols + 1)[None, None, :], (n, rows + 1, cols + 1))
     s_uv = np.broadcast_to(np.linspace(0.0, 1.0, rows + 1)[None, :, None], t_uv.shape)
     uv = tile_uv(rects, atlas_size, atlas_size, t_uv, s_uv)
-    return V.reshape(n, -1, 3), grid_faces(rows, cols), uv.reshape(n, -1, 2), centreline(rows)
+    # wound so that the faces' normal is the side an arching blade turns up (-nrm): its front,
+    # where the texture's relief rises and the upper side's colour is
+    return V.reshape(n, -1, 3), grid_faces(rows, cols)[:, ::-1], uv.reshape(n, -1, 2), centreline(rows)
 
 
 def plate_cards(

@@ -22,9 +22,14 @@ import numpy as np
 
 from agrisim.scene import colour
 
-#: painter(X, Y, px, rng) -> (coverage H x W float, rgb H x W x 3 float, labels H x W uint8)
+#: painter(X, Y, px, rng) -> (coverage H x W float, rgb H x W x 3 float, labels H x W uint8) or
+#: those and relief (H x W float: the height of the surface toward the card's front, the
+#: leaf's upper side, in card lengths: veins in grooves are negative).
 #: X = t * aspect / 2 (across, card-length units), Y = s (along), px = size of a texel in those units.
-Painter = Callable[[np.ndarray, np.ndarray, float, np.random.Generator], tuple[np.ndarray, np.ndarray, np.ndarray]]
+Painter = Callable[[np.ndarray, np.ndarray, float, np.random.Generator], tuple[np.ndarray, ...]]
+
+FLAT = np.array([128, 128, 255], np.uint8)
+"""A normal map's texel for an unperturbed normal."""
 
 PAD = 2  # texels between tiles
 
@@ -74,6 +79,10 @@ class Atlas:
         self.size = int(size)
         self.rgba = np.zeros((self.size, self.size, 4), np.uint8)
         self.labels = np.zeros((self.size, self.size), np.uint8)
+        self.normals = np.broadcast_to(FLAT, (self.size, self.size, 3)).copy()
+        """Tangent-space normal map (glTF's convention) of the painters' relief."""
+        self.relief = False
+        """Whether any painter gave relief (else no normal map is needed)."""
         self._row = 0  # top of the current shelf
         self._col = 0
         self._shelf = 0  # height of the current shelf
@@ -103,7 +112,7 @@ class Atlas:
         X = (t * tile.aspect * 0.5)[None, :] * np.ones((tile.h, 1))
         Y = s[:, None] * np.ones((1, tile.w))
         px = 1.0 / (tile.h - 1)
-        cov, rgb, lab = painter(X, Y, px, rng)
+        cov, rgb, lab, *relief = painter(X, Y, px, rng)
         alpha = np.clip(np.rint(cov * 255.0), 0, 255).astype(np.uint8)
         rgb = np.clip(rgb, 0.0, 1.0)
         inside = alpha >= 128
@@ -115,7 +124,21 @@ class Atlas:
         if np.any(lab == 0):
             raise ValueError("painters must label every texel of their tile")
         self.labels[sl] = lab
+        if relief:
+            self.normals[sl] = np.where(inside[..., None], normal_texels(relief[0], px), FLAT)
+            self.relief = True
         return tile
+
+
+def normal_texels(height: np.ndarray, px: float) -> np.ndarray:
+    """glTF normal-map texels (H x W x 3 uint8) of a height field on a tile whose texels are
+    ``px`` apart (rows from the tip down, columns left to right): x along the columns (the
+    direction u grows), y up the image (toward the tip), z out of the front."""
+    dh_dx = np.gradient(height, px, axis=1)
+    dh_dy = -np.gradient(height, px, axis=0)  # (rows run down the image, toward the base)
+    n = np.stack([-dh_dx, -dh_dy, np.ones_like(height)], axis=-1)
+    n /= np.linalg.norm(n, axis=-1, keepdims=True)
+    return np.clip(np.rint((n + 1.0) * 127.5), 0, 255).astype(np.uint8)
 
 
 # ------------------------------------------------------------------------------ helpers
@@ -182,6 +205,18 @@ def radial_veins(
     k = ang * count / (2 * np.pi)
     d = (k - np.round(k)) * 2 * np.pi / count * r
     return line_mask(d, width) * np.clip(r / (4 * width + 1e-9), 0, 1)
+
+
+def groove(mask: np.ndarray, depth: float | np.ndarray) -> np.ndarray:
+    """Relief of a vein sunk into the upper side: a rounded groove ``depth`` deep (card
+    lengths) where the stroke ``mask`` (0..1, as :func:`line_mask` draws it) is."""
+    m = np.clip(mask, 0.0, 1.0)
+    return -depth * m * m * (3 - 2 * m)
+
+
+def tissue(rng: np.random.Generator, shape: tuple[int, int], depth: float = 0.0002) -> np.ndarray:
+    """Relief of a leaf's surface between its veins: fine bumps ``depth`` deep (card lengths)."""
+    return depth * (value_noise(rng, shape, 40, octaves=2) - 0.5)
 
 
 def leaf_colour(
