@@ -144,8 +144,8 @@ class _GlbWriter:
     def material(self, mat: Material) -> int:
         """Index of ``mat`` among the file's materials (each Material object written once):
         albedo as ``baseColorTexture``, roughness and metallic (and their texture), the normal
-        texture, alpha settings, and agrisim's label, label texture, cutoff, transmittance and
-        transmission texture in ``extras``."""
+        texture, alpha settings, and agrisim's label, label texture, cutoff, transmittance,
+        transmission texture and back side in ``extras``."""
         if id(mat) in self._material_index:
             return self._material_index[id(mat)]
         pbr = PbrMetallicRoughness(
@@ -156,6 +156,10 @@ class _GlbWriter:
         extras: dict[str, Any] = {"label": int(mat.label), "alpha_cutoff": float(mat.alpha_cutoff)}
         if mat.transmittance is not None:
             extras["transmittance"] = [float(t) for t in mat.transmittance]
+        if mat.back_color is not None:
+            extras["back_color"] = [float(c) for c in mat.back_color]
+        if mat.back_roughness is not None:
+            extras["back_roughness"] = float(mat.back_roughness)
         if mat.albedo is not None:
             pbr.baseColorTexture = TextureInfo(index=self.texture(mat.albedo, "RGBA", nearest=False))
         if mat.labels is not None:

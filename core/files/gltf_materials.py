@@ -109,6 +109,7 @@ def read_material(doc: GltfDocument, index: int) -> ReadMaterial:
         metallic_roughness=maps.rgb(get(pbr, "metallicRoughnessTexture"), "metallicRoughnessTexture"),
         normal_map=normal_map,
         normal_scale=normal_scale,
+        **_back(extras),
     )
     return mat, texcoord, transform, tex_name
 
@@ -125,6 +126,23 @@ def _look(pbr: Any, factor: list[Any], extras: Any) -> tuple[Rgba, float, float,
         t = [max(float(x), 0.0) for x in extras["transmittance"][:3]]
         transmittance = (t[0], t[1], t[2]) if len(t) == 3 else None
     return (r, g, b, a), roughness, metallic, transmittance
+
+
+def _back(extras: Any) -> dict[str, Any]:
+    """The back side agrisim's own files keep in a material's extras (glTF has no such field):
+    ``back_color`` (three factors) and ``back_roughness``; what is malformed is left out."""
+    out: dict[str, Any] = {}
+    if not isinstance(extras, dict):
+        return out
+    colour = extras.get("back_color")
+    if isinstance(colour, list) and len(colour) == 3 and all(isinstance(c, int | float) for c in colour):
+        values = tuple(float(c) for c in colour)
+        if all(math.isfinite(c) and c >= 0.0 for c in values):
+            out["back_color"] = values
+    rough = extras.get("back_roughness")
+    if isinstance(rough, int | float) and 0.0 <= float(rough) <= 1.0:
+        out["back_roughness"] = float(rough)
+    return out
 
 
 def _transmission(

@@ -15,8 +15,6 @@ from __future__ import annotations
 
 import hashlib
 import logging
-import os
-import tempfile
 import threading
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass
@@ -27,6 +25,7 @@ from typing import TYPE_CHECKING, Any, Literal
 import numpy as np
 
 from agrisim.scene.transforms import pose, rpy_matrix
+from agrisim.util import cache as util_cache
 
 if TYPE_CHECKING:
     import trimesh
@@ -153,12 +152,7 @@ def link_visuals(urdf: str) -> dict[str, list[Visual]]:
 
 def cache_dir() -> Path:
     """Where converted meshes are kept across processes."""
-    base = os.environ.get("AGRISIM_CACHE_DIR")
-    if base:
-        return Path(base).expanduser() / "meshes"
-    xdg = os.environ.get("XDG_CACHE_HOME")
-    root = Path(xdg).expanduser() if xdg else Path.home() / ".cache"
-    return root / "agrisim" / "meshes"
+    return util_cache.cache_dir("meshes")
 
 
 def _cache_key(path: Path) -> str:
@@ -208,16 +202,7 @@ def glb_bytes(path: str | Path) -> bytes:
         pass
     if not data:
         data = _convert(path)
-        try:
-            cached.parent.mkdir(parents=True, exist_ok=True)
-            # Temp file + rename: concurrent runs never read a half-written cache entry.
-            fd, tmp = tempfile.mkstemp(dir=cached.parent, suffix=".tmp")
-            with os.fdopen(fd, "wb") as f:
-                f.write(data)
-            os.chmod(tmp, 0o644)  # mkstemp makes it private; the cache is shared by users' runs
-            os.replace(tmp, cached)
-        except OSError as exc:
-            log.debug("mesh cache %s not written: %s", cached, exc)
+        util_cache.write_cached(cached, data)
     with _lock:
         _memory[key] = data
     return data

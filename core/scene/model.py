@@ -77,6 +77,14 @@ class Material:
     image: the direction v shrinks) and z along the surface normal. Path tracers use it."""
     normal_scale: float = 1.0
     """glTF's ``normalTexture.scale``: multiplies the map's x and y before normalising."""
+    back_color: tuple[float, float, float] | None = None
+    """Double-sided surfaces whose back differs from their front (a leaf's lower side, paler
+    than its upper side): linear R, G, B factors of the back's colour against the front's
+    (capped at 1); None: both sides alike. The front is the side the face normal points to.
+    Path tracers use it; glTF has no such field (agrisim's files keep it in ``extras``)."""
+    back_roughness: float | None = None
+    """Roughness of the back's specular lobe (a leaf's matte lower side), without the
+    metallic-roughness texture (the front's); None: as the front."""
 
     def __post_init__(self) -> None:
         if self.albedo is not None:
@@ -101,6 +109,12 @@ class Material:
                     raise ValueError(f"material {self.name!r}: {what} must be H x W x 3 uint8, got {t.dtype} {t.shape}")
         if self.transmission is not None and self.transmittance is not None:
             raise ValueError(f"material {self.name!r}: give transmittance or a transmission texture, not both")
+        if self.back_color is not None and (
+            len(self.back_color) != 3 or not all(math.isfinite(c) and c >= 0.0 for c in self.back_color)
+        ):
+            raise ValueError(f"material {self.name!r}: back colour must be three finite numbers >= 0")
+        if self.back_roughness is not None and not 0.0 <= self.back_roughness <= 1.0:
+            raise ValueError(f"material {self.name!r}: back roughness must be in [0, 1]")
         if not (math.isfinite(self.normal_scale) and self.normal_scale >= 0.0):
             raise ValueError(
                 f"material {self.name!r}: normal scale must be a finite number >= 0, got {self.normal_scale}"

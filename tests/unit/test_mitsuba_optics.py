@@ -240,6 +240,21 @@ def test_normal_map_follows_gltf_tangent_frame(mi, layout, axis):  # noqa: ANN00
     assert abs(mapped[0] / flat[0] - 1.0) > 0.05  # the map does something
 
 
+def test_the_back_of_a_two_sided_surface_has_its_own_colour_and_roughness(mi):  # noqa: ANN001
+    """A leaf's lower side (``back_color``, ``back_roughness``): seen and lit from below, the
+    quad shades as a plain one of the back's colour and roughness seen and lit from above at
+    the same angles; from above, as the plain front."""
+    leaf = Material("leaf", color=(0.4, 0.5, 0.2, 1.0), roughness=0.3, back_color=(1.5, 1.2, 2.0), back_roughness=0.9)
+    plain = dataclasses.replace(leaf, back_color=None, back_roughness=None)
+    as_back = dataclasses.replace(plain, color=(0.6, 0.6, 0.4, 1.0), roughness=0.9)
+    below, seen_below = (0.0, -0.6, -0.8), (0.3, -0.4, -0.866)
+    above, seen_above = (0.0, -0.6, 0.8), (0.3, -0.4, 0.866)
+    back = _quad_radiance(mi, leaf, light=below, eye=seen_below)
+    assert np.allclose(back, _quad_radiance(mi, as_back, light=above, eye=seen_above), rtol=0.01)
+    assert np.allclose(_quad_radiance(mi, leaf), _quad_radiance(mi, plain), rtol=1e-6)
+    assert not np.allclose(back, _quad_radiance(mi, plain, light=below, eye=seen_below), rtol=0.05)
+
+
 def test_metallic_roughness_texture_scales_the_factors(mi):  # noqa: ANN001
     """A metallic-roughness texture (green: roughness, blue: metallic, linear) times factors
     shades as the product given as plain factors; and differently from the factors alone."""

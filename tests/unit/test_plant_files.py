@@ -76,7 +76,14 @@ def rich_mesh() -> tuple[Mesh, LabelTable]:
     albedo = rng.integers(0, 256, (16, 8, 4), dtype=np.uint8)
     labels_tex = rng.choice(np.array([1, 3], np.uint8), (16, 8))
     leaf = Material(
-        "leaf", (0.9, 1.0, 0.8, 0.75), albedo=albedo, labels=labels_tex, alpha_mode="MASK", alpha_cutoff=0.4
+        "leaf",
+        (0.9, 1.0, 0.8, 0.75),
+        albedo=albedo,
+        labels=labels_tex,
+        alpha_mode="MASK",
+        alpha_cutoff=0.4,
+        back_color=(1.25, 1.5, 0.75),
+        back_roughness=0.9,
     )
     stem = Material("stem", (0.3, 0.2, 0.1, 1.0), label=2, double_sided=False)
     petal = Material(
@@ -123,11 +130,13 @@ def test_round_trip_is_exact(tmp_path: Path) -> None:
         assert (a.name, a.color, a.label, a.alpha_mode, a.alpha_cutoff, a.double_sided) == (
             b.name, b.color, b.label, b.alpha_mode, b.alpha_cutoff, b.double_sided
         )  # fmt: skip
-        assert (a.roughness, a.metallic, a.transmittance, a.normal_scale) == (
+        assert (a.roughness, a.metallic, a.transmittance, a.normal_scale, a.back_color, a.back_roughness) == (
             b.roughness,
             b.metallic,
             b.transmittance,
             b.normal_scale,
+            b.back_color,
+            b.back_roughness,
         )
         textures = ("albedo", "labels", "transmission", "metallic_roughness", "normal_map")
         for x, y in ((getattr(a, t), getattr(b, t)) for t in textures):

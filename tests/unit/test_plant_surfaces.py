@@ -1,14 +1,27 @@
 """The procedural plants' surfaces: normal maps from the veins' relief (checked against the
-slopes of known height fields, and the veins' grooves on a painted leaf)."""
+slopes of known height fields, and the veins' grooves on a painted leaf), roughness maps, leaf
+optics from PROSPECT-D (against the spectra's physics) and ageing."""
 
 from __future__ import annotations
+
+import dataclasses
 
 import numpy as np
 import pytest
 
-from agrisim.plugins.plants.procedural import grow, painters
-from agrisim.plugins.plants.procedural.species import SPECIES
+from agrisim.plugins.plants.procedural import grow, optics, painters
+from agrisim.plugins.plants.procedural.growing import Ageing
+from agrisim.plugins.plants.procedural.species import LOOKS, SPECIES
 from agrisim.plugins.plants.procedural.textures import Atlas, normal_texels
+from agrisim.scene import colour
+
+
+def grow_atlas(name: str, look) -> tuple[np.ndarray, np.ndarray]:  # noqa: ANN001
+    """The RGBA and label atlases of species ``name`` (seed 0) grown with ``look``."""
+    grower, size, _ = SPECIES[name]
+    tex = np.random.default_rng(np.random.SeedSequence([0, 0x9E3779B9]).spawn(2)[1])
+    atlas = grower(np.random.default_rng(0), tex, size, 1.0, look).atlas
+    return atlas.rgba, atlas.labels
 
 
 def decode(texels: np.ndarray) -> np.ndarray:
@@ -57,3 +70,87 @@ def test_every_species_cards_carry_the_relief_of_their_veins(name):
     tilt = np.degrees(np.arccos(np.clip(decode(cards.normal_map[opaque])[:, 2], -1, 1)))
     share = float(np.mean(tilt > 2.0))
     assert 0.05 < share < 0.9, share  # veins, grooves and creases, not an even roughness
+
+
+# ------------------------------------------------------------------------ leaf optics
+
+
+def test_a_flat_spectrum_is_grey_and_a_red_one_red():
+    """The spectrum-to-colour step: 0.5 at every wavelength is grey 0.5 (D65 is sRGB's white);
+    light only above 600 nm is red."""
+    wavelengths = np.arange(400, 2501)
+    np.testing.assert_allclose(optics.spectrum_rgb(wavelengths, np.full(len(wavelengths), 0.5)), 0.5, atol=0.003)
+    r, g, b = optics.spectrum_rgb(wavelengths, (wavelengths > 600).astype(float))
+    assert r > 3 * g and b < 0.01
+
+
+def test_prospect_leaves_are_green_and_follow_their_pigments_and_thickness():
+    """PROSPECT-D's leaves: green (green reflected most), darker green with more chlorophyll,
+    less translucent when thicker (more mesophyll layers), and yellowing (red up against
+    green) when chlorophyll is lost."""
+    leaf = optics.Leaf()
+    (r, g, b), (tr, tg, tb) = optics.leaf_rgb(leaf)
+    assert g > r > b and tg > tr and 0.02 < g < 0.3
+    assert optics.leaf_rgb(optics.Leaf(cab=70))[0][1] < g
+    assert optics.translucency(optics.Leaf(n=2.5))[1] < optics.translucency(leaf)[1]
+    yellow = optics.ageing_tint(leaf, leaf.aged(green=0.2))
+    assert yellow[0] > 1.5 * yellow[1]
+
+
+def test_species_translucency_is_their_own_leaf_optics():
+    """Each species' cards transmit as PROSPECT-D says its leaf does: boxwood's thick leaves
+    least, the thin fern pinnae most."""
+    look = {name: grow(name, 0).mesh.materials[0].transmittance for name in ("boxwood", "boston_fern", "hydrangea")}
+    for name, t in look.items():
+        assert t == optics.translucency(LOOKS[name].leaf)
+    assert look["boxwood"][1] < look["hydrangea"][1] < look["boston_fern"][1]
+
+
+def test_veins_are_rougher_than_the_blade():
+    atlas = Atlas(256)
+    colours = dict(base=(0.3, 0.5, 0.2), light=(0.4, 0.6, 0.3), dark=(0.2, 0.3, 0.1), vein=(0.6, 0.7, 0.4))
+    tile = atlas.paint(
+        atlas.tile(0.9, 0.45),
+        painters.lamina(painters.ovate(), *colours.values(), 1, midrib=0.01),
+        np.random.default_rng(0),
+    )
+    texture, factor = atlas.metallic_roughness(0.4)
+    rough = texture[tile.r0 : tile.r0 + tile.h, tile.c0 : tile.c0 + tile.w, 1] / 255.0 * factor
+    row, middle = tile.h // 2, tile.w // 2
+    assert rough[row, middle] > 0.5 and abs(rough[row, middle + tile.w // 5] - 0.4) < 0.04
+    assert texture[..., 2].max() == 0  # not metallic
+
+
+def test_aged_leaves_yellow_and_brown_as_their_optics_say():
+    """An aged variant of a leaf keeps its outline and labels and turns, where it is dead (a
+    dried tip), to the colour PROSPECT-D gives the dead leaf: the healthy colour times the
+    brown tint, in linear light."""
+    colours = dict(base=(0.3, 0.5, 0.2), light=(0.3, 0.5, 0.2), dark=(0.3, 0.5, 0.2), vein=(0.3, 0.5, 0.2))
+    leaf = painters.lamina(painters.strap(), *colours.values(), 1, vein_strength=0.0)
+    brown = np.array([2.0, 0.7, 1.1])
+    old = painters.aged(leaf, 0.0, 0, 0.3, np.ones(3), brown)
+    healthy_atlas, aged_atlas = Atlas(256), Atlas(256)
+    t1 = healthy_atlas.paint(healthy_atlas.tile(0.9, 0.3), leaf, np.random.default_rng(0))
+    t2 = aged_atlas.paint(aged_atlas.tile(0.9, 0.3), old, np.random.default_rng(0))
+    a = healthy_atlas.rgba[t1.r0 : t1.r0 + t1.h, t1.c0 : t1.c0 + t1.w]
+    b = aged_atlas.rgba[t2.r0 : t2.r0 + t2.h, t2.c0 : t2.c0 + t2.w]
+    assert np.array_equal(a[..., 3], b[..., 3])
+    tip = (slice(2, 6), slice(t1.w // 2 - 2, t1.w // 2 + 2))  # near the tip, on the midrib: dead
+    lin = lambda c: colour.srgb_to_linear(c / 255.0)  # noqa: E731
+    ratio = lin(b[tip][..., :3].reshape(-1, 3).astype(float)).mean(0) / lin(
+        a[tip][..., :3].reshape(-1, 3).astype(float)
+    ).mean(0)
+    np.testing.assert_allclose(ratio, brown, rtol=0.1)
+    base = (slice(t1.h - 40, t1.h - 30), slice(t1.w // 2 - 2, t1.w // 2 + 2))
+    assert np.abs(b[base].astype(int) - a[base].astype(int)).max() <= 1  # alive near the base
+
+
+@pytest.mark.parametrize("name", [n for n in SPECIES if LOOKS[n].ageing.share > 0])
+def test_species_that_age_have_aged_leaves(name):
+    """Some of the leaf variants of each species that shows its age are aged: their leaves'
+    texels redder than without ageing (yellowing and browning raise red against green)."""
+    plain, labels = grow_atlas(name, dataclasses.replace(LOOKS[name], ageing=Ageing()))
+    aged, _ = grow_atlas(name, LOOKS[name])
+    leaf = (plain[..., 3] >= 128) & (labels == 1)
+    redness = lambda a: a[..., 0][leaf].astype(float).mean() / a[..., 1][leaf].astype(float).mean()  # noqa: E731
+    assert redness(aged) > redness(plain) * 1.01

@@ -16,8 +16,6 @@ from pydantic import Field
 from agrisim import BackendSpec, Options, hookimpl
 from agrisim.interfaces import PlantSpecies
 from agrisim.scene.model import (
-    LEAF_ROUGHNESS,
-    LEAF_TRANSMITTANCE,
     PLANT_FIT_HEIGHT,
     PLANT_FIT_RADIUS,
     Material,
@@ -25,7 +23,8 @@ from agrisim.scene.model import (
     Plant,
 )
 
-from .species import SPECIES, Grown
+from .optics import translucency
+from .species import LOOKS, SPECIES, Grown
 from .textures import srgb_to_linear
 
 SOIL_DEPTH = 0.012
@@ -67,7 +66,8 @@ def grow(species: str, seed: int, options: ProceduralPlantOptions | None = None)
     size = int(opts.texture_size or default_size)
     root = np.random.SeedSequence([int(seed) % (1 << 64), 0x9E3779B9])
     geo_ss, tex_ss = root.spawn(2)
-    grown: Grown = grower(np.random.default_rng(geo_ss), np.random.default_rng(tex_ss), size, float(opts.density))
+    look = LOOKS[species]
+    grown: Grown = grower(np.random.default_rng(geo_ss), np.random.default_rng(tex_ss), size, float(opts.density), look)
     b = grown.builder
     # keep every plant within the camera-safe cylinder at scale 1 (shrink if a seed grew big)
     rmax, _zmin, zmax = b.bounds()
@@ -76,6 +76,7 @@ def grow(species: str, seed: int, options: ProceduralPlantOptions | None = None)
     # never deeper into the soil than SOIL_DEPTH (at any scale)
     for v in b.vertices:
         np.maximum(v[:, 2], -SOIL_DEPTH, out=v[:, 2])
+    rough_map, roughness = grown.atlas.metallic_roughness(look.roughness)
     cards = Material(
         f"{species}_cards",
         color=(1.0, 1.0, 1.0, 1.0),
@@ -84,9 +85,12 @@ def grow(species: str, seed: int, options: ProceduralPlantOptions | None = None)
         alpha_mode="MASK",
         alpha_cutoff=0.5,
         double_sided=True,
-        roughness=LEAF_ROUGHNESS,
-        transmittance=LEAF_TRANSMITTANCE,
+        roughness=roughness,
+        metallic_roughness=rough_map,
+        transmittance=translucency(look.leaf),
         normal_map=grown.atlas.normals if grown.atlas.relief else None,
+        back_color=look.back_color,
+        back_roughness=look.back_roughness,
     )
     stem_label = grown.labels.by_name("stem").id
     stems = Material(

@@ -23,7 +23,7 @@ from .shapes import bezier, strip_cards
 from .textures import Atlas
 
 
-def grow_boston_fern(geo, tex, size, density) -> Grown:
+def grow_boston_fern(geo, tex, size, density, look=None) -> Grown:
     """Boston fern (Nephrolepis exaltata): many long, narrow, once-pinnate fronds arching out
     of a central crown."""
     atlas = Atlas(size)
@@ -46,6 +46,7 @@ def grow_boston_fern(geo, tex, size, density) -> Grown:
         0.94,
         aspect,
         lambda i: P.frond(LEAF, col, pinnae=34 + 2 * i, envelope=env, pinna_width=0.46, angle=0.3, stipe=0.07),
+        look=look,
     )
     b = MeshBuilder()
     n = count(geo.integers(34, 44), density)
@@ -79,7 +80,7 @@ def grow_boston_fern(geo, tex, size, density) -> Grown:
     return Grown(b, atlas, labels_for("leaf", "stem"), (0.3, 0.35, 0.15))
 
 
-def grow_basket_grass(geo, tex, size, density) -> Grown:
+def grow_basket_grass(geo, tex, size, density, look=None) -> Grown:
     """Basket grass (Lomandra-like): a dense clump of fine, arching, strap-like blades; each
     card carries a few blades, so most of every card is cut away."""
     atlas = Atlas(size)
@@ -87,7 +88,7 @@ def grow_basket_grass(geo, tex, size, density) -> Grown:
         {"base": (0.3, 0.5, 0.16), "light": (0.45, 0.62, 0.24), "dark": (0.18, 0.34, 0.09), "tip": (0.62, 0.6, 0.35)},
         {"base": (0.26, 0.46, 0.14), "light": (0.4, 0.58, 0.22), "dark": (0.15, 0.3, 0.08), "tip": (0.55, 0.55, 0.3)},
     ]
-    blade_t = tiles(atlas, tex, 5, 0.95, 0.2, lambda i: P.grass_blades(LEAF, cols[i % 2], 5 + i % 3, 0.02))
+    blade_t = tiles(atlas, tex, 5, 0.95, 0.2, lambda i: P.grass_blades(LEAF, cols[i % 2], 5 + i % 3, 0.02), look=look)
     b = MeshBuilder()
     n = count(geo.integers(100, 130), density)
     az = geo.uniform(0, 2 * np.pi, n)
@@ -123,7 +124,7 @@ def grow_basket_grass(geo, tex, size, density) -> Grown:
     return Grown(b, atlas, labels_for("leaf", "stem"), (0.6, 0.55, 0.32))
 
 
-def grow_common_fern(geo, tex, size, density) -> Grown:
+def grow_common_fern(geo, tex, size, density, look=None) -> Grown:
     """Common (male) fern (Dryopteris filix-mas): a shuttlecock of upright, lanceolate, bipinnate
     fronds on short brown stipes."""
     atlas = Atlas(size)
@@ -155,6 +156,7 @@ def grow_common_fern(geo, tex, size, density) -> Grown:
             lobes=7 + i % 2,
             rachis=0.008,
         ),
+        look=look,
     )
     b = MeshBuilder()
     n = count(geo.integers(10, 16), density)

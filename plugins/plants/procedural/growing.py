@@ -13,6 +13,8 @@ from agrisim.scene.mesh_builder import MeshBuilder
 from agrisim.scene.model import Label, LabelTable
 from agrisim.scene.palette import BACKGROUND, PALETTE
 
+from . import painters as P
+from .optics import Leaf, ageing_tint
 from .shapes import direction, tubes, unit
 from .textures import Atlas, Tile
 
@@ -44,13 +46,57 @@ def count(n: float, density: float) -> int:
     return max(1, round(n * density))
 
 
-def tiles(atlas: Atlas, tex: np.random.Generator, k: int, height: float, aspect: float, make: Callable) -> list[Tile]:
+@dataclass(frozen=True)
+class Ageing:
+    """How a species' older leaves show their age: ``share`` of its leaf variants are aged,
+    each yellowing in blotches up to ``yellowing`` of the way, with up to ``spots`` brown spots
+    and a dried tip up to ``dry_tip`` of its length."""
+
+    share: float = 0.0
+    yellowing: float = 0.0
+    spots: int = 0
+    dry_tip: float = 0.0
+
+
+@dataclass(frozen=True)
+class Look:
+    """A species' leaves beyond their shape: PROSPECT-D parameters (translucency and the
+    colours of ageing), the upper side's roughness (the lower side's is ``back_roughness``),
+    the lower side's colour against the upper's, and ageing."""
+
+    leaf: Leaf = Leaf()
+    roughness: float = 0.4
+    back_roughness: float = 0.75
+    back_color: tuple[float, float, float] = (1.3, 1.2, 1.3)
+    ageing: Ageing = Ageing()
+
+    def aged(self, painter: Callable, variant: int, variants: int) -> Callable:
+        """``painter`` aged when ``variant`` is among the last ``share`` of ``variants``."""
+        a = self.ageing
+        if variant < variants - round(a.share * variants):
+            return painter
+        yellow = ageing_tint(self.leaf, self.leaf.aged(green=0.2, brown=0.1))
+        brown = ageing_tint(self.leaf, self.leaf.aged(green=0.03, brown=1.5, water=0.3))
+        return P.aged(painter, a.yellowing, a.spots, a.dry_tip, yellow, brown)
+
+
+def tiles(
+    atlas: Atlas,
+    tex: np.random.Generator,
+    k: int,
+    height: float,
+    aspect: float,
+    make: Callable,
+    look: Look | None = None,
+) -> list[Tile]:
     """``k`` variants of a card texture, each ``height`` (fraction of the atlas) tall with
-    width/length ``aspect``; ``make(i)`` returns the painter of variant ``i``."""
+    width/length ``aspect``; ``make(i)`` returns the painter of variant ``i``; with ``look``
+    (leaves) the last of them age as the species does."""
     out = []
     for i in range(k):
         t = atlas.tile(height, height * aspect)
-        out.append(atlas.paint(t, make(i), tex))
+        painter = make(i) if look is None else look.aged(make(i), i, k)
+        out.append(atlas.paint(t, painter, tex))
     return out
 
 

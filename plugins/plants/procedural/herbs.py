@@ -31,12 +31,12 @@ from .textures import Atlas
 
 
 # A species' recipe, organ by organ, reads top to bottom as the plant is built.
-def grow_indian_cress(geo, tex, size, density) -> Grown:
+def grow_indian_cress(geo, tex, size, density, look=None) -> Grown:
     """Nasturtium (Tropaeolum majus): ~0.2 m, round peltate leaves on long petioles from a few
     sprawling stems, orange five-petalled flowers."""
     atlas = Atlas(size)
     col = {"base": (0.33, 0.52, 0.22), "light": (0.5, 0.66, 0.33), "dark": (0.2, 0.36, 0.13), "vein": (0.72, 0.8, 0.55)}
-    leaf_t = tiles(atlas, tex, 6, 0.3, 1.0, lambda i: P.peltate(LEAF, col))
+    leaf_t = tiles(atlas, tex, 6, 0.3, 1.0, lambda i: P.peltate(LEAF, col), look=look)
     fcols = [
         {
             "base": (0.95, 0.45, 0.05),
@@ -133,7 +133,7 @@ def grow_indian_cress(geo, tex, size, density) -> Grown:
 
 
 # A species' recipe, organ by organ, reads top to bottom as the plant is built.
-def grow_amaryllis(geo, tex, size, density) -> Grown:
+def grow_amaryllis(geo, tex, size, density, look=None) -> Grown:
     """Amaryllis (Hippeastrum): a bulb with long arching strap leaves and a tall hollow scape
     carrying big red trumpet flowers."""
     atlas = Atlas(size)
@@ -156,6 +156,7 @@ def grow_amaryllis(geo, tex, size, density) -> Grown:
             vein_width=0.002,
             vein_strength=0.4,
         ),
+        look=look,
     )
     pcol = [
         {
@@ -247,7 +248,7 @@ def grow_amaryllis(geo, tex, size, density) -> Grown:
     return Grown(b, atlas, labels_for("leaf", "stem", "flower"), (0.3, 0.5, 0.2), wood_colour=(0.55, 0.4, 0.25))
 
 
-def grow_bog_marshcress(geo, tex, size, density) -> Grown:
+def grow_bog_marshcress(geo, tex, size, density, look=None) -> Grown:
     """Bog marshcress (Rorippa palustris): a small rosette of deeply lobed leaves with a couple
     of short branched stems bearing tiny yellow flowers."""
     atlas = Atlas(size)
@@ -258,7 +259,7 @@ def grow_bog_marshcress(geo, tex, size, density) -> Grown:
         "vein": (0.55, 0.68, 0.35),
         "tint": (0.45, 0.3, 0.22),
     }
-    leaf_t = tiles(atlas, tex, 5, 0.48, 0.5, lambda i: P.lobed(LEAF, col, lobes=3.5 + 0.5 * (i % 3)))
+    leaf_t = tiles(atlas, tex, 5, 0.48, 0.5, lambda i: P.lobed(LEAF, col, lobes=3.5 + 0.5 * (i % 3)), look=look)
     fcol = {
         "base": (0.98, 0.88, 0.2),
         "light": (1.0, 0.95, 0.45),
@@ -330,7 +331,7 @@ def grow_bog_marshcress(geo, tex, size, density) -> Grown:
     return Grown(b, atlas, labels_for("leaf", "stem", "flower"), (0.36, 0.45, 0.2))
 
 
-def grow_chinese_evergreen(geo, tex, size, density) -> Grown:
+def grow_chinese_evergreen(geo, tex, size, density, look=None) -> Grown:
     """Chinese evergreen (Aglaonema): broad, silver-patterned lanceolate leaves on sheathing
     petioles around a few short, thick canes."""
     atlas = Atlas(size)
@@ -358,6 +359,7 @@ def grow_chinese_evergreen(geo, tex, size, density) -> Grown:
             midrib=0.008,
             pattern=P.aglaonema_pattern,
         ),
+        look=look,
     )
     b = MeshBuilder()
     nc = int(geo.integers(2, 4))
@@ -404,12 +406,12 @@ def grow_chinese_evergreen(geo, tex, size, density) -> Grown:
     return Grown(b, atlas, labels_for("leaf", "stem"), (0.45, 0.58, 0.38))
 
 
-def grow_coltsfoot(geo, tex, size, density) -> Grown:
+def grow_coltsfoot(geo, tex, size, density, look=None) -> Grown:
     """Coltsfoot (Tussilago farfara): heart-shaped, coarsely toothed leaves on long petioles
     from the ground, and dandelion-like yellow flower heads on scaly stalks."""
     atlas = Atlas(size)
     col = {"base": (0.3, 0.5, 0.2), "light": (0.45, 0.62, 0.3), "dark": (0.18, 0.34, 0.1), "vein": (0.6, 0.7, 0.45)}
-    leaf_t = tiles(atlas, tex, 5, 0.32, 1.0, lambda i: P.cordate(LEAF, col))
+    leaf_t = tiles(atlas, tex, 5, 0.32, 1.0, lambda i: P.cordate(LEAF, col), look=look)
     fcol = {
         "base": (0.98, 0.82, 0.08),
         "light": (1.0, 0.9, 0.3),

@@ -12,6 +12,8 @@ from collections.abc import Callable
 
 import numpy as np
 
+from agrisim.scene.colour import linear_to_srgb, srgb_to_linear
+
 from .textures import coverage, groove, leaf_colour, line_mask, mix, radial_veins, tissue, value_noise, veins
 
 Shape = Callable[[np.ndarray], np.ndarray]  # Y -> half-width as a fraction of the tile's half-width
@@ -378,5 +380,37 @@ def sprig(leaf_label: int, stem_label: int, colours: dict, twig_colour: tuple, p
         rgb = np.where((f_twig > f_leaf)[..., None], np.asarray(twig_colour, float), rgb)
         lab = np.where((f_twig > f_leaf) & (np.abs(X) < 2 * tw), stem_label, leaf_label).astype(np.uint8)
         return cov, rgb, lab
+
+    return paint
+
+
+# ------------------------------------------------------------------------------- ageing
+
+
+def aged(painter, yellowing: float, spots: int, dry_tip: float, yellow: np.ndarray, brown: np.ndarray):
+    """``painter``'s leaf, aged: blotches yellowing up to ``yellowing`` (0..1) of the way, up
+    to ``spots`` brown spots, a dried tip up to ``dry_tip`` of the length. ``yellow`` and
+    ``brown`` are linear RGB factors from the healthy leaf's colour to a yellowed and a dead
+    one's (:func:`.optics.ageing_tint`), applied in linear light."""
+
+    def paint(X, Y, px, rng):
+        cov, rgb, labels, *relief = painter(X, Y, px, rng)
+        linear = srgb_to_linear(np.clip(rgb, 0.0, 1.0))
+        blotch = _smooth((value_noise(rng, X.shape, 3) - 0.35) / 0.4) * yellowing * rng.uniform(0.4, 1.0)
+        linear = linear * (1 + blotch[..., None] * (np.asarray(yellow) - 1))
+        dead = np.zeros(X.shape)
+        inside = cov > 0.5
+        if spots > 0 and inside.any():
+            ys, xs = np.nonzero(inside)
+            for i in rng.integers(0, len(ys), int(rng.integers(0, spots + 1))):
+                r = rng.uniform(0.006, 0.02)
+                d = np.hypot(X - X[ys[i], xs[i]], Y - Y[ys[i], xs[i]]) / r
+                dead = np.maximum(dead, _smooth((1.15 - d) / 0.3))
+        if dry_tip > 0:
+            edge = 1 - dry_tip * rng.uniform(0.4, 1.0) * (0.8 + 0.4 * value_noise(rng, X.shape, 6))
+            dead = np.maximum(dead, _smooth((Y - edge) / 0.02))
+        linear = linear * (1 + dead[..., None] * (np.asarray(brown) - 1))
+        rgb = linear_to_srgb(np.clip(linear, 0.0, 1.0))
+        return (cov, rgb, labels, *relief)
 
     return paint

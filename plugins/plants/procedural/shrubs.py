@@ -29,7 +29,7 @@ from .textures import Atlas
 
 
 # A species' recipe, organ by organ, reads top to bottom as the plant is built.
-def grow_hydrangea(geo, tex, size, density) -> Grown:
+def grow_hydrangea(geo, tex, size, density, look=None) -> Grown:
     """Hydrangea (bigleaf, mophead): a shrub of woody canes with opposite serrated leaves and big
     round flower heads of four-petalled florets, some white, some purple (organ labels
     ``flower_white`` and ``flower_purple``, as the paper's hand-made label texture)."""
@@ -57,6 +57,7 @@ def grow_hydrangea(geo, tex, size, density) -> Grown:
             vein_slope=0.7,
             midrib=0.008,
         ),
+        look=look,
     )
     white = [
         {
@@ -180,7 +181,7 @@ def grow_hydrangea(geo, tex, size, density) -> Grown:
     )
 
 
-def grow_boxwood(geo, tex, size, density) -> Grown:
+def grow_boxwood(geo, tex, size, density, look=None) -> Grown:
     """Boxwood (Buxus sempervirens), clipped into a ball: tens of thousands of small, solid,
     glossy leaves as real polygons on a short trunk; opacity cuts (almost) nothing."""
     atlas = Atlas(size)
@@ -189,7 +190,7 @@ def grow_boxwood(geo, tex, size, density) -> Grown:
         {"base": (0.24, 0.44, 0.12), "light": (0.38, 0.58, 0.2), "dark": (0.14, 0.3, 0.08), "vein": (0.5, 0.65, 0.3)},
         {"base": (0.34, 0.5, 0.16), "light": (0.5, 0.64, 0.24), "dark": (0.22, 0.38, 0.1), "vein": (0.6, 0.7, 0.35)},
     ]
-    leaf_t = tiles(atlas, tex, 9, 0.12, 0.6, lambda i: P.ellipse_leaf(LEAF, cols[i % 3], 0.05))
+    leaf_t = tiles(atlas, tex, 9, 0.12, 0.6, lambda i: P.ellipse_leaf(LEAF, cols[i % 3], 0.05), look=look)
     sprig_t = tiles(
         atlas, tex, 3, 0.3, 0.5, lambda i: P.sprig(LEAF, STEM, cols[i % 3], (0.42, 0.34, 0.2), pairs=4 + i % 2)
     )

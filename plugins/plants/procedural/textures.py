@@ -83,6 +83,9 @@ class Atlas:
         """Tangent-space normal map (glTF's convention) of the painters' relief."""
         self.relief = False
         """Whether any painter gave relief (else no normal map is needed)."""
+        self.rougher = np.ones((self.size, self.size), np.float32)
+        """Per texel, how many times rougher than the surface's own roughness: veins, in their
+        grooves, are matte."""
         self._row = 0  # top of the current shelf
         self._col = 0
         self._shelf = 0  # height of the current shelf
@@ -126,8 +129,19 @@ class Atlas:
         self.labels[sl] = lab
         if relief:
             self.normals[sl] = np.where(inside[..., None], normal_texels(relief[0], px), FLAT)
+            self.rougher[sl] = np.where(inside, 1.0 + 0.6 * np.clip(-relief[0] / 0.0015, 0.0, 1.0), 1.0)
             self.relief = True
         return tile
+
+    def metallic_roughness(self, roughness: float) -> tuple[np.ndarray, float]:
+        """(glTF metallic-roughness texture, its roughness factor) of a surface of ``roughness``
+        made rougher where :attr:`rougher` says: green is the roughness / the factor, blue (the
+        metallic) 0."""
+        factor = float(min(1.0, roughness * float(self.rougher.max())))
+        texture = np.zeros((self.size, self.size, 3), np.uint8)
+        texture[..., 0] = 255
+        texture[..., 1] = np.clip(np.rint(self.rougher * (roughness / factor) * 255.0), 0, 255)
+        return texture, factor
 
 
 def normal_texels(height: np.ndarray, px: float) -> np.ndarray:

@@ -120,6 +120,49 @@ class BsdfFactory:
             "specular": 0.5,
         }
 
+    def _back_reflector(self, material: Material, scale: float = 1.0) -> dict:
+        """The back side's reflector (``Material.back_color``, ``back_roughness``): the front's
+        colour times the back's factors, capped so that with what the surface transmits it
+        never passes 1."""
+        factor = np.asarray(material.back_color if material.back_color is not None else (1.0, 1.0, 1.0), F32)
+        translucent = material.transmittance is not None and material.transmission is None
+        tint = np.asarray(material.transmittance, F32) if translucent else None
+        key = (
+            "back",
+            id(material.albedo),
+            tuple(material.color[:3]),
+            tuple(factor),
+            scale,
+            None if tint is None else tuple(tint),
+        )
+
+        def make() -> np.ndarray:
+            albedo = linear_albedo(material)
+            base = np.asarray(material.color[:3], F32) if albedo is None else albedo
+            passed = np.zeros_like(base) if tint is None else np.minimum(base * tint, 1.0 - base)
+            return np.minimum(base * factor, 1.0 - passed) * F32(scale)
+
+        colour: Any = self._bitmap(key, make, "bilinear") if material.albedo is not None else None
+        if colour is None:
+            value = make()
+            colour = self._bitmap(key, lambda: value.reshape(1, 1, 3), "nearest")
+        rough = material.back_roughness
+        return {
+            "type": "principled",
+            "base_color": colour,
+            "roughness": float(rough) if rough is not None else self._channel(material, 1, material.roughness),
+            "metallic": self._channel(material, 2, material.metallic),
+            "specular": 0.5,
+        }
+
+    def _sides(self, material: Material, scale: float = 1.0) -> dict:
+        """Both sides of a double-sided surface: alike, or the back as the material says."""
+        front = self._reflector(material, scale)
+        if material.back_color is None and material.back_roughness is None:
+            return {"type": "twosided", "bsdf": front}
+        # (twosided takes its nested BSDFs in order: the front, then the back)
+        return {"type": "twosided", "front": front, "back": self._back_reflector(material, scale)}
+
     def _normals(self, material: Material, mirrored: bool) -> Any:
         """The normal map as Mitsuba reads it: unit vectors encoded as (n + 1) / 2, glTF's
         scale applied, and the bitangent turned to Mitsuba's frame.
@@ -149,7 +192,7 @@ class BsdfFactory:
             surface: dict = {
                 "type": "blendbsdf",
                 "weight": 0.5,
-                "reflect": {"type": "twosided", "bsdf": self._reflector(material, 2.0)},
+                "reflect": self._sides(material, 2.0),
                 "transmit": {
                     "type": "principledthin",
                     "base_color": self._transmitted(material),
@@ -159,7 +202,7 @@ class BsdfFactory:
                 },
             }
         elif material.double_sided:
-            surface = {"type": "twosided", "bsdf": self._reflector(material)}
+            surface = self._sides(material)
         else:
             surface = self._reflector(material)
         if material.normal_map is not None:
