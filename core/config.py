@@ -287,7 +287,9 @@ class RunConfig(_Model):
     points: PointsConfig = PointsConfig()
     """The plant as points (``--as-points``, ``--point-size``)."""
     plants: dict[str, dict[str, Any]] = {}
-    """Options per plant species (``[plants.boxwood]``), validated by the species' own model."""
+    """Options per plant species (``[plants.boxwood]``), validated by the species' own model;
+    every species also takes ``seed`` (``--plant-seed``): the individual it grows, 0 to 2^32 - 1,
+    by default the run's ``seed``."""
     pcg_seed: int = Field(default=42, ge=0, le=2**32 - 1)
     """Seed of the lab's clutter randomizer (the paper's PCG Seed, 42)."""
     physics: PhysicsChoice = PhysicsChoice()
@@ -374,12 +376,13 @@ def _describe(exc: ValidationError) -> str:
 
 
 #: Settings that moved into one backend's own options, still accepted where they used to be:
-#: the familiar flags set them there (``--plant-age``, ``--shadow-samples``, ``--supersample``,
+#: the familiar flags set them there (``--plant-age``, ``--plant-seed``, ``--shadow-samples``, ``--supersample``,
 #: ``--rrd``, ``--no-rrd``, ``--spawn``), and so may older TOML files and saved runs.
 #: old dotted key -> (the table it now lives in, its name there, how its value maps). In the
 #: table path, ``{plant}`` and ``{renderer}`` stand for the chosen plant and renderer.
 ALIASES: dict[str, tuple[tuple[str, ...], str, Callable[[Any], Any]]] = {
     "plant_age": (("plants", "{plant}"), "age", lambda v: v),
+    "plant_seed": (("plants", "{plant}"), "seed", lambda v: v),
     "render.shadow_samples": (("renderer", "{renderer}"), "shadow_samples", lambda v: v),
     "render.supersample": (("renderer", "{renderer}"), "supersample", lambda v: v),
     "output.rrd": (("sink", "rerun"), "path", lambda v: v),

@@ -52,6 +52,9 @@ def build_parser() -> argparse.ArgumentParser:
     )
     run.add_argument("--plant-age", type=float, metavar="DAYS", help="age of a growing plant (helios:*), days")
     run.add_argument(
+        "--plant-seed", type=int, metavar="N", help="grow another individual of the species (default: --seed)"
+    )
+    run.add_argument(
         "--as-points",
         type=int,
         metavar="N",
@@ -193,6 +196,7 @@ def build_parser() -> argparse.ArgumentParser:
 COMPARE_EPISODE_FLAGS: list[tuple[str, str, Any, str]] = [
     ("--labels", "plant|organs", str, "one plant label, or one per organ (default: plant)"),
     ("--plant-age", "DAYS", float, "age of every growing plant (helios:*), days (default: each model's)"),
+    ("--plant-seed", "N", int, "the individual every species grows (default: --seed)"),
     ("--renderer", "NAME", str, "renderer (default: raycast)"),
     ("--shadow-samples", "N", int, "shadow rays per pixel, 0..32 (default: 1)"),
     ("--physics", "NAME", str, "physics backend (default: pybullet)"),
@@ -269,6 +273,7 @@ def overrides_from_args(args: argparse.Namespace) -> dict[str, Any]:
     flat = {
         "plant": args.plant,
         "plant_age": args.plant_age,
+        "plant_seed": args.plant_seed,
         "points.count": args.as_points,
         "points.size": args.point_size,
         "render.seg_mode": args.seg_mode,

@@ -103,6 +103,32 @@ def test_same_seed_same_plant_other_seed_other_plant(name, plants):
     assert a.vertices.shape != c.vertices.shape or not np.allclose(a.vertices, c.vertices)
 
 
+def test_the_plant_seed_grows_another_individual_and_the_same_seed_the_same_bytes(tmp_path, cli):
+    """``[plants.NAME] seed`` and ``--plant-seed``: another individual of the species (its own
+    scene file), the same file byte for byte for the same seed, whatever the run's seed."""
+    from agrisim.app.arguments import build_parser, overrides_from_args
+    from agrisim.config import build_config
+    from agrisim.files.glb import export_glb
+    from agrisim.scene.plant_choice import resolve_plant
+
+    registry = Registry(make_plugin_manager())
+
+    def saved(*argv: str) -> bytes:
+        config = build_config(overrides_from_args(build_parser().parse_args(["run", "--plant", "coltsfoot", *argv])))
+        plant = resolve_plant(registry, config)
+        path = tmp_path / f"{len(list(tmp_path.iterdir()))}.glb"
+        export_glb(plant.mesh, path, plant.labels)
+        return path.read_bytes()
+
+    three = saved("--plant-seed", "3")
+    assert saved("--set", "plants.coltsfoot.seed=3", "--seed", "7") == three
+    assert saved() != three and saved("--seed", "3") == three  # (by default the run's seed)
+    for bad in ("-1", "4294967296"):
+        code, _, err = cli(["run", "--plant", "coltsfoot", "--plant-seed", bad, "--out", str(tmp_path / "out")])
+        assert code == 2 and err.count("\n") == 1 and "--plant-seed" in err and "Traceback" not in err, err
+    assert not (tmp_path / "out").exists()
+
+
 @pytest.mark.parametrize("name", NAMES)
 def test_mesh_is_valid_textured_and_fits_the_camera_cylinder(name, plants):
     plant = plants[name]
