@@ -20,8 +20,9 @@ from PIL import Image, ImageDraw
 from agrisim.config import RenderConfig, build_config
 from agrisim.lab.room import build_scene, soil_pose
 from agrisim.plugins.plants.procedural.species import SPECIES
-from agrisim.scene.camera import preset
+from agrisim.scene.camera import from_fov, preset
 from agrisim.scene.plant_choice import resolve_plant
+from agrisim.scene.texturing import label_at
 from agrisim.scene.transforms import look_at
 
 sys.path.insert(0, str(Path(__file__).parent))
@@ -29,21 +30,30 @@ from figure_views import figure_views  # noqa: E402
 from machine import cpu_model  # noqa: E402
 
 
-def leaf_target(scene_plant, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:  # noqa: ANN001
-    """(centre, normal) of a leaf near the top of the plant, in the plant's frame."""
-    mesh = scene_plant.mesh
-    if mesh.face_instance is None:
-        faces = np.arange(len(mesh.faces))
-    else:
-        ids = np.unique(mesh.face_instance[mesh.face_instance > 0])
-        tops = {i: mesh.vertices[mesh.faces[mesh.face_instance == i]].reshape(-1, 3)[:, 2].max() for i in ids}
-        best = sorted(ids, key=lambda i: -tops[i])[: max(1, len(ids) // 5)]
-        faces = np.flatnonzero(mesh.face_instance == rng.choice(best))
-    tri = mesh.vertices[mesh.faces[faces]]
-    normal = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
-    n = normal.sum(axis=0)
-    n = n / max(np.linalg.norm(n), 1e-12)
-    return tri.reshape(-1, 3).mean(axis=0), n if n[2] >= 0 else -n
+def leaf_target(plant, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:  # noqa: ANN001
+    """(centre, upper-side normal) of one of the plant's larger, higher leaves, in its frame: a
+    leaf instance whose texels are labelled leaf."""
+    mesh = plant.mesh
+    leaf_id = plant.labels.by_name("leaf").id
+    tri = mesh.vertices[mesh.faces]
+    centre = tri.mean(axis=1)
+    uv = mesh.uvs[mesh.faces].mean(axis=1) if mesh.uvs is not None else np.zeros((len(mesh.faces), 2))
+    is_leaf = np.zeros(len(mesh.faces), bool)
+    for i, material in enumerate(mesh.materials):
+        sel = mesh.face_material == i
+        is_leaf[sel] = label_at(material, uv[sel]) == leaf_id
+    area = 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
+    instances = mesh.face_instance if mesh.face_instance is not None else np.zeros(len(mesh.faces), int)
+    best = []
+    for i in np.unique(instances[is_leaf & (instances > 0)]):
+        sel = instances == i
+        best.append((area[sel].sum() * (1.0 + centre[sel, 2].mean() / 0.2), i))
+    best.sort(reverse=True)
+    chosen = best[int(rng.integers(0, max(1, len(best) // 4)))][1] if best else 0
+    sel = (instances == chosen) & is_leaf
+    normal = np.cross(tri[sel, 1] - tri[sel, 0], tri[sel, 2] - tri[sel, 0]).sum(axis=0)
+    normal /= max(np.linalg.norm(normal), 1e-12)
+    return np.average(centre[sel], axis=0, weights=area[sel]), normal
 
 
 def main() -> None:
@@ -54,7 +64,7 @@ def main() -> None:
     parser.add_argument("--size", default="480x360")
     parser.add_argument("--distance", type=float, default=0.3, help="camera to plant centre, m")
     parser.add_argument("--species", nargs="+", default=list(SPECIES))
-    parser.add_argument("--leaf", action="store_true", help="add a column: one leaf at 0.1 m")
+    parser.add_argument("--leaf", action="store_true", help="add a column: one leaf from 0.12 m with a 40° lens")
     args = parser.parse_args()
     views = figure_views(64, 64)
     camera = preset("rpi3-wide-1080p", args.size)
@@ -79,10 +89,12 @@ def main() -> None:
                 leaf, normal = leaf_target(plant, np.random.default_rng(seed))
                 leaf = soil[:3, :3] @ leaf + soil[:3, 3]
                 side = np.cross(normal, [0.0, 0.0, 1.0]) if abs(normal[2]) < 0.99 else np.array([1.0, 0, 0])
-                eye_leaf = leaf + 0.1 * (0.85 * normal + 0.5 * side / max(np.linalg.norm(side), 1e-9))
-                macro = r.render(camera, look_at(eye_leaf, leaf), views.poses)
+                eye_leaf = leaf + 0.12 * (0.85 * normal + 0.5 * side / max(np.linalg.norm(side), 1e-9))
+                macro = r.render(from_fov(40.0, W, H), look_at(eye_leaf, leaf), views.poses)
                 sheet.paste(Image.fromarray(macro.rgb), (len(args.seeds) * W, row * H))
-                draw.text((len(args.seeds) * W + 6, row * H + 4), f"{name}: a leaf from 0.1 m", fill="white")
+                draw.text(
+                    (len(args.seeds) * W + 6, row * H + 4), f"{name}: a leaf from 0.12 m (40° lens)", fill="white"
+                )
             r.close()
             sheet.paste(Image.fromarray(frame.rgb), (col * W, row * H))
             draw.text((col * W + 6, row * H + 4), f"{name}, seed {seed}", fill="white")

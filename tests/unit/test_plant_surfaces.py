@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from agrisim.plugins.plants.procedural import grow, optics, painters
-from agrisim.plugins.plants.procedural.growing import Ageing
+from agrisim.plugins.plants.procedural.growing import Ageing, tiles
 from agrisim.plugins.plants.procedural.species import LOOKS, SPECIES
 from agrisim.plugins.plants.procedural.textures import Atlas, normal_texels
 from agrisim.scene import colour
@@ -146,11 +146,51 @@ def test_aged_leaves_yellow_and_brown_as_their_optics_say():
 
 
 @pytest.mark.parametrize("name", [n for n in SPECIES if LOOKS[n].ageing.share > 0])
-def test_species_that_age_have_aged_leaves(name):
-    """Some of the leaf variants of each species that shows its age are aged: their leaves'
-    texels redder than without ageing (yellowing and browning raise red against green)."""
-    plain, labels = grow_atlas(name, dataclasses.replace(LOOKS[name], ageing=Ageing()))
-    aged, _ = grow_atlas(name, LOOKS[name])
-    leaf = (plain[..., 3] >= 128) & (labels == 1)
-    redness = lambda a: a[..., 0][leaf].astype(float).mean() / a[..., 1][leaf].astype(float).mean()  # noqa: E731
-    assert redness(aged) > redness(plain) * 1.01
+def test_the_last_leaf_variants_of_species_that_age_are_aged(name):
+    """Of six leaf variants in a species' look, the last ``share`` are aged (redder: yellowing
+    and browning raise red against green), the others as without ageing, texel for texel."""
+    colours = dict(base=(0.3, 0.5, 0.2), light=(0.35, 0.55, 0.25), dark=(0.25, 0.45, 0.15), vein=(0.5, 0.6, 0.3))
+
+    def painted(look) -> list[np.ndarray]:  # noqa: ANN001
+        atlas = Atlas(512)
+        made = tiles(
+            atlas,
+            np.random.default_rng(0),
+            6,
+            0.3,
+            0.5,
+            lambda i: painters.lamina(painters.ovate(), *colours.values(), 1),
+            look,
+        )
+        return [atlas.rgba[t.r0 : t.r0 + t.h, t.c0 : t.c0 + t.w].astype(float) for t in made]
+
+    aged, plain = painted(LOOKS[name]), painted(dataclasses.replace(LOOKS[name], ageing=Ageing()))
+    n_aged = round(LOOKS[name].ageing.share * 6)
+    assert n_aged >= 1
+    for a, p in zip(aged[: 6 - n_aged], plain[: 6 - n_aged], strict=True):
+        assert np.array_equal(a, p)
+    leaf = plain[-1][..., 3] >= 128
+    redness = lambda t: t[..., 0][leaf].mean() / t[..., 1][leaf].mean()  # noqa: E731
+    assert redness(aged[-1]) > 1.01 * redness(plain[-1])
+
+
+def test_leaf_variants_differ_in_shade():
+    """Each leaf variant of a look has its own shade: variants of one flat grey-green leaf
+    differ in brightness and in the balance of red (yellow-green) against blue (blue-green)."""
+
+    def flat(X, Y, px, rng):  # noqa: ANN001, ANN202
+        return np.ones(X.shape), np.broadcast_to([0.4, 0.5, 0.3], X.shape + (3,)), np.ones(X.shape, np.uint8)
+
+    atlas = Atlas(512)
+    made = tiles(
+        atlas,
+        np.random.default_rng(0),
+        6,
+        0.3,
+        0.5,
+        lambda i: flat,
+        dataclasses.replace(LOOKS["boxwood"], ageing=Ageing()),
+    )
+    means = np.array([atlas.rgba[t.r0 : t.r0 + t.h, t.c0 : t.c0 + t.w, :3].reshape(-1, 3).mean(0) for t in made])
+    assert means[:, 1].std() > 3.0  # 8-bit levels
+    assert (means[:, 0] / means[:, 2]).std() > 0.02

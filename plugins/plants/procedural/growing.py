@@ -70,8 +70,13 @@ class Look:
     back_color: tuple[float, float, float] = (1.3, 1.2, 1.3)
     ageing: Ageing = Ageing()
 
-    def aged(self, painter: Callable, variant: int, variants: int) -> Callable:
-        """``painter`` aged when ``variant`` is among the last ``share`` of ``variants``."""
+    def varied(self, painter: Callable, variant: int, variants: int, tex: np.random.Generator) -> Callable:
+        """``painter`` as leaf variant ``variant`` of ``variants``: in its own shade (brightness
+        and the balance of green and yellow, drawn from ``tex``), and aged when it is among the
+        last ``share`` of them."""
+        shade = 1.0 + tex.normal(0.0, 0.07)
+        warm = tex.normal(0.0, 0.06)  # + toward yellow-green, - toward blue-green
+        painter = P.tinted(painter, shade * np.array([1.0 + warm, 1.0, 1.0 - warm]))
         a = self.ageing
         if variant < variants - round(a.share * variants):
             return painter
@@ -91,11 +96,11 @@ def tiles(
 ) -> list[Tile]:
     """``k`` variants of a card texture, each ``height`` (fraction of the atlas) tall with
     width/length ``aspect``; ``make(i)`` returns the painter of variant ``i``; with ``look``
-    (leaves) the last of them age as the species does."""
+    (leaves) each has its own shade and the last of them age as the species does."""
     out = []
     for i in range(k):
         t = atlas.tile(height, height * aspect)
-        painter = make(i) if look is None else look.aged(make(i), i, k)
+        painter = make(i) if look is None else look.varied(make(i), i, k, tex)
         out.append(atlas.paint(t, painter, tex))
     return out
 

@@ -387,6 +387,18 @@ def sprig(leaf_label: int, stem_label: int, colours: dict, twig_colour: tuple, p
 # ------------------------------------------------------------------------------- ageing
 
 
+def tinted(painter, factor: np.ndarray):
+    """``painter``'s leaf with its colour times ``factor`` (linear R, G, B): one leaf variant's
+    own shade within its species."""
+
+    def paint(X, Y, px, rng):
+        cov, rgb, labels, *relief = painter(X, Y, px, rng)
+        linear = srgb_to_linear(np.clip(rgb, 0.0, 1.0)) * np.asarray(factor)
+        return (cov, linear_to_srgb(np.clip(linear, 0.0, 1.0)), labels, *relief)
+
+    return paint
+
+
 def aged(painter, yellowing: float, spots: int, dry_tip: float, yellow: np.ndarray, brown: np.ndarray):
     """``painter``'s leaf, aged: blotches yellowing up to ``yellowing`` (0..1) of the way, up
     to ``spots`` brown spots, a dried tip up to ``dry_tip`` of the length. ``yellow`` and
