@@ -170,3 +170,18 @@ def test_a_plate_cups_ripples_and_droops_as_it_says():
     expected = size * (cup * r**2 + wave * r**3 * np.sin(waves * theta + phase) - droop * np.maximum(y, 0) ** 2)
     np.testing.assert_allclose(V[0][:, 2], expected, atol=1e-12)
     assert np.ptp(V[0][:, 2]) > 0.2 * size * abs(cup)
+
+
+def test_stems_taper_from_their_base_to_their_end():
+    """A stem given one radius is a tube whose rings shrink linearly from that radius at its
+    base to TAPER of it at its end (its vertices' distances from the straight axis)."""
+    from agrisim.plugins.plants.procedural.growing import TAPER, add_tubes
+    from agrisim.scene.mesh_builder import MeshBuilder
+
+    b = MeshBuilder()
+    path = np.stack([np.zeros(5), np.zeros(5), np.linspace(0.0, 0.2, 5)], axis=-1)[None]
+    add_tubes(b, path, 0.004, sides=6)
+    rings = b.vertices[0].reshape(5, 6, 3)
+    radii = np.hypot(rings[..., 0], rings[..., 1])
+    np.testing.assert_allclose(radii, np.linspace(0.004, 0.004 * TAPER, 5)[:, None].repeat(6, 1), rtol=1e-12)
+    assert TAPER < 0.9

@@ -14,7 +14,7 @@ from agrisim.scene.model import Label, LabelTable
 from agrisim.scene.palette import BACKGROUND, PALETTE
 
 from . import painters as P
-from .optics import Leaf, ageing_tint
+from .optics import Leaf, aged_colour
 from .shapes import direction, tubes, unit
 from .textures import Atlas, Tile
 
@@ -80,8 +80,8 @@ class Look:
         a = self.ageing
         if variant < variants - round(a.share * variants):
             return painter
-        yellow = ageing_tint(self.leaf, self.leaf.aged(green=0.2, brown=0.1))
-        brown = ageing_tint(self.leaf, self.leaf.aged(green=0.03, brown=1.5, water=0.3))
+        yellow = aged_colour(self.leaf, self.leaf.aged(green=0.2, brown=0.1))
+        brown = aged_colour(self.leaf, self.leaf.aged(green=0.03, brown=1.5, water=0.3))
         return P.aged(painter, a.yellowing, a.spots, a.dry_tip, yellow, brown)
 
 
@@ -147,7 +147,17 @@ def golden_azimuths(geo: np.random.Generator, n: int, jitter: float = 0.35) -> n
     return geo.uniform(0, 2 * np.pi) + np.arange(n) * 2.39996 + geo.normal(0, jitter, n)
 
 
+#: how thin a stem or petiole given one radius ends, against its base
+TAPER = 0.65
+
+
 def add_tubes(b: MeshBuilder, path: np.ndarray, radius, sides: int = 6, material: int = STEMS) -> None:
+    """Stems along ``path`` (N x P x 3): ``radius`` per point (N x P or 1 x P), or one radius
+    (scalar, or per stem) at the base tapering to :data:`TAPER` of it at the end."""
+    path = np.asarray(path, float)
+    if np.ndim(radius) <= 1:
+        r = np.broadcast_to(np.asarray(radius, float).reshape(-1, 1), (len(path), 1))
+        radius = r * np.linspace(1.0, TAPER, path.shape[1])[None]
     v, f = tubes(path, radius, sides)
     b.add(v, f, None, material, 0)
 

@@ -116,3 +116,10 @@ def ageing_tint(leaf: Leaf, aged: Leaf) -> np.ndarray:
     r, _ = leaf_rgb(leaf)
     a, _ = leaf_rgb(aged)
     return np.array([ac / max(rc, 1e-6) for rc, ac in zip(r, a, strict=True)])
+
+
+def aged_colour(leaf: Leaf, aged: Leaf) -> np.ndarray:
+    """The linear colour of ``aged`` per unit of the luminance of ``leaf`` (Rec. 709)."""
+    r, _ = leaf_rgb(leaf)
+    a, _ = leaf_rgb(aged)
+    return np.asarray(a) / max(float(np.dot(r, [0.2126, 0.7152, 0.0722])), 1e-6)

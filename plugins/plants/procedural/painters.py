@@ -399,17 +399,24 @@ def tinted(painter, factor: np.ndarray):
     return paint
 
 
+#: linear sRGB's luminance weights (Rec. 709)
+LUMINANCE = np.array([0.2126, 0.7152, 0.0722])
+
+
 def aged(painter, yellowing: float, spots: int, dry_tip: float, yellow: np.ndarray, brown: np.ndarray):
     """``painter``'s leaf, aged: blotches yellowing up to ``yellowing`` (0..1) of the way, up
     to ``spots`` brown spots, a dried tip up to ``dry_tip`` of the length. ``yellow`` and
-    ``brown`` are linear RGB factors from the healthy leaf's colour to a yellowed and a dead
-    one's (:func:`.optics.ageing_tint`), applied in linear light."""
+    ``brown`` are the linear colours of a yellowed and a dead leaf per unit of the healthy
+    leaf's luminance (:func:`.optics.aged_colour`): an aged texel takes that colour at its own
+    luminance, so the texture's light and shade stay and the hue is the optics' (a tint that
+    multiplied would overshoot on parts painted yellow already, such as grass tips)."""
 
     def paint(X, Y, px, rng):
         cov, rgb, labels, *relief = painter(X, Y, px, rng)
         linear = srgb_to_linear(np.clip(rgb, 0.0, 1.0))
+        lum = (linear @ LUMINANCE)[..., None]
         blotch = _smooth((value_noise(rng, X.shape, 3) - 0.35) / 0.4) * yellowing * rng.uniform(0.4, 1.0)
-        linear = linear * (1 + blotch[..., None] * (np.asarray(yellow) - 1))
+        linear = linear + blotch[..., None] * (lum * np.asarray(yellow) - linear)
         dead = np.zeros(X.shape)
         inside = cov > 0.5
         if spots > 0 and inside.any():
@@ -421,7 +428,7 @@ def aged(painter, yellowing: float, spots: int, dry_tip: float, yellow: np.ndarr
         if dry_tip > 0:
             edge = 1 - dry_tip * rng.uniform(0.4, 1.0) * (0.8 + 0.4 * value_noise(rng, X.shape, 6))
             dead = np.maximum(dead, _smooth((Y - edge) / 0.02))
-        linear = linear * (1 + dead[..., None] * (np.asarray(brown) - 1))
+        linear = linear + dead[..., None] * (lum * np.asarray(brown) - linear)
         rgb = linear_to_srgb(np.clip(linear, 0.0, 1.0))
         return (cov, rgb, labels, *relief)
 
