@@ -114,7 +114,7 @@ def main() -> None:
             draw.text(((before + col) * W + 6, row * H + 4), f"{name}, seed {seed}", fill="white")
             print(f"{name} seed {seed}: {time.perf_counter() - t0:.1f} s, {len(plant.mesh.faces):,} triangles")
     args.out.parent.mkdir(parents=True, exist_ok=True)
-    sheet.save(args.out)
+    sheet.save(args.out, quality=88, optimize=True)  # (JPEG options; a .png ignores them)
     print(f"wrote {args.out}")
 
 
