@@ -4,8 +4,8 @@ observer under D65 (``colour-science``) turns them into linear sRGB.
 
 The species use it twice: a leaf's translucency (its transmitted colour per unit of reflected
 colour, :attr:`agrisim.scene.model.Material.transmittance`) comes from its own parameters, and
-ageing (yellowing, brown spots, dry tips) tints a leaf by the colour ratio of the aged leaf's
-reflectance to the healthy one's (less chlorophyll, brown pigments, less water).
+ageing (yellowing, brown spots, dry tips) gives an aged texel the aged leaf's colour (less
+chlorophyll, brown pigments, less water) at the texel's own luminance (:func:`aged_colour`).
 
 Both libraries take seconds to import, so results are kept in agrisim's cache
 (:mod:`agrisim.util.cache`), keyed by the parameters and the libraries' versions: only the first
@@ -15,6 +15,7 @@ plant ever built on a machine pays for them.
 from __future__ import annotations
 
 import dataclasses
+import functools
 import json
 import threading
 from dataclasses import dataclass
@@ -56,9 +57,13 @@ _memory: dict[str, tuple[RGB, RGB]] = {}
 _lock = threading.Lock()
 
 
+@functools.cache
+def _versions() -> tuple[str, ...]:
+    return tuple(metadata.version(p) for p in ("prosail", "colour-science"))
+
+
 def _key(leaf: Leaf) -> str:
-    versions = [metadata.version(p) for p in ("prosail", "colour-science")]
-    return json.dumps([dataclasses.astuple(leaf), versions])
+    return json.dumps([dataclasses.astuple(leaf), _versions()])
 
 
 def leaf_rgb(leaf: Leaf) -> tuple[RGB, RGB]:
@@ -109,13 +114,6 @@ def translucency(leaf: Leaf) -> RGB:
     """The leaf's transmitted colour per unit of reflected colour, per linear sRGB channel."""
     r, t = leaf_rgb(leaf)
     return tuple(float(tc / max(rc, 1e-6)) for rc, tc in zip(r, t, strict=True))  # type: ignore[return-value]
-
-
-def ageing_tint(leaf: Leaf, aged: Leaf) -> np.ndarray:
-    """Linear RGB factors that turn the colour of ``leaf`` into that of ``aged``."""
-    r, _ = leaf_rgb(leaf)
-    a, _ = leaf_rgb(aged)
-    return np.array([ac / max(rc, 1e-6) for rc, ac in zip(r, a, strict=True)])
 
 
 def aged_colour(leaf: Leaf, aged: Leaf) -> np.ndarray:

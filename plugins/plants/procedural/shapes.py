@@ -7,6 +7,7 @@ across (-1..1) and ``s`` along (0..1, base to tip).
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable
 
 import numpy as np
@@ -149,6 +150,7 @@ def strip_cards(
         steps = d_m * (length / (k * rows))[:, None, None]
         return np.concatenate([base[:, None], base[:, None] + np.cumsum(steps, axis=1)], axis=1)[:, ::k]
 
+    @functools.cache  # (refinement asks for some grids twice, and the chosen one again)
     def surface(rows: int, cols: int) -> np.ndarray:
         s = np.linspace(0.0, 1.0, rows + 1)[None, :]
         t = np.linspace(-1.0, 1.0, cols + 1)[None, None, :, None]
@@ -225,6 +227,7 @@ def plate_cards(
             T, S = T * k, 0.5 + 0.5 * Y * k
         return S, T
 
+    @functools.cache  # (refinement asks for some grids twice, and the chosen one again)
     def surface(rows: int, cols: int) -> np.ndarray:
         S, T = params(rows, cols)
         x = T[None] * (0.5 * aspect * size)[:, None, None]

@@ -111,11 +111,12 @@ class BsdfFactory:
         texture = material.transmission
         return self._bitmap(("transmission", id(texture)), lambda: SRGB_TO_LINEAR[texture] * F32(2.0), "bilinear")
 
-    def _reflector(self, material: Material, scale: float = 1.0) -> dict:
+    def _reflector(self, material: Material, scale: float = 1.0, colour: Any = None, roughness: Any = None) -> dict:
+        """The material's reflector; ``colour`` and ``roughness`` in place of its own (a back side)."""
         return {
             "type": "principled",
-            "base_color": self._colour(material, scale),
-            "roughness": self._channel(material, 1, material.roughness),
+            "base_color": self._colour(material, scale) if colour is None else colour,
+            "roughness": self._channel(material, 1, material.roughness) if roughness is None else roughness,
             "metallic": self._channel(material, 2, material.metallic),
             "specular": 0.5,
         }
@@ -142,18 +143,12 @@ class BsdfFactory:
             passed = np.zeros_like(base) if tint is None else np.minimum(base * tint, 1.0 - base)
             return np.minimum(base * factor, 1.0 - passed) * F32(scale)
 
-        colour: Any = self._bitmap(key, make, "bilinear") if material.albedo is not None else None
-        if colour is None:
-            value = make()
-            colour = self._bitmap(key, lambda: value.reshape(1, 1, 3), "nearest")
+        if material.albedo is not None:
+            colour = self._bitmap(key, make, "bilinear")
+        else:  # (one texel: Mitsuba refuses rgb reflectances above 1, which the blend's doubling makes)
+            colour = self._bitmap(key, lambda: make().reshape(1, 1, 3), "nearest")
         rough = material.back_roughness
-        return {
-            "type": "principled",
-            "base_color": colour,
-            "roughness": float(rough) if rough is not None else self._channel(material, 1, material.roughness),
-            "metallic": self._channel(material, 2, material.metallic),
-            "specular": 0.5,
-        }
+        return self._reflector(material, colour=colour, roughness=None if rough is None else float(rough))
 
     def _sides(self, material: Material, scale: float = 1.0) -> dict:
         """Both sides of a double-sided surface: alike, or the back as the material says."""
