@@ -32,6 +32,7 @@ class RawMesh:
     has_uv: np.ndarray  # (N,) bool: did the file give this vertex a UV?
     texture_names: list[str | None] = field(default_factory=list)  # per material, for messages
     face_instance: np.ndarray | None = None
+    colors: np.ndarray | None = None  # (N, 3) float32 linear vertex colours (glTF COLOR_0)
     labels: LabelTable | None = None  # an agrisim file's own label table
 
 

@@ -187,8 +187,8 @@ class _GlbWriter:
     def mesh(self, mesh: Mesh, *, z_up_to_y_up: bool = True) -> GltfMesh:
         """The glTF mesh of ``mesh`` (its materials added to the file): positions converted to
         glTF's y up ((x, y, z) -> (x, z, -y), exact in float32) unless they are in a frame of
-        their own (an arm link's), one primitive per run of faces of one material, leaf
-        instances in the primitives' ``extras``."""
+        their own (an arm link's), one primitive per run of faces of one material, vertex
+        colours as ``COLOR_0``, leaf instances in the primitives' ``extras``."""
         if z_up_to_y_up:
             v = np.column_stack([mesh.vertices[:, 0], mesh.vertices[:, 2], -mesh.vertices[:, 1]]).astype("<f4")
         else:
@@ -196,6 +196,8 @@ class _GlbWriter:
         attributes = {"POSITION": self.accessor(v, 34962, minmax=True)}
         if mesh.uvs is not None:
             attributes["TEXCOORD_0"] = self.accessor(mesh.uvs.astype("<f4"), 34962)
+        if mesh.colors is not None:
+            attributes["COLOR_0"] = self.accessor(mesh.colors.astype("<f4"), 34962)
         material_index = [self.material(m) for m in mesh.materials]
         faces, face_material, face_instance = mesh.faces, mesh.face_material, mesh.face_instance
         starts = np.flatnonzero(np.diff(face_material)) + 1

@@ -67,6 +67,7 @@ class _Gltf(GltfDocument):
         positions: list[np.ndarray] = []
         uvs: list[np.ndarray] = []
         has_uv: list[np.ndarray] = []
+        colors: list[np.ndarray] = []
         faces: list[np.ndarray] = []
         face_mat: list[np.ndarray] = []
         face_inst: list[np.ndarray] = []
@@ -120,7 +121,15 @@ class _Gltf(GltfDocument):
                         raise self.error(f"{where}: {uv_key} has {len(uv)} UVs for {n} vertices")
                 elif textured:
                     raise self.error(f"{where} uses texture '{tex_name}' but has no UVs ({uv_key})")
-                key = (visit, position, uv_acc, transform)
+                color_acc = get(attrs, "COLOR_0")
+                color = None
+                if color_acc is not None:
+                    color = self.accessor(color_acc)
+                    if color.shape[1] not in (3, 4) or len(color) != n:
+                        raise self.error(f"{where}: COLOR_0 is not a VEC3 or VEC4 accessor of {n} colours")
+                    # glTF's vertex colours are linear, within 0..1 (alpha is not a colour: dropped)
+                    color = np.clip(color[:, :3], 0.0, 1.0).astype(np.float32)
+                key = (visit, position, uv_acc, transform, color_acc)
                 if key in seen:
                     base = seen[key]
                 else:
@@ -135,6 +144,7 @@ class _Gltf(GltfDocument):
                     else:
                         uvs.append(np.zeros((n, 2), np.float32))
                         has_uv.append(np.zeros(n, bool))
+                    colors.append(np.ones((n, 3), np.float32) if color is None else color)
                     base = seen[key] = count
                     count += n
                 if prim.indices is not None:
@@ -168,6 +178,7 @@ class _Gltf(GltfDocument):
             materials.append(self.material(None)[0])
             names.append(None)
         any_uv = any(h.any() for h in has_uv)
+        any_color = any(not np.all(c == 1.0) for c in colors)
         raw = RawMesh(
             positions=np.concatenate(positions),
             faces=np.concatenate(faces),
@@ -177,6 +188,7 @@ class _Gltf(GltfDocument):
             has_uv=np.concatenate(has_uv),
             texture_names=names,
             face_instance=np.concatenate(face_inst) if any_instance else None,
+            colors=np.concatenate(colors) if any_color else None,
         )
         if self.agrisim is not None:
             raw.labels = self._label_table(materials)

@@ -199,7 +199,7 @@ def load_plant(
 
     plant_name = name or Path(path).stem
     try:
-        mesh = Mesh(plant_name, v, raw.faces, materials, raw.face_material, raw.uvs, raw.face_instance)
+        mesh = Mesh(plant_name, v, raw.faces, materials, raw.face_material, raw.uvs, raw.face_instance, raw.colors)
     except ValueError as e:  # anything the checks above missed
         raise AssetError(f"{shown}: {e}") from None
     organs = sum(1 for lab in table.labels if lab.id != 0) > 1

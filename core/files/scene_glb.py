@@ -139,7 +139,7 @@ def read_scene(path: Path) -> Scene:
 
 def _read_mesh(doc: _Gltf, node: dict[str, Any]) -> Mesh:
     """One node's mesh as written by :meth:`_GlbWriter.mesh`: positions back to z up unless
-    it is an arm link's (in its own frame), materials, UVs and leaf instances."""
+    it is an arm link's (in its own frame), materials, UVs, vertex colours and leaf instances."""
     gm = doc._item("meshes", node["mesh"])
     prims = gm["primitives"]
     first = prims[0]["attributes"]
@@ -147,6 +147,7 @@ def _read_mesh(doc: _Gltf, node: dict[str, Any]) -> Mesh:
     if not str(node.get("name", "")).startswith(ARM_PREFIX):
         pos = np.column_stack([pos[:, 0], -pos[:, 2], pos[:, 1]])
     uvs = doc.accessor(first["TEXCOORD_0"]).astype(np.float32) if "TEXCOORD_0" in first else None
+    colors = doc.accessor(first["COLOR_0"]).astype(np.float32) if "COLOR_0" in first else None
     materials: list[Material] = []
     index: dict[int, int] = {}
     faces, face_material, face_instance, any_instance = [], [], [], False
@@ -172,4 +173,5 @@ def _read_mesh(doc: _Gltf, node: dict[str, Any]) -> Mesh:
         np.concatenate(face_material),
         uvs,
         np.concatenate(face_instance) if any_instance else None,
+        colors,
     )

@@ -215,7 +215,7 @@ def _plant_mesh(plant: Plant, world_T_plant: np.ndarray, labels: str) -> tuple[M
         materials = list(mesh.materials)
         table = LabelTable(list(plant.labels.labels))
     V = mesh.vertices @ world_T_plant[:3, :3].T + world_T_plant[:3, 3]
-    out = Mesh("plant", V, mesh.faces, materials, mesh.face_material, mesh.uvs, mesh.face_instance)
+    out = dataclasses.replace(mesh, name="plant", vertices=V, materials=materials)
     return out, table
 
 

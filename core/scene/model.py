@@ -18,6 +18,7 @@ Conventions
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass, field
 from typing import Any, Literal
@@ -138,6 +139,10 @@ class Mesh:
     face_material: np.ndarray  # (M,) int32 index into ``materials``
     uvs: np.ndarray | None = None  # (N, 2) float32, glTF convention
     face_instance: np.ndarray | None = None  # (M,) uint16 leaf instance ids, 0 = none
+    colors: np.ndarray | None = None
+    """(N, 3) float32 linear RGB in [0, 1] per vertex (glTF's ``COLOR_0``), or None (white).
+    It multiplies every colour of the vertex's material: the albedo on both sides and the
+    transmitted colour (how one atlas gives every leaf its own shade)."""
 
     def __post_init__(self) -> None:
         self.vertices = np.ascontiguousarray(self.vertices, dtype=np.float64)
@@ -166,11 +171,15 @@ class Mesh:
             self.face_instance = np.ascontiguousarray(self.face_instance, dtype=np.uint16)
             if self.face_instance.shape != (m,):
                 raise ValueError(f"mesh {self.name!r}: face_instance must have one entry per face")
+        if self.colors is not None:
+            self.colors = np.ascontiguousarray(self.colors, dtype=np.float32)
+            if self.colors.shape != (n, 3) or not np.all((self.colors >= 0) & (self.colors <= 1)):
+                raise ValueError(f"mesh {self.name!r}: colors must be N x 3 and within 0..1")
 
     def transformed(self, T: np.ndarray, name: str | None = None) -> Mesh:
         """The same mesh with vertices mapped by the 4x4 pose ``T``."""
         v = self.vertices @ T[:3, :3].T + T[:3, 3]
-        return Mesh(name or self.name, v, self.faces, self.materials, self.face_material, self.uvs, self.face_instance)
+        return dataclasses.replace(self, name=name or self.name, vertices=v)
 
     @property
     def areas(self) -> np.ndarray:

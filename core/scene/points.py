@@ -59,9 +59,15 @@ def check_size(size: float, what: str = "--point-size") -> None:
 
 def albedo_at_samples(mesh: Mesh, faces: np.ndarray, bary: np.ndarray) -> np.ndarray:
     """sRGB colour (K x 3 uint8) of surface samples: the albedo texel nearest each (or white
-    without a texture) times the material's colour factor, multiplied in linear light."""
+    without a texture) times the material's colour factor and the vertex colour there,
+    multiplied in linear light."""
     out = np.zeros((len(faces), 3), np.uint8)
     uv = interpolate_uv(mesh, faces, bary) if mesh.uvs is not None else np.zeros((len(faces), 2))
+    tint = np.ones((len(faces), 3))
+    if mesh.colors is not None:
+        tri, w1, w2 = mesh.faces[faces], bary[:, 0:1], bary[:, 1:2]
+        c = mesh.colors.astype(np.float64)
+        tint = (1.0 - w1 - w2) * c[tri[:, 0]] + w1 * c[tri[:, 1]] + w2 * c[tri[:, 2]]
     mats = mesh.face_material[faces]
     for i in np.unique(mats):
         sel = np.flatnonzero(mats == i)
@@ -70,7 +76,7 @@ def albedo_at_samples(mesh: Mesh, faces: np.ndarray, bary: np.ndarray) -> np.nda
             linear = srgb_to_linear(sample_nearest(mat.albedo, uv[sel])[:, :3] / 255.0)
         else:
             linear = np.ones((len(sel), 3))
-        linear = linear * np.asarray(mat.color[:3], np.float64)
+        linear = linear * np.asarray(mat.color[:3], np.float64) * tint[sel]
         out[sel] = np.round(linear_to_srgb(np.clip(linear, 0.0, 1.0)) * 255.0).astype(np.uint8)
     return out
 

@@ -101,7 +101,8 @@ def rich_mesh() -> tuple[Mesh, LabelTable]:
     )
     face_material = np.array([0] * 10 + [1] * 10 + [0] * 5 + [2] * 15)
     inst = rng.integers(0, 7, 40).astype(np.uint16)
-    mesh = Mesh("plant", vertices, faces, [leaf, stem, petal], face_material, uvs, inst)
+    colours = rng.random((len(vertices), 3)).astype(np.float32)
+    mesh = Mesh("plant", vertices, faces, [leaf, stem, petal], face_material, uvs, inst, colours)
     table = LabelTable(
         [
             Label(0, "background", (0, 0, 0)),
@@ -125,6 +126,7 @@ def test_round_trip_is_exact(tmp_path: Path) -> None:
     assert np.array_equal(m.uvs, mesh.uvs)
     assert np.array_equal(m.face_material, mesh.face_material)
     assert np.array_equal(m.face_instance, mesh.face_instance)
+    assert np.array_equal(m.colors, mesh.colors)
     assert len(m.materials) == len(mesh.materials)
     for a, b in zip(m.materials, mesh.materials, strict=True):
         assert (a.name, a.color, a.label, a.alpha_mode, a.alpha_cutoff, a.double_sided) == (
@@ -210,6 +212,20 @@ def trimesh_card_glb(path: Path, albedo: np.ndarray, transform=None, **pbr) -> P
     scene.add_geometry(card, geom_name="leaf", transform=transform)
     scene.export(path)
     return path
+
+
+def test_vertex_colours_written_by_trimesh(tmp_path: Path) -> None:
+    """trimesh writes vertex colours as glTF's COLOR_0 of normalised bytes (RGBA): agrisim reads
+    them as linear colours within 0..1, alpha dropped; a file without any has none."""
+    rgba = np.array([[255, 0, 0, 255], [0, 128, 0, 255], [0, 0, 255, 10], [51, 102, 204, 255]], np.uint8)
+    card = trimesh.Trimesh(CARD_V, CARD_F, process=False, vertex_colors=rgba)
+    trimesh.Scene(card).export(tmp_path / "tinted.glb")
+    mesh = load_plant(tmp_path / "tinted.glb", place=False).mesh
+    by_position = {tuple(v): c for v, c in zip(mesh.vertices.round(6).tolist(), mesh.colors.tolist(), strict=True)}
+    yup = CARD_V @ np.array([[1, 0, 0], [0, 0, 1], [0, -1, 0]], float)  # the file's y up, read as z up
+    for v, c in zip(yup.round(6).tolist(), rgba, strict=True):
+        np.testing.assert_allclose(by_position[tuple(v)], c[:3] / 255.0, atol=1e-7)
+    assert load_plant(trimesh_card_glb(tmp_path / "plain.glb", half_alpha()), place=False).mesh.colors is None
 
 
 def test_trimesh_glb_alpha_mask_cutoff_is_honoured(tmp_path: Path) -> None:

@@ -171,3 +171,49 @@ def test_leaf_variants_differ_in_shade():
     means = np.array([v[..., :3].reshape(-1, 3).mean(0) for v in variants])
     assert means[:, 1].std() > 3.0  # 8-bit levels
     assert (means[:, 0] / means[:, 2]).std() > 0.02
+
+
+@pytest.mark.parametrize("name", list(SPECIES))
+def test_every_leaf_holds_its_own_chlorophyll(name):
+    """Each leaf (each leaf instance) is one colour, its own, and that colour is PROSPECT-D's
+    reflectance of the species' leaf with 1 to 1 + ``chlorophyll`` times the palest leaf's
+    chlorophyll, against the palest; stems and flowers are untinted."""
+    mesh, look = grow(name, 2).mesh, LOOKS[name]
+    leaf_faces = mesh.face_instance > 0
+    per_face = mesh.colors[mesh.faces]  # (faces, corners, rgb)
+    assert (per_face[~leaf_faces] == 1.0).all()
+    leaf_of = mesh.face_instance[leaf_faces]
+    corners = per_face[leaf_faces]
+    assert (corners == corners[:, :1]).all()  # one colour over each face ...
+    first = {}
+    for leaf, c in zip(leaf_of.tolist(), corners[:, 0].tolist(), strict=True):
+        assert first.setdefault(leaf, c) == c  # ... and over each leaf
+    tints = np.array(list(first.values()))
+    # leaves alike only by chance (boxwood's 7500 draws meet a float32 twice or so)
+    assert len(np.unique(tints, axis=0)) >= 0.99 * len(tints)
+    ks = np.linspace(1.0, 1.0 + look.chlorophyll, 241)
+    r0 = np.asarray(optics.leaf_rgb(look.leaf)[0])
+    curve = np.array([optics.leaf_rgb(dataclasses.replace(look.leaf, cab=look.leaf.cab * k))[0] for k in ks[::8]])
+    curve = np.clip(curve / r0, 0.0, 1.0)
+    # every tint on PROSPECT's curve (within the piecewise-linear table's error)
+    nearest = np.abs(tints[:, None, :] - curve[None]).max(axis=-1).min(axis=1)
+    assert nearest.max() < 0.02, nearest.max()
+    assert tints[:, 0].max() - tints[:, 0].min() > 0.05  # and spread along it
+
+
+def test_the_average_leaf_keeps_the_painted_colour(monkeypatch):
+    """The atlas paints the palest leaf (the painted colour over the mean tint), so that over
+    many leaves (boxwood's ~7500) the colour is what the painters gave."""
+    from agrisim.plugins.plants import procedural
+
+    look = LOOKS["boxwood"]
+    plant = grow("boxwood", 0)
+    tints = plant.mesh.colors[plant.mesh.faces[plant.mesh.face_instance > 0][:, 0]]
+    np.testing.assert_allclose(tints.mean(axis=0), look.mean_tint(), atol=0.01)
+    monkeypatch.setattr(procedural, "_palest", lambda atlas, look: None)
+    painted = grow("boxwood", 0).mesh.materials[0]
+    cards = plant.mesh.materials[0]
+    leaf = painted.labels == 1
+    ours = colour.srgb_to_linear(cards.albedo[leaf][:, :3] / 255.0) * look.mean_tint()
+    theirs = colour.srgb_to_linear(painted.albedo[leaf][:, :3] / 255.0)
+    np.testing.assert_allclose(ours, theirs, atol=0.006)  # 8-bit sRGB steps

@@ -4,6 +4,7 @@ trimesh and Open3D as second readers), sampling a mesh's opaque surface."""
 
 from __future__ import annotations
 
+import dataclasses
 import itertools
 import math
 
@@ -16,6 +17,7 @@ from agrisim.plugins.render.raycast import RaycastOptions
 from agrisim.plugins.render.raycast.points import PointTracer
 from agrisim.plugins.render.raycast.tracing import SceneTracer, label_map
 from agrisim.scene.camera import CameraModel
+from agrisim.scene.colour import srgb_to_linear
 from agrisim.scene.model import Label, LabelTable, Material, Mesh, PointSet, Scene
 from agrisim.scene.points import MAX_POINTS, as_points, check_count, check_size, default_size, sample_points
 
@@ -351,3 +353,15 @@ def test_thickness_is_twice_the_normal_offset_of_points_off_a_surface():
         offsets * np.sign(p[:, 2]), offsets[0] * np.sign(p[0, 2])
     )  # one side positive, the other negative
     assert thickness_mm(offsets) == pytest.approx(2 * h * 1e3, abs=1e-4)
+
+
+def test_sampled_points_take_the_vertex_colour_there():
+    """A vertex colour running from white at x = 0 to (0.5, 0.25, 1) at x = 0.1 multiplies each
+    point's albedo in linear light, as the renderers do at that place on the card."""
+    card = _card()
+    far = np.array([0.5, 0.25, 1.0])
+    tinted = dataclasses.replace(card, colors=1.0 + (far - 1.0) * (card.vertices[:, :1] / 0.1))
+    plain, pts = sample_points(card, 2000, seed=4), sample_points(tinted, 2000, seed=4)
+    np.testing.assert_array_equal(pts.positions, plain.positions)
+    expected = srgb_to_linear(plain.colors / 255.0) * (1.0 + (far - 1.0) * (pts.positions[:, :1] / 0.1))
+    np.testing.assert_allclose(srgb_to_linear(pts.colors / 255.0), expected, atol=0.004)  # 8-bit steps

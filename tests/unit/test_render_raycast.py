@@ -20,6 +20,7 @@ from agrisim.plugins.render.raycast.materials import SRGB_TO_LINEAR, MaterialTab
 from agrisim.plugins.render.raycast.renderer import RaycastRenderer
 from agrisim.scene import texturing
 from agrisim.scene.camera import from_fov
+from agrisim.scene.colour import srgb_to_linear
 from agrisim.scene.model import Label, LabelTable, Light, Material, Mesh, Scene
 
 CAMERA = from_fov(60.0, 160, 120)
@@ -387,6 +388,31 @@ def test_bilinear_albedo_wraps_like_a_direct_lookup():
 
 
 # ------------------------------------------------------------------------------ shading
+
+
+def test_vertex_colours_multiply_the_albedo_interpolated_over_each_face(cell):
+    """glTF's COLOR_0 (``Mesh.colors``): a grey card whose left corners are white and right
+    corners (0.3, 0.6, 1) shows, in linear light, the plain card's colour times a colour that
+    runs linearly across it in x (the camera faces the card: barycentrics are linear in x)."""
+    right = np.array([0.3, 0.6, 1.0])
+    frames = []
+    for tint in (False, True):
+        scene = card_scene()
+        card = scene.mesh("plant")
+        card.materials[0].albedo[..., :3] = 150
+        if tint:
+            colours = np.where(card.vertices[:, :1] > 0, right, 1.0)
+            scene.meshes[0] = dataclasses.replace(card, colors=colours)
+        frames.append(renderer(scene, cell, shadow_samples=0).render(CAMERA, CARD_T, {}))
+    plain, tinted = frames
+    on = (plain.labels > 0) & (tinted.labels > 0)
+    assert on.sum() > 300 and plain.rgb[on].max() < 250  # not clipped
+    x = back_project(tinted.depth.astype(float), CAMERA, CARD_T)[on][:, 0]
+    expected = 1.0 + (right - 1.0) * ((x[:, None] + 0.3) / 0.6)
+    ratio = srgb_to_linear(tinted.rgb[on] / 255.0) / srgb_to_linear(plain.rgb[on] / 255.0)
+    np.testing.assert_allclose(ratio, expected, atol=0.02)
+    np.testing.assert_array_equal(tinted.labels, plain.labels)  # colour changes nothing else
+    np.testing.assert_array_equal(tinted.depth, plain.depth)
 
 
 def shadow_scene(cut: bool) -> Scene:

@@ -25,7 +25,8 @@ def lab(cell):  # noqa: ANN001, ANN201
 
 def assert_same_mesh(a, b) -> None:  # noqa: ANN001
     """Vertices equal in float32 (as stored), the same triangles with the same materials (the
-    writer may group faces by material), UVs, material settings, texels and leaf instances."""
+    writer may group faces by material), UVs, vertex colours, material settings, texels and
+    leaf instances."""
     assert a.name == b.name
     np.testing.assert_array_equal(a.vertices.astype(np.float32), b.vertices)
     names_a = [m.name for m in a.materials]
@@ -49,6 +50,10 @@ def assert_same_mesh(a, b) -> None:  # noqa: ANN001
                 assert getattr(mb, f) is None
             else:
                 np.testing.assert_array_equal(getattr(ma, f), getattr(mb, f))
+    if a.colors is None:
+        assert b.colors is None
+    else:
+        np.testing.assert_array_equal(a.colors, b.colors)
     if a.face_instance is not None:
         order_a = sorted(zip(a.faces.tolist(), a.face_instance.tolist(), strict=True))
         order_b = sorted(zip(b.faces.tolist(), b.face_instance.tolist(), strict=True))

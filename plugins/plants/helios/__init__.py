@@ -19,6 +19,7 @@ PyHelios is imported only when a plant is listed or grown, so this module import
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import importlib.util
 from collections.abc import Iterator
@@ -203,7 +204,7 @@ def _fit(mesh: Mesh, name: str, age: float, fit: str) -> tuple[Mesh, str]:
     limit = f"the routine's cameras allow {PLANT_FIT_RADIUS:.2f} m and {PLANT_FIT_HEIGHT:.2f} m"
     if fit == "refuse":
         raise UserError(f'{size}; {limit}: give a younger --plant-age or set plants."{name}".fit = "scale"')
-    scaled = Mesh(mesh.name, v * scale, mesh.faces, mesh.materials, mesh.face_material, mesh.uvs, mesh.face_instance)
+    scaled = dataclasses.replace(mesh, vertices=v * scale)
     return scaled, f"{size}; scaled by {scale:.3f} to fit ({limit})"
 
 

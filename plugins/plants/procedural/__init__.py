@@ -10,11 +10,14 @@ The same seed gives identical arrays.
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 from pydantic import Field
 
 from agrisim import BackendSpec, Options, hookimpl
 from agrisim.interfaces import PlantSpecies
+from agrisim.scene import colour
 from agrisim.scene.model import (
     PLANT_FIT_HEIGHT,
     PLANT_FIT_RADIUS,
@@ -23,9 +26,10 @@ from agrisim.scene.model import (
     Plant,
 )
 
+from .growing import LEAF, Look
 from .optics import translucency
 from .species import LOOKS, SPECIES, Grown
-from .textures import srgb_to_linear
+from .textures import Atlas, srgb_to_linear
 
 SOIL_DEPTH = 0.012
 """How far stems and bulbs may reach into the soil, m."""
@@ -65,7 +69,7 @@ def grow(species: str, seed: int, options: ProceduralPlantOptions | None = None)
     grower, default_size, _ = SPECIES[species]
     size = int(opts.texture_size or default_size)
     root = np.random.SeedSequence([int(seed) % (1 << 64), 0x9E3779B9])
-    geo_ss, tex_ss = root.spawn(2)
+    geo_ss, tex_ss, tint_ss = root.spawn(3)  # (the first two as they were before tints)
     look = LOOKS[species]
     grown: Grown = grower(np.random.default_rng(geo_ss), np.random.default_rng(tex_ss), size, float(opts.density), look)
     b = grown.builder
@@ -76,6 +80,7 @@ def grow(species: str, seed: int, options: ProceduralPlantOptions | None = None)
     # never deeper into the soil than SOIL_DEPTH (at any scale)
     for v in b.vertices:
         np.maximum(v[:, 2], -SOIL_DEPTH, out=v[:, 2])
+    _palest(grown.atlas, look)
     rough_map, roughness = grown.atlas.metallic_roughness(look.roughness)
     cards = Material(
         f"{species}_cards",
@@ -110,20 +115,37 @@ def grow(species: str, seed: int, options: ProceduralPlantOptions | None = None)
         roughness=0.85,
     )
     mesh = b.build(species, [cards, stems, wood])
+    mesh.colors = _leaf_colours(mesh, look, np.random.default_rng(tint_ss))
     used = np.unique(mesh.face_material)  # drop materials no face uses (e.g. no wood)
     if len(used) < len(mesh.materials):
         remap = np.zeros(len(mesh.materials), np.int32)
         remap[used] = np.arange(len(used))
-        mesh = Mesh(
-            mesh.name,
-            mesh.vertices,
-            mesh.faces,
-            [mesh.materials[i] for i in used],
-            remap[mesh.face_material],
-            mesh.uvs,
-            mesh.face_instance,
+        mesh = dataclasses.replace(
+            mesh, materials=[mesh.materials[i] for i in used], face_material=remap[mesh.face_material]
         )
     return Plant(name=species, mesh=mesh, labels=grown.labels, organs=len(grown.labels.labels) > 2, seed=int(seed))
+
+
+def _palest(atlas: Atlas, look: Look) -> None:
+    """Repaint the atlas' leaf texels as the palest leaf's (the painted colour over the mean
+    tint): each leaf's vertex colour then darkens it by its own chlorophyll, the average leaf
+    keeping the painted colour."""
+    leaf = atlas.labels == LEAF
+    linear = colour.srgb_to_linear(atlas.rgba[leaf][:, :3] / 255.0) / look.mean_tint()
+    atlas.rgba[leaf, :3] = np.round(colour.linear_to_srgb(np.clip(linear, 0.0, 1.0)) * 255.0).astype(np.uint8)
+
+
+def _leaf_colours(mesh: Mesh, look: Look, rng: np.random.Generator) -> np.ndarray | None:
+    """Vertex colours giving every leaf (every leaf instance; stems and flowers have none) its
+    own chlorophyll; None for a plant without leaf instances."""
+    inst = mesh.face_instance
+    if inst is None or not inst.any():
+        return None
+    tints = np.vstack([np.ones((1, 3)), look.leaf_tints(int(inst.max()), rng)])
+    colours = np.ones((len(mesh.vertices), 3), np.float32)
+    # a leaf's vertices are its own (the builder never shares them between items)
+    colours[mesh.faces.reshape(-1)] = np.repeat(tints[inst], 3, axis=0)
+    return colours
 
 
 def _species_class(name: str) -> type[ProceduralSpecies]:

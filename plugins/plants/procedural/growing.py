@@ -14,7 +14,7 @@ from agrisim.scene.model import Label, LabelTable
 from agrisim.scene.palette import BACKGROUND, PALETTE
 
 from . import painters as P
-from .optics import Leaf, aged_colour
+from .optics import Leaf, aged_colour, chlorophyll_tints
 from .shapes import direction, tubes, unit
 from .textures import Atlas, Tile
 
@@ -62,13 +62,33 @@ class Ageing:
 class Look:
     """A species' leaves beyond their shape: PROSPECT-D parameters (translucency and the
     colours of ageing), the upper side's roughness (the lower side's is ``back_roughness``),
-    the lower side's colour against the upper's, and ageing."""
+    the lower side's colour against the upper's, ageing, and how much more chlorophyll than the
+    palest (the painted one) a leaf may hold."""
 
     leaf: Leaf = Leaf()
     roughness: float = 0.4
     back_roughness: float = 0.75
     back_color: tuple[float, float, float] = (1.3, 1.2, 1.3)
     ageing: Ageing = Ageing()
+    chlorophyll: float = 0.6
+    """Each leaf holds 1 to 1 + ``chlorophyll`` times the palest leaf's chlorophyll (uniformly
+    drawn): its own colour, as a vertex colour over the shared atlas."""
+
+    def _tint_table(self) -> tuple[np.ndarray, np.ndarray]:
+        grid = np.linspace(1.0, 1.0 + self.chlorophyll, 9)
+        return grid, chlorophyll_tints(self.leaf, grid)
+
+    def leaf_tints(self, n: int, rng: np.random.Generator) -> np.ndarray:
+        """(n, 3) linear vertex colours of ``n`` leaves, each its own draw of chlorophyll."""
+        grid, table = self._tint_table()
+        k = 1.0 + self.chlorophyll * rng.random(n)
+        return np.column_stack([np.interp(k, grid, table[:, c]) for c in range(3)])
+
+    def mean_tint(self) -> np.ndarray:
+        """The leaves' expected vertex colour: the atlas paints the palest leaf as the painted
+        colour divided by it, so that the average leaf keeps the colour painted."""
+        _, table = self._tint_table()
+        return (table[:-1] + table[1:]).mean(axis=0) / 2.0  # the trapezoid rule on the even grid
 
     def varied(self, painter: Callable, variant: int, variants: int, tex: np.random.Generator) -> Callable:
         """``painter`` as leaf variant ``variant`` of ``variants``: in its own shade (brightness

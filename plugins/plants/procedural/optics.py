@@ -2,10 +2,12 @@
 hemispherical reflectance and transmittance spectra from its structure and pigments; the CIE 1931
 observer under D65 (``colour-science``) turns them into linear sRGB.
 
-The species use it twice: a leaf's translucency (its transmitted colour per unit of reflected
-colour, :attr:`agrisim.scene.model.Material.transmittance`) comes from its own parameters, and
-ageing (yellowing, brown spots, dry tips) gives an aged texel the aged leaf's colour (less
-chlorophyll, brown pigments, less water) at the texel's own luminance (:func:`aged_colour`).
+The species use it three times: a leaf's translucency (its transmitted colour per unit of
+reflected colour, :attr:`agrisim.scene.model.Material.transmittance`) comes from its own
+parameters; ageing (yellowing, brown spots, dry tips) gives an aged texel the aged leaf's colour
+(less chlorophyll, brown pigments, less water) at the texel's own luminance (:func:`aged_colour`);
+and every leaf holds its own amount of chlorophyll, its colour against the species' palest leaf
+(:func:`chlorophyll_tints`) becoming its vertex colour.
 
 Both libraries take seconds to import, so results are kept in agrisim's cache
 (:mod:`agrisim.util.cache`), keyed by the parameters and the libraries' versions: only the first
@@ -121,3 +123,12 @@ def aged_colour(leaf: Leaf, aged: Leaf) -> np.ndarray:
     r, _ = leaf_rgb(leaf)
     a, _ = leaf_rgb(aged)
     return np.asarray(a) / max(float(np.dot(r, [0.2126, 0.7152, 0.0722])), 1e-6)
+
+
+def chlorophyll_tints(leaf: Leaf, factors: np.ndarray) -> np.ndarray:
+    """(len(factors), 3): the reflectance of ``leaf`` with its chlorophyll times each factor,
+    per linear sRGB channel of its own. Chlorophyll only absorbs, so factors of 1 or more give
+    tints within 0..1: darker, and bluer where red is absorbed most."""
+    r0 = np.maximum(np.asarray(leaf_rgb(leaf)[0]), 1e-6)
+    rows = [np.asarray(leaf_rgb(dataclasses.replace(leaf, cab=leaf.cab * float(f)))[0]) / r0 for f in factors]
+    return np.clip(np.asarray(rows), 0.0, 1.0)

@@ -14,6 +14,9 @@
   two never sum past 1 (Mitsuba's ``principledthin`` alone splits one colour between the two
   sides; a leaf transmits a greener light than it reflects). A transmission texture (glTF's
   diffuse transmission colour, ``Material.transmission``) is the transmitted colour itself.
+* Vertex colours (``Mesh.colors``, glTF's ``COLOR_0``): every colour above, of both sides and
+  the transmitted one, times the vertex colour (:mod:`.vertex_tint`); the caps hold, since the
+  colours are at most 1.
 * Cut-outs (MASK/BLEND): a ``mask`` whose opacity is 1 where the label pass keeps the texel and
   0 where it cuts it (8-bit alpha against :func:`agrisim.scene.texturing.alpha_threshold`, the
   nearest texel), so the RGB has the same holes as the labels.
@@ -29,6 +32,8 @@ import numpy as np
 from agrisim.scene.colour import srgb_to_linear
 from agrisim.scene.model import Material
 from agrisim.scene.texturing import alpha_threshold
+
+from .vertex_tint import tinted
 
 F32 = np.float32
 SRGB_TO_LINEAR = srgb_to_linear(np.arange(256) / 255.0).astype(F32)
@@ -103,44 +108,51 @@ class BsdfFactory:
         key = ("mr", id(texture), channel, factor)
         return self._bitmap(key, lambda: texture[..., channel : channel + 1] * F32(factor / 255.0), "bilinear")
 
-    def _transmitted(self, material: Material) -> Any:
+    def _transmitted(self, material: Material, tint: bool) -> Any:
         """Twice the transmitted colour (the blend halves it): the transmission texture in
-        linear light, or the albedo times the transmittance, capped to 1 - albedo."""
+        linear light, or the albedo times the transmittance, capped to 1 - albedo; times the
+        vertex colour with ``tint``."""
         if material.transmission is None:
-            return self._colour(material, 2.0, np.asarray(material.transmittance, F32))
-        texture = material.transmission
-        return self._bitmap(("transmission", id(texture)), lambda: SRGB_TO_LINEAR[texture] * F32(2.0), "bilinear")
+            colour = self._colour(material, 2.0, np.asarray(material.transmittance, F32))
+        else:
+            texture = material.transmission
+            colour = self._bitmap(("transmission", id(texture)), lambda: SRGB_TO_LINEAR[texture] * F32(2.0), "bilinear")
+        return tinted(colour) if tint else colour
 
-    def _reflector(self, material: Material, scale: float = 1.0, colour: Any = None, roughness: Any = None) -> dict:
-        """The material's reflector; ``colour`` and ``roughness`` in place of its own (a back side)."""
+    def _reflector(
+        self, material: Material, scale: float = 1.0, colour: Any = None, roughness: Any = None, tint: bool = False
+    ) -> dict:
+        """The material's reflector; ``colour`` and ``roughness`` in place of its own (a back
+        side); its colour times the vertex colour with ``tint``."""
+        base = self._colour(material, scale) if colour is None else colour
         return {
             "type": "principled",
-            "base_color": self._colour(material, scale) if colour is None else colour,
+            "base_color": tinted(base) if tint else base,
             "roughness": self._channel(material, 1, material.roughness) if roughness is None else roughness,
             "metallic": self._channel(material, 2, material.metallic),
             "specular": 0.5,
         }
 
-    def _back_reflector(self, material: Material, scale: float = 1.0) -> dict:
+    def _back_reflector(self, material: Material, scale: float = 1.0, tint: bool = False) -> dict:
         """The back side's reflector (``Material.back_color``, ``back_roughness``): the front's
         colour times the back's factors, capped so that with what the surface transmits it
         never passes 1."""
         factor = np.asarray(material.back_color if material.back_color is not None else (1.0, 1.0, 1.0), F32)
         translucent = material.transmittance is not None and material.transmission is None
-        tint = np.asarray(material.transmittance, F32) if translucent else None
+        through = np.asarray(material.transmittance, F32) if translucent else None
         key = (
             "back",
             id(material.albedo),
             tuple(material.color[:3]),
             tuple(factor),
             scale,
-            None if tint is None else tuple(tint),
+            None if through is None else tuple(through),
         )
 
         def make() -> np.ndarray:
             albedo = linear_albedo(material)
             base = np.asarray(material.color[:3], F32) if albedo is None else albedo
-            passed = np.zeros_like(base) if tint is None else np.minimum(base * tint, 1.0 - base)
+            passed = np.zeros_like(base) if through is None else np.minimum(base * through, 1.0 - base)
             return np.minimum(base * factor, 1.0 - passed) * F32(scale)
 
         if material.albedo is not None:
@@ -148,15 +160,15 @@ class BsdfFactory:
         else:  # (one texel: Mitsuba refuses rgb reflectances above 1, which the blend's doubling makes)
             colour = self._bitmap(key, lambda: make().reshape(1, 1, 3), "nearest")
         rough = material.back_roughness
-        return self._reflector(material, colour=colour, roughness=None if rough is None else float(rough))
+        return self._reflector(material, colour=colour, roughness=None if rough is None else float(rough), tint=tint)
 
-    def _sides(self, material: Material, scale: float = 1.0) -> dict:
+    def _sides(self, material: Material, scale: float = 1.0, tint: bool = False) -> dict:
         """Both sides of a double-sided surface: alike, or the back as the material says."""
-        front = self._reflector(material, scale)
+        front = self._reflector(material, scale, tint=tint)
         if material.back_color is None and material.back_roughness is None:
             return {"type": "twosided", "bsdf": front}
         # (twosided takes its nested BSDFs in order: the front, then the back)
-        return {"type": "twosided", "front": front, "back": self._back_reflector(material, scale)}
+        return {"type": "twosided", "front": front, "back": self._back_reflector(material, scale, tint)}
 
     def _normals(self, material: Material, mirrored: bool) -> Any:
         """The normal map as Mitsuba reads it: unit vectors encoded as (n + 1) / 2, glTF's
@@ -179,27 +191,29 @@ class BsdfFactory:
 
         return self._bitmap(("normals", id(texture), material.normal_scale, mirrored), make, "bilinear")
 
-    def bsdf(self, material: Material, mirrored: bool = False) -> dict:
+    def bsdf(self, material: Material, mirrored: bool = False, tint: bool = False) -> dict:
         """The BSDF dict of ``material`` (``mirrored``: for faces whose UVs are mirrored, which
-        matters only to normal maps; see :func:`mirrored_faces`)."""
+        matters only to normal maps; see :func:`mirrored_faces`; ``tint``: for a mesh with
+        vertex colours, which then multiply every colour of the material, see
+        :mod:`.vertex_tint`)."""
         roughness = self._channel(material, 1, material.roughness)
         if material.transmittance is not None or material.transmission is not None:
             surface: dict = {
                 "type": "blendbsdf",
                 "weight": 0.5,
-                "reflect": self._sides(material, 2.0),
+                "reflect": self._sides(material, 2.0, tint),
                 "transmit": {
                     "type": "principledthin",
-                    "base_color": self._transmitted(material),
+                    "base_color": self._transmitted(material, tint),
                     "diff_trans": 2.0,
                     "spec_trans": 0.0,
                     "roughness": roughness,
                 },
             }
         elif material.double_sided:
-            surface = self._sides(material)
+            surface = self._sides(material, tint=tint)
         else:
-            surface = self._reflector(material)
+            surface = self._reflector(material, tint=tint)
         if material.normal_map is not None:
             # outside twosided: the back side is then shaded in the perturbed frame, mirrored
             surface = {"type": "normalmap", "normalmap": self._normals(material, mirrored), "bsdf": surface}

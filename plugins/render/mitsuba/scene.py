@@ -24,6 +24,8 @@ from agrisim.scene.model import Light, Mesh
 
 from .materials import BsdfFactory, mirrored_faces
 from .options import MitsubaOptions
+from .vertex_tint import ATTRIBUTE as VERTEX_COLOUR
+from .vertex_tint import register as register_vertex_tint
 
 F32 = np.float32
 #: readable environment maps
@@ -92,8 +94,10 @@ def light_dict(light: Light, transform: Any) -> dict:
     }
 
 
-def _split(mesh: Mesh) -> Iterable[tuple[int, bool, np.ndarray, np.ndarray, np.ndarray | None]]:
-    """(material index, mirrored, vertices, faces, uvs) of each material's part of ``mesh``, its
+def _split(
+    mesh: Mesh,
+) -> Iterable[tuple[int, bool, np.ndarray, np.ndarray, np.ndarray | None, np.ndarray | None]]:
+    """(material index, mirrored, vertices, faces, uvs, colours) of each material's part of ``mesh``, its
     vertices renumbered (Mitsuba gives a mesh one BSDF); a normal-mapped material's faces are
     split further into unmirrored and mirrored UVs (:func:`mirrored_faces`)."""
     for m in np.unique(mesh.face_material):
@@ -105,7 +109,8 @@ def _split(mesh: Mesh) -> Iterable[tuple[int, bool, np.ndarray, np.ndarray, np.n
         for mirrored, part in groups:
             used, inverse = np.unique(part, return_inverse=True)
             uvs = mesh.uvs[used] if mesh.uvs is not None else None
-            yield int(m), mirrored, mesh.vertices[used], inverse.reshape(-1, 3).astype(np.uint32), uvs
+            colours = mesh.colors[used] if mesh.colors is not None else None
+            yield int(m), mirrored, mesh.vertices[used], inverse.reshape(-1, 3).astype(np.uint32), uvs, colours
 
 
 @dataclass
@@ -150,16 +155,26 @@ def build(
         )
 
     bsdfs = BsdfFactory(texture)
-    made: dict[tuple[int, bool], Any] = {}  # (id(material), mirrored) -> BSDF, shared by meshes
+    made: dict[tuple[int, bool, bool], Any] = {}  # (id(material), mirrored, tinted) -> BSDF, shared
 
     def shape(
-        name: str, mesh: Mesh, m: int, mirrored: bool, v: np.ndarray, f: np.ndarray, uv: np.ndarray | None
+        name: str,
+        mesh: Mesh,
+        m: int,
+        mirrored: bool,
+        v: np.ndarray,
+        f: np.ndarray,
+        uv: np.ndarray | None,
+        colours: np.ndarray | None = None,
     ) -> Any:
         material = mesh.materials[m]
-        if (id(material), mirrored) not in made:
-            made[id(material), mirrored] = mi.load_dict(bsdfs.bsdf(material, mirrored))
+        key = (id(material), mirrored, colours is not None)
+        if key not in made:
+            if colours is not None:
+                register_vertex_tint(mi)
+            made[key] = mi.load_dict(bsdfs.bsdf(material, mirrored, tint=colours is not None))
         props = mi.Properties()
-        props["bsdf"] = made[id(material), mirrored]
+        props["bsdf"] = made[key]
         shp = mi.Mesh(name, len(v), len(f), props=props, has_vertex_normals=False, has_vertex_texcoords=uv is not None)
         params = mi.traverse(shp)
         params["vertex_positions"] = mi.Float(np.ascontiguousarray(v, F32).ravel())
@@ -167,15 +182,17 @@ def build(
         if uv is not None:
             params["vertex_texcoords"] = mi.Float(np.ascontiguousarray(uv, F32).ravel())
         params.update()
+        if colours is not None:
+            shp.add_attribute(VERTEX_COLOUR, 3, mi.Float(np.ascontiguousarray(colours, F32).ravel()))
         return shp
 
     scene: dict[str, Any] = {"type": "scene", "integrator": integrator}
     for i, mesh in enumerate(meshes):
         if len(mesh.faces) == 0:
             continue
-        for m, mirrored, v, f, uv in _split(mesh):
+        for m, mirrored, v, f, uv, colours in _split(mesh):
             scene[f"mesh_{i:03d}_{m:03d}" + ("_mirrored" if mirrored else "")] = shape(
-                f"{mesh.name}/{m}", mesh, m, mirrored, v, f, uv
+                f"{mesh.name}/{m}", mesh, m, mirrored, v, f, uv, colours
             )
     for i, light in enumerate(lights):
         d = light_dict(light, mi.ScalarTransform4f)
@@ -192,8 +209,8 @@ def build(
     parts = SceneParts(scene)
     for a, (arm, links) in enumerate(arms.items()):
         for j, (link, mesh) in enumerate(links):
-            for m, mirrored, v, f, uv in _split(mesh):
+            for m, mirrored, v, f, uv, colours in _split(mesh):
                 key = f"arm_{a}_{j:02d}_{m:02d}" + ("_mirrored" if mirrored else "")
-                scene[key] = shape(f"{arm}/{link}/{m}", mesh, m, mirrored, v, f, uv)
+                scene[key] = shape(f"{arm}/{link}/{m}", mesh, m, mirrored, v, f, uv, colours)
                 parts.arms.append(ArmPart(arm, link, v, f"{key}.vertex_positions"))
     return parts

@@ -22,7 +22,8 @@ non-zero label. ``labels="plant"`` maps every non-zero id to 1. Leaf instance id
 (``Mesh.face_instance``) come with the labels' hits.
 
 Shading (:mod:`.shading`). Lambert on the side the camera sees, with the scene's lights plus
-``ambient``, albedo (material colour x sRGB texture, ``texture_filter``) in linear light,
+``ambient``, albedo (material colour x sRGB texture, ``texture_filter``, x the vertex colour
+where the mesh has one) in linear light,
 ``exposure`` and a tone map back to sRGB. ``shadow_samples`` N rays per pixel are shared among
 the lights; shadow rays pass cut-out texels like primary rays (light falls through the holes of
 cards). Every pixel has its own random stream, seeded from ``seed``, the view and the pixel, so

@@ -104,7 +104,7 @@ class Engine:
         self.epsilon = float(epsilon)
         mats = MaterialTable()
         mats.add(Material("default"))  # index 0: what the face tables hold when there are no faces
-        face_mat, face_uv, face_normal, face_inst, face_slot = [], [], [], [], []
+        face_mat, face_uv, face_normal, face_inst, face_slot, face_rgb = [], [], [], [], [], []
         verts, faces = [], []
         n_faces = n_verts = 0
         self.has_instances = False
@@ -121,6 +121,9 @@ class Engine:
             face_mat.append(index[mesh.face_material])
             face_uv.append(mesh.uvs[mesh.faces] if mesh.uvs is not None else np.zeros((len(mesh.faces), 3, 2), F32))
             face_normal.append(_face_normals(mesh.vertices, mesh.faces))
+            face_rgb.append(
+                mesh.colors[mesh.faces] if mesh.colors is not None else np.ones((len(mesh.faces), 3, 3), F32)
+            )
             if plant and mesh.face_instance is not None:
                 self.has_instances = True
                 face_inst.append(mesh.face_instance)
@@ -154,6 +157,7 @@ class Engine:
                 face_mat.append(index[mesh.face_material])
                 face_uv.append(np.zeros((len(mesh.faces), 3, 2), F32))
                 face_normal.append(_face_normals(mesh.vertices, mesh.faces))  # link frame: turned per frame
+                face_rgb.append(np.ones((len(mesh.faces), 3, 3), F32))
                 face_inst.append(np.zeros(len(mesh.faces), np.uint16))
                 face_slot.append(np.full(len(mesh.faces), len(self.links), np.uint32))
                 n_faces += len(mesh.faces)
@@ -207,6 +211,9 @@ class Engine:
         self.face_normal = Float((cat(face_normal) if face_normal else np.zeros((1, 3), F32)).reshape(-1))
         self.face_inst = UInt32((cat(face_inst) if face_inst else np.zeros(1, np.uint16)).astype(np.uint32))
         self.face_slot = UInt32(cat(face_slot) if face_slot else np.zeros(1, np.uint32))
+        # vertex colours only where a mesh has them: without, colour() is white and costs nothing
+        self.has_colors = any(m.colors is not None for m in scene.meshes if len(m.faces))
+        self.face_rgb = Float(cat(face_rgb).astype(F32).reshape(-1)) if self.has_colors else None
         self._rotation = Float(np.tile(np.eye(3, dtype=F32).reshape(-1), len(self.links) + 1))
         self._pose_key: bytes | None = None
         self.m = MaterialArrays(mi, mats)
@@ -271,6 +278,18 @@ class Engine:
         w1, w2 = b.x, b.y
         w0 = (1.0 - w1) - w2
         return mi.Vector2f((w0 * c[0] + w1 * c[2]) + w2 * c[4], (w0 * c[1] + w1 * c[3]) + w2 * c[5])
+
+    def color(self, face: Any, b: Any, active: Any = True) -> Any:
+        """Color3f vertex colour at barycentrics ``b`` of ``face`` (white without any), weighted
+        as :meth:`uv` weights texture coordinates."""
+        mi = self.mi
+        if self.face_rgb is None:
+            return mi.Color3f(1.0)
+        f = mi.UInt32(dr.maximum(face, 0)) * 9
+        c = [dr.gather(mi.Float, self.face_rgb, f + k, active) for k in range(9)]
+        w1, w2 = b.x, b.y
+        w0 = (1.0 - w1) - w2
+        return mi.Color3f(*((w0 * c[k] + w1 * c[3 + k]) + w2 * c[6 + k] for k in range(3)))
 
     def material(self, face: Any, active: Any = True) -> Any:
         """UInt32 material index of ``face`` (0 where it is -1)."""

@@ -185,6 +185,8 @@ class Shader:
         tri = s.face >= 0
         hit = s.hit
         albedo = e.m.albedo(e.uv(s.face, s.b, tri), e.material(s.face, tri), self.bilinear, tri)
+        if e.has_colors:
+            albedo *= e.color(s.face, s.b, tri)
         p = d * s.t + o
         n = e.normal(s.face, tri)
         pts = self.tracer.points

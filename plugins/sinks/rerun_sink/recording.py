@@ -16,6 +16,7 @@ import numpy as np
 
 from agrisim import hookimpl
 from agrisim.robot import meshes as robot_meshes
+from agrisim.scene.colour import linear_to_srgb
 
 from .entities import (
     APPLICATION_ID,
@@ -269,7 +270,7 @@ class RerunSink:
         self.rec.log(path, shape, static=True)
 
     def _log_scene(self, scene: Scene) -> None:
-        """The scene's meshes with their albedo textures, and its lights, static."""
+        """The scene's meshes with their albedo textures and vertex colours, and its lights, static."""
         assert self.rec is not None
         for mesh in scene.meshes:
             for mi, material in enumerate(mesh.materials):
@@ -283,6 +284,8 @@ class RerunSink:
                     kwargs["albedo_texture"] = np.ascontiguousarray(material.albedo[..., :3])
                 else:
                     kwargs["albedo_factor"] = [int(round(255 * c)) for c in material.color[:3]]
+                if mesh.colors is not None:  # (Rerun multiplies them with the texture, as glTF does)
+                    kwargs["vertex_colors"] = np.round(linear_to_srgb(mesh.colors[used]) * 255).astype(np.uint8)
                 self.rec.log(
                     paths.scene_mesh(mesh.name, mi),
                     rr.Mesh3D(
