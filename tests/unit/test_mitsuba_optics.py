@@ -177,12 +177,12 @@ _IDENTITY = np.eye(3)  # a default that is read, never written
 
 
 def _quad_radiance(
-    mi, material, layout: str = "usual", light=(0.0, 0.6, 0.8), eye=(0.3, -0.4, 0.866), R=_IDENTITY
+    mi, material, layout: str = "usual", light=(0.0, 0.6, 0.8), eye=(0.3, -0.4, 0.866), R=_IDENTITY, colours=None
 ) -> np.ndarray:  # noqa: ANN001
     """Mean RGB radiance at the middle of a quad (z = 0, normal +z) of ``material`` under a
     distant light from ``light``, seen from afar from ``eye``, both turned by ``R``. The UVs
     are laid out as glTF's usually are (``usual``: u along +x, v growing toward -y, down the
-    image) or ``mirrored`` (u along -x)."""
+    image) or ``mirrored`` (u along -x); ``colours``: one vertex colour on every corner."""
     from agrisim.plugins.render.mitsuba.options import MitsubaOptions
     from agrisim.plugins.render.mitsuba.scene import build
     from agrisim.scene.model import Mesh
@@ -191,6 +191,8 @@ def _quad_radiance(
     u = (V[:, 0] + 1.0) / 2.0 if layout == "usual" else (1.0 - V[:, 0]) / 2.0
     uv = np.column_stack([u, (1.0 - V[:, 1]) / 2.0])
     quad = Mesh("quad", V, np.array([[0, 1, 2], [0, 2, 3]]), [material], np.zeros(2, np.int32), uvs=uv)
+    if colours is not None:
+        quad = dataclasses.replace(quad, colors=np.tile(colours, (4, 1)))
     scene = build(mi, [quad], [], {}, MitsubaOptions(), {"type": "path", "max_depth": 2}).scene
     to_light = R @ np.asarray(light) / np.linalg.norm(light)
     scene["sun"] = {"type": "directional", "direction": (-to_light).tolist(), "irradiance": 1.0}
@@ -287,3 +289,32 @@ def test_transmission_texture_is_the_transmitted_colour(mi):  # noqa: ANN001
     a, b = _quad_radiance(mi, textured, light=below), _quad_radiance(mi, per_albedo, light=below)
     assert np.allclose(a, b, rtol=0.01), (a, b)
     assert np.all(_quad_radiance(mi, leaf, light=below) < 0.01 * a)
+
+
+def test_a_vertex_colour_multiplies_both_sides_and_the_light_through(mi):  # noqa: ANN001
+    """glTF's COLOR_0 multiplies what the colour factor multiplies: a textured translucent leaf
+    with its own back, vertex colours c on every corner, shades as the same leaf with colour
+    factor c lit and seen from above, lit from below and seen from above (the light through),
+    and lit and seen from below (the back); the colours stay below the translucency's caps."""
+    tint = (0.9, 0.55, 0.3)
+    texture = np.zeros((8, 8, 4), np.uint8)
+    texture[..., :3] = np.arange(64, dtype=np.uint8).reshape(8, 8, 1) + 60
+    texture[..., 3] = 255
+    leaf = Material(
+        "leaf",
+        color=(1.0, 1.0, 1.0, 1.0),
+        albedo=texture,
+        transmittance=(0.5, 1.0, 0.2),
+        roughness=0.4,
+        back_color=(1.3, 1.2, 1.3),
+        back_roughness=0.8,
+    )
+    factor = dataclasses.replace(leaf, color=(*tint, 1.0))
+    above, below = (0.0, -0.6, 0.8), (0.3, 0.2, -0.9)
+    seen_above, seen_below = (0.3, -0.4, 0.866), (0.3, -0.4, -0.866)
+    for light, eye in ((above, seen_above), (below, seen_above), (below, seen_below)):
+        vertex = _quad_radiance(mi, leaf, light=light, eye=eye, colours=tint)
+        expected = _quad_radiance(mi, factor, light=light, eye=eye)
+        assert expected.min() > 1e-4  # lit on the side seen
+        np.testing.assert_allclose(vertex, expected, rtol=1e-4)
+        assert not np.allclose(vertex, _quad_radiance(mi, leaf, light=light, eye=eye), rtol=0.05)

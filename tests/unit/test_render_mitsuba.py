@@ -7,7 +7,6 @@ high-sample render of the same view (error falls with samples), PROSPECT-D's lea
 
 from __future__ import annotations
 
-import dataclasses
 import itertools
 
 import numpy as np
@@ -110,43 +109,6 @@ def test_back_lit_leaf_glows_green():
     r, g, b = glow["leaf"]
     assert g > 0.01 and glow["black"].max() < 0.05 * g
     assert g > 1.3 * r > 0 and g > 5.0 * b
-
-
-def test_a_vertex_colour_is_the_colour_factor_on_both_sides_and_through():
-    """A textured leaf card (translucent, its back its own colour and roughness) lit from both
-    sides: vertex colours c on every corner give the very radiance of the same card with colour
-    factor c, seen from the front and from the back (glTF's COLOR_0 multiplies what the factor
-    multiplies; the colours here stay below the translucency's caps)."""
-    tint = (0.9, 0.55, 0.3)
-    texture = np.zeros((8, 8, 4), np.uint8)
-    texture[..., :3] = np.arange(64, dtype=np.uint8).reshape(8, 8, 1) + 60
-    texture[..., 3] = 255
-    lamps = [
-        Light("front", "area", np.array([0.3, -1.0, 1.2]), np.array([-0.3, 1.0, -0.2]), (1.0, 1.0, 1.0), 2.0, 0.2),
-        Light("back", "area", np.array([-0.2, 1.0, 0.9]), np.array([0.2, -1.0, 0.1]), (1.0, 0.9, 0.8), 1.5, 0.2),
-    ]
-    camera = CameraModel(32, 24, 30.0, 30.0, 15.5, 11.5)
-    images = {}
-    for how in ("factor", "vertex"):
-        leaf = Material(
-            "leaf",
-            color=(*tint, 1.0) if how == "factor" else (1.0, 1.0, 1.0, 1.0),
-            albedo=texture,
-            transmittance=(0.5, 1.0, 0.2),
-            back_color=(1.3, 1.2, 1.3),
-            back_roughness=0.8,
-            roughness=0.4,
-        )
-        card = quad("card", (0.0, 0.0, 1.0), (0.3, 0.0, 0.0), (0.0, 0.0, 0.3), leaf)
-        if how == "vertex":
-            card = dataclasses.replace(card, colors=np.tile(tint, (4, 1)))
-        for side, eye in (("front", (0.1, -1.0, 1.1)), ("back", (-0.1, 1.0, 0.95))):
-            T = look_at(np.array(eye), np.array([0.0, 0.0, 1.0]))
-            r = renderer(Scene([card], lamps, LabelTable()), spp=16, max_depth=4, denoise="off")
-            images[how, side] = r.radiance(camera, T)
-    for side in ("front", "back"):
-        assert images["factor", side][8:16, 12:20].mean() > 0.01  # the card is lit on this side
-        np.testing.assert_allclose(images["vertex", side], images["factor", side], rtol=1e-4, atol=1e-6)
 
 
 def test_light_falls_through_cut_out_texels_onto_the_floor():
