@@ -182,7 +182,8 @@ def _quad_radiance(
     """Mean RGB radiance at the middle of a quad (z = 0, normal +z) of ``material`` under a
     distant light from ``light``, seen from afar from ``eye``, both turned by ``R``. The UVs
     are laid out as glTF's usually are (``usual``: u along +x, v growing toward -y, down the
-    image) or ``mirrored`` (u along -x); ``colours``: one vertex colour on every corner."""
+    image) or ``mirrored`` (u along -x); ``colours``: the corners' vertex colours (one for all,
+    or one each)."""
     from agrisim.plugins.render.mitsuba.options import MitsubaOptions
     from agrisim.plugins.render.mitsuba.scene import build
     from agrisim.scene.model import Mesh
@@ -192,7 +193,7 @@ def _quad_radiance(
     uv = np.column_stack([u, (1.0 - V[:, 1]) / 2.0])
     quad = Mesh("quad", V, np.array([[0, 1, 2], [0, 2, 3]]), [material], np.zeros(2, np.int32), uvs=uv)
     if colours is not None:
-        quad = dataclasses.replace(quad, colors=np.tile(colours, (4, 1)))
+        quad = dataclasses.replace(quad, colors=np.broadcast_to(colours, (4, 3)))
     scene = build(mi, [quad], [], {}, MitsubaOptions(), {"type": "path", "max_depth": 2}).scene
     to_light = R @ np.asarray(light) / np.linalg.norm(light)
     scene["sun"] = {"type": "directional", "direction": (-to_light).tolist(), "irradiance": 1.0}
@@ -318,3 +319,8 @@ def test_a_vertex_colour_multiplies_both_sides_and_the_light_through(mi):  # noq
         assert expected.min() > 1e-4  # lit on the side seen
         np.testing.assert_allclose(vertex, expected, rtol=1e-4)
         assert not np.allclose(vertex, _quad_radiance(mi, leaf, light=light, eye=eye), rtol=0.05)
+    # Colours that vary over the faces are interpolated: running linearly in x from c - d to
+    # c + d, their mean over the quad's middle (symmetric about it) is c's.
+    d = np.array([0.08, 0.1, -0.1])
+    ramp = np.where(np.array([[-1.0], [1.0], [1.0], [-1.0]]) > 0, np.add(tint, d), np.subtract(tint, d))
+    np.testing.assert_allclose(_quad_radiance(mi, leaf, colours=ramp), _quad_radiance(mi, factor), rtol=2e-3)
