@@ -153,6 +153,33 @@ def build_parser() -> argparse.ArgumentParser:
     )
     export.add_argument("run_dir", type=Path, metavar="RUN_DIR", help="a run's output directory (agrisim run --out)")
     export.add_argument("--overwrite", action="store_true", help="replace an existing export (coco, rosbag)")
+    colmap = sub.add_parser(
+        "colmap",
+        help="COLMAP's structure from motion on a run's views, scored against the true cameras",
+        description="Recover the cameras of a complete run's RGB views with COLMAP (pycolmap, CPU): SIFT features, "
+        "matching, incremental mapping; align the model to the true camera centres by a similarity and score each "
+        "view (centre error, rotation error, reprojection error). Writes RUN_DIR/colmap/ (sparse/0/, poses.json).",
+    )
+    colmap.add_argument("run_dir", type=Path, metavar="RUN_DIR", help="a complete run's output directory")
+    colmap.add_argument(
+        "--matcher",
+        default="exhaustive",
+        metavar="exhaustive|sequential",
+        help="match every pair of views (default), or each with the next --overlap views of the routine",
+    )
+    colmap.add_argument(
+        "--overlap", type=int, default=10, metavar="N", help="sequential matching: views matched with each (10)"
+    )
+    colmap.add_argument(
+        "--intrinsics",
+        default="known",
+        metavar="known|estimated",
+        help="the run's calibrated camera, held fixed (default), or COLMAP's own estimate (an uncalibrated capture)",
+    )
+    colmap.add_argument(
+        "--max-features", type=int, default=8192, metavar="N", help="SIFT features a view at most (8192)"
+    )
+    colmap.add_argument("--overwrite", action="store_true", help="replace an existing RUN_DIR/colmap/")
     view = sub.add_parser(
         "view",
         help="serve a run's Rerun recording to a web browser",

@@ -259,6 +259,38 @@ def _cmd_export(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_colmap(args: argparse.Namespace) -> int:
+    from agrisim.app.progress import EpisodeProgress
+    from agrisim.evaluation.photogrammetry import run_colmap
+
+    if args.max_features < 64:
+        raise UserError(f"--max-features must be 64 or more, got {args.max_features}")
+    with EpisodeProgress("features") as progress:
+        result = run_colmap(
+            args.run_dir,
+            matcher=args.matcher,
+            intrinsics=args.intrinsics,
+            overlap=args.overlap,
+            max_features=args.max_features,
+            overwrite=args.overwrite,
+            progress=progress.stage,
+        )
+    s = result.summary()
+    if not result.models:
+        print(f"COLMAP made no model of the {s['views']} views (too few views matched well enough to start one)")
+    else:
+        models = f"{result.models} models, the largest kept" if result.models > 1 else "one model"
+        print(f"COLMAP registered {s['registered']} of {s['views']} views ({models}: {s['points']:,} points)")
+    if s["median_centre_error_mm"] is not None:
+        print(
+            f"camera centres from the truth: median {s['median_centre_error_mm']:.2f} mm, max "
+            f"{s['max_centre_error_mm']:.2f} mm; rotations: median {s['median_rotation_error_deg']:.3f} deg, max "
+            f"{s['max_rotation_error_deg']:.3f} deg; reprojection {s['reprojection_px']:.2f} px"
+        )
+    print(f"wrote {result.out}")
+    return 0
+
+
 def _cmd_compare(args: argparse.Namespace) -> int:
     from agrisim.app.compare import SEG_MODES, compare, default_out, markdown_table, parse_names, plan_compare
     from agrisim.app.compare_plan import parse_sizes
@@ -335,6 +367,8 @@ def main(argv: Sequence[str] | None = None) -> int:
             return _cmd_render(args)
         if args.command == "compare":
             return _cmd_compare(args)
+        if args.command == "colmap":
+            return _cmd_colmap(args)
         if args.command == "view":
             return _cmd_view(args)
         return _cmd_plugins(args)

@@ -29,6 +29,10 @@ class EpisodeProgress:
     def update(self, done: int, total: int) -> None:
         self._progress.update(self._task, completed=done, total=total)
 
+    def stage(self, name: str, done: int, total: int) -> None:
+        """``update``, the bar then named ``name`` (work in stages, each counted apart)."""
+        self._progress.update(self._task, description=name, completed=done, total=total)
+
     def __enter__(self) -> EpisodeProgress:
         self._progress.start()
         return self

@@ -4,8 +4,10 @@ from __future__ import annotations
 
 import json
 import os
+import shutil
 import tempfile
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
@@ -91,3 +93,25 @@ def to_json(obj: Any) -> Any:
     if isinstance(obj, Path):
         return str(obj)
     raise TypeError(f"cannot serialise {type(obj).__name__}")
+
+
+@contextmanager
+def staged_dir(out: Path) -> Iterator[Path]:
+    """A folder to fill in place of the folder ``out``: a hidden sibling that becomes ``out`` (an
+    existing ``out`` replaced) only when the block ends without an error; otherwise it is
+    removed and ``out`` stays as it was."""
+    out = Path(out)
+    staging = out.parent / f".{out.name}.{os.getpid()}.tmp"
+    shutil.rmtree(staging, ignore_errors=True)
+    staging.mkdir(parents=True)
+    try:
+        yield staging
+        if out.exists():
+            trash = out.parent / f".{out.name}.{os.getpid()}.old.tmp"
+            os.replace(out, trash)
+            os.replace(staging, out)
+            shutil.rmtree(trash)
+        else:
+            os.replace(staging, out)
+    finally:
+        shutil.rmtree(staging, ignore_errors=True)

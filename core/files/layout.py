@@ -20,6 +20,7 @@
     OUT/recording.rrd          the Rerun recording (unless --rrd puts it elsewhere)
     OUT/coco/annotations.json  the COCO export (agrisim export coco)
     OUT/rosbag/                the ROS 2 bag export (agrisim export rosbag)
+    OUT/colmap/                COLMAP's model of the views and its scores (agrisim colmap)
 
 The dataset writer writes it; ``--resume``, ``agrisim recon``, the exports and ``agrisim compare``
 read it, all through these names.

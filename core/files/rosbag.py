@@ -38,7 +38,6 @@ from __future__ import annotations
 
 import json
 import os
-import shutil
 import xml.etree.ElementTree as ET
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
@@ -50,6 +49,7 @@ from numpy.typing import ArrayLike
 
 from agrisim.errors import OutputError, UserError
 from agrisim.files import layout
+from agrisim.files.atomic import staged_dir
 from agrisim.files.rundir import read_json, read_run
 
 ROSBAG_DIR = "rosbag"
@@ -532,10 +532,8 @@ def write_rosbag(run_dir: Path, overwrite: bool = False, progress: Callable[[int
         raise OutputError(f"{out} already exists; pass --overwrite to replace it")
     export = RosbagExport(run_dir)
     msgs = BagMessages()
-    staging = run_dir / f".{ROSBAG_DIR}.{os.getpid()}.tmp"
-    shutil.rmtree(staging, ignore_errors=True)
-    try:
-        staging.mkdir()
+    with staged_dir(out) as staging:
+        # (rosbags creates the bag's own folder: a subfolder of the staged one, moved up after)
         writer = Writer(staging / ROSBAG_DIR, version=9, storage_plugin=StoragePlugin.MCAP)
         # MCAP's own chunk compression: Foxglove and ros2 bag read it transparently
         writer.set_compression(CompressionMode.STORAGE, CompressionFormat.ZSTD)
@@ -556,13 +554,7 @@ def write_rosbag(run_dir: Path, overwrite: bool = False, progress: Callable[[int
                     done += 1
                     if progress is not None and (done % 500 == 0 or done == total):
                         progress(done, total)
-        if out.exists():
-            trash = run_dir / f".{ROSBAG_DIR}.{os.getpid()}.old.tmp"
-            os.replace(out, trash)
-            os.replace(staging / ROSBAG_DIR, out)
-            shutil.rmtree(trash)
-        else:
-            os.replace(staging / ROSBAG_DIR, out)
-    finally:
-        shutil.rmtree(staging, ignore_errors=True)
+        for item in (staging / ROSBAG_DIR).iterdir():
+            os.replace(item, staging / item.name)
+        (staging / ROSBAG_DIR).rmdir()
     return out
