@@ -85,6 +85,10 @@ class ReconChoice(BackendChoice):
     """Reconstructor (``--recon``): pointcloud or tsdf, or a plugin's; none: no reconstruction."""
     merged_every: int = Field(default=10, ge=1, le=10_000)
     """Announce the merged clouds (to Rerun) every this many views, and at the end."""
+    poses: Literal["truth", "colmap"] = "truth"
+    """The camera poses the reconstructor is given: ``truth``, the simulator's; ``colmap``,
+    COLMAP's estimates aligned to the world (``agrisim colmap RUN`` first; ``agrisim recon``
+    only), views COLMAP did not register left out: what estimated poses cost a reconstruction."""
 
 
 class MetricsConfig(_Model):

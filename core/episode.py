@@ -91,6 +91,11 @@ class Episode:
         self.renderer_spec = None
         self.recon_spec = None
         self.scene: Scene | None = None
+        if config.recon.poses != "truth":  # COLMAP runs on the finished views
+            raise ConfigError(
+                f"recon.poses = {config.recon.poses!r} needs the finished run: agrisim colmap RUN, then "
+                f"agrisim recon RUN --set recon.poses={config.recon.poses}; a run reconstructs on the true poses"
+            )
         if config.renderer.backend == "none":
             check_plant_name(self.registry, config)
             # nothing renders, but a typo or a bad value in an option table is still refused

@@ -7,7 +7,8 @@ next ``overlap`` views of the routine, for long runs); incremental mapping. The 
 either the run's own (``known``: a calibrated camera, held fixed) or estimated by COLMAP from a
 guess (``estimated``: a simple radial camera, as an uncalibrated capture). The largest model is
 then aligned to the truth by the similarity (scale, rotation, translation) that best maps its
-camera centres onto the true ones (least squares, Umeyama's), its orientations by the one
+camera centres onto the true ones (least squares, Umeyama's: the poses a reconstruction on
+COLMAP's cameras gets, ``recon.poses = "colmap"``), its orientations by the one
 rotation that best maps them onto the true ones (their chordal mean: the centres' similarity
 cannot fix the turn about the line of centres of views along one arc), and each view is scored:
 its centre's distance from the truth (mm), the angle between its aligned rotation and the true
@@ -23,7 +24,6 @@ forward), so rotations compare directly.
 from __future__ import annotations
 
 import json
-import os
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass, field
@@ -56,6 +56,7 @@ class ViewScore:
     centre_error_mm: float | None = None
     rotation_error_deg: float | None = None
     reprojection_px: float | None = None
+    world_T_camera: np.ndarray | None = None  # COLMAP's pose moved into the world by the similarity
 
 
 @dataclass
@@ -143,7 +144,6 @@ def run_colmap(
     settings = {"matcher": matcher, "intrinsics": intrinsics, "overlap": overlap, "max_features": max_features}
     names = [layout.image(run_dir, "rgb", f).name for f in frames]
     rgb = layout.image(run_dir, "rgb", frames[0]).parent
-    threads = max(1, min(len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else 1, 64))
     pycolmap.set_random_seed(seed)
     quiet = pycolmap.logging.minloglevel
     pycolmap.logging.minloglevel = 3  # COLMAP logs every image and pair; the scores say what matters
@@ -157,7 +157,7 @@ def run_colmap(
         else:
             reader.camera_model = "SIMPLE_RADIAL"
         extraction = pycolmap.FeatureExtractionOptions()
-        extraction.num_threads = threads
+        extraction.num_threads = 1
         extraction.sift.max_num_features = max_features
         tell("features", 0, len(frames))
         pycolmap.extract_features(
@@ -171,7 +171,10 @@ def run_colmap(
         )
         tell("features", len(frames), len(frames))
         matching = pycolmap.FeatureMatchingOptions()
-        matching.num_threads = threads
+        # One thread from here on: COLMAP's verification and mapping give other models from
+        # one run to the next when threaded (2 or 18 of 36 views registered, measured); the
+        # same views and seed then give the same model.
+        matching.num_threads = 1
         tell("matching", 0, 1)
         if matcher == "exhaustive":
             pycolmap.match_exhaustive(database, matching_options=matching, device=pycolmap.Device.cpu)
@@ -183,7 +186,7 @@ def run_colmap(
             )
         tell("matching", 1, 1)
         options = pycolmap.IncrementalPipelineOptions()
-        options.num_threads = threads
+        options.num_threads = 1
         options.random_seed = seed
         if intrinsics == "known":  # a calibrated camera: held as given
             options.ba_refine_focal_length = False
@@ -248,12 +251,16 @@ def _score(
         turn = _rotation_alignment(model_R_cams, [truth[f][:3, :3] for f, _ in found])
         for (frame, img), c, model_R_cam in zip(found, centres, model_R_cams, strict=True):
             cos = (np.trace(truth[frame][:3, :3].T @ turn @ model_R_cam) - 1.0) / 2.0
+            # the pose a reconstruction gets: the whole model moved by the one similarity
+            estimate = np.eye(4)
+            estimate[:3, :3], estimate[:3, 3] = R @ model_R_cam, s * R @ c + t
             scores[frame] = ViewScore(
                 frame,
                 True,
-                centre_error_mm=float(np.linalg.norm(s * R @ c + t - truth[frame][:3, 3]) * 1e3),
+                centre_error_mm=float(np.linalg.norm(estimate[:3, 3] - truth[frame][:3, 3]) * 1e3),
                 rotation_error_deg=float(np.degrees(np.arccos(np.clip(cos, -1.0, 1.0)))),
                 reprojection_px=_reprojection(model, img),
+                world_T_camera=estimate,
             )
     else:  # too few to align: registered, unscored
         for frame, img in found:
@@ -314,12 +321,24 @@ def _document(result: ColmapResult) -> dict[str, Any]:
                 "centre_error_mm": v.centre_error_mm,
                 "rotation_error_deg": v.rotation_error_deg,
                 "reprojection_px": v.reprojection_px,
+                "world_T_camera": None if v.world_T_camera is None else v.world_T_camera.tolist(),
             }
             for v in result.views
         ],
     }
 
 
-def read_poses(run_dir: Path) -> dict[str, Any]:
-    """``RUN/colmap/poses.json`` as written."""
-    return json.loads((Path(run_dir) / COLMAP_DIR / POSES_JSON).read_text())
+def estimated_poses(run_dir: Path) -> dict[str, np.ndarray]:
+    """COLMAP's camera poses of the run's views, in the world (OpenCV cameras, metres), by
+    frame; only the views it registered and scored. Refused without ``agrisim colmap RUN``."""
+    path = Path(run_dir) / COLMAP_DIR / POSES_JSON
+    if not path.is_file():
+        raise UserError(f"{path} does not exist: recon.poses = 'colmap' needs agrisim colmap {run_dir} first")
+    try:
+        views = json.loads(path.read_text())["views"]
+        poses = {v["frame"]: np.asarray(v["world_T_camera"], float) for v in views if v.get("world_T_camera")}
+    except (OSError, ValueError, KeyError, TypeError) as exc:
+        raise UserError(f"cannot read {path}: {exc}") from None
+    if not poses:
+        raise UserError(f"{path}: COLMAP placed none of the views; there is nothing to reconstruct from")
+    return poses

@@ -209,16 +209,21 @@ def rebuild(
     truth: GroundTruth | None,
     thresholds_mm: list[float],
     progress: Callable[[int, int], None] | None = None,
+    poses: dict[str, np.ndarray] | None = None,
 ) -> ReconSession:
-    """Feed every complete frame of a saved run, in capture order, to a fresh session."""
+    """Feed every complete frame of a saved run, in capture order, to a fresh session; with
+    ``poses`` (estimated ones, by frame) only those frames, at those poses."""
     session = ReconSession(recon, labels, truth, thresholds_mm)
     camera = camera_from_json(cameras["intrinsics"])
     frames = cameras["frames"]
+    if poses is None:
+        poses = {name: np.asarray(frame["world_T_camera"], float) for name, frame in frames.items()}
     # capture order: the order run.json's results list the frames in
     order = [r["frame"] for r in run.get("results", []) if r.get("frame") in frames]
     order += sorted(set(frames) - set(order))
+    order = [name for name in order if name in poses]
     for i, name in enumerate(order):
-        session.add(load_view(run_dir, name, camera, np.asarray(frames[name]["world_T_camera"], float)))
+        session.add(load_view(run_dir, name, camera, poses[name]))
         if progress:
             progress(i + 1, len(order))
     return session
@@ -284,6 +289,11 @@ def reconstruct_saved_run(
     # minimal install reconstructs without it and says so in metrics.json.
     measurable = importlib.util.find_spec("open3d") is not None
     truth = truth_from_run(run_dir, config.metrics.truth_samples) if measurable else None
+    estimated = None
+    if config.recon.poses == "colmap":
+        from agrisim.evaluation.photogrammetry import estimated_poses
+
+        estimated = estimated_poses(run_dir)
     session = rebuild(
         run_dir,
         registry.build("reconstructor", spec, labels, options),
@@ -293,6 +303,7 @@ def reconstruct_saved_run(
         truth,
         config.metrics.thresholds_mm,
         progress,
+        estimated,
     )
     meta = {
         "plant": config.plant,
@@ -301,6 +312,7 @@ def reconstruct_saved_run(
         "recon": spec.name,
         "seed": config.seed,
         "source": str(run_dir),
+        "poses": config.recon.poses,
     }
     if not measurable:
         meta["truth_note"] = "accuracy not measured: Open3D is not installed here"
