@@ -43,9 +43,10 @@ def main() -> None:
         f"arms {'in view' if args.arms else 'hidden'}; COLMAP {args.matcher} matching, the run's intrinsics"
     )
     print(
-        "| plant | registered | centre error mm, median / max | rotation error deg, median / max | reprojection px | COLMAP s |"
+        "| plant | registered | within 20 mm | centre error mm, median / max | rotation error deg, median / max "
+        "| reprojection px | COLMAP s |"
     )
-    print("|---|---|---|---|---|---|")
+    print("|---|---|---|---|---|---|---|")
     for plant in args.plants:
         run = args.out / (plant + ("-arms" if args.arms else ""))
         if not (run / "run.json").exists():
@@ -64,7 +65,8 @@ def main() -> None:
         s = json.loads((run / "colmap" / "poses.json").read_text())["summary"]
         reproj = "-" if s["reprojection_px"] is None else f"{s['reprojection_px']:.2f}"
         print(
-            f"| {plant.replace('_', ' ')} | {s['registered']}/{s['views']} | {_pair(s, 'centre_error_mm', 1)} | "
+            f"| {plant.replace('_', ' ')} | {s['registered']}/{s['views']} | {s['within_20mm']} | "
+            f"{_pair(s, 'centre_error_mm', 1)} | "
             f"{_pair(s, 'rotation_error_deg', 2)} | {reproj} | {seconds:.0f} |",
             flush=True,
         )

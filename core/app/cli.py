@@ -280,7 +280,10 @@ def _cmd_colmap(args: argparse.Namespace) -> int:
         print(f"COLMAP made no model of the {s['views']} views (too few views matched well enough to start one)")
     else:
         models = f"{result.models} models, the largest kept" if result.models > 1 else "one model"
-        print(f"COLMAP registered {s['registered']} of {s['views']} views ({models}: {s['points']:,} points)")
+        print(
+            f"COLMAP registered {s['registered']} of {s['views']} views ({models}: {s['points']:,} points); "
+            f"{s['within_20mm']} within 20 mm of the truth"
+        )
     if s["median_centre_error_mm"] is not None:
         print(
             f"camera centres from the truth: median {s['median_centre_error_mm']:.2f} mm, max "

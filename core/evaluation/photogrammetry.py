@@ -7,8 +7,10 @@ next ``overlap`` views of the routine, for long runs); incremental mapping. The 
 either the run's own (``known``: a calibrated camera, held fixed) or estimated by COLMAP from a
 guess (``estimated``: a simple radial camera, as an uncalibrated capture). The largest model is
 then aligned to the truth by the similarity (scale, rotation, translation) that best maps its
-camera centres onto the true ones (least squares, Umeyama's: the poses a reconstruction on
-COLMAP's cameras gets, ``recon.poses = "colmap"``), its orientations by the one
+camera centres onto the true ones (least squares, Umeyama's, over the views that pycolmap's
+robust similarity places within 2 cm, so that a few misplaced views cannot drag the others off:
+the poses a reconstruction on COLMAP's cameras gets, ``recon.poses = "colmap"``), its
+orientations by the one
 rotation that best maps them onto the true ones (their chordal mean: the centres' similarity
 cannot fix the turn about the line of centres of views along one arc), and each view is scored:
 its centre's distance from the truth (mm), the angle between its aligned rotation and the true
@@ -45,6 +47,8 @@ MATCHERS: tuple[str, ...] = ("exhaustive", "sequential")
 INTRINSICS: tuple[str, ...] = ("known", "estimated")
 #: the stages :func:`run_colmap` reports to its progress callback, in order
 STAGES = ("features", "matching", "mapping")
+#: views whose centres a robust similarity puts this near the truth (m) fix the alignment
+ALIGN_WITHIN = 0.02
 
 
 @dataclass
@@ -80,6 +84,9 @@ class ColmapResult:
         doc: dict[str, Any] = {
             "views": len(self.views),
             "registered": self.registered,
+            "within_20mm": sum(
+                v.centre_error_mm is not None and v.centre_error_mm <= ALIGN_WITHIN * 1e3 for v in self.views
+            ),
             "models": self.models,
             "points": self.points,
             "scale_m_per_unit": self.scale,
@@ -203,7 +210,7 @@ def run_colmap(
         sparse.mkdir()
         models = pycolmap.incremental_mapping(database, rgb, sparse, options=options, next_image_callback=next_image)
         database.unlink()  # features and matches: large, and what the model holds is kept
-        result = _score(models, frames, names, cameras, staging, settings)
+        result = _score(models, frames, names, cameras, staging, settings, seed)
         write_json(staging / POSES_JSON, _document(result))
     result.out = out
     return result
@@ -224,6 +231,7 @@ def _score(
     cameras: dict[str, Any],
     staging: Path,
     settings: dict[str, Any],
+    seed: int = 0,
 ) -> ColmapResult:
     """Keep the largest model as ``sparse/0`` and score its views against the truth."""
     sparse = staging / "sparse"
@@ -245,10 +253,14 @@ def _score(
     if len(found) >= 3:
         centres = np.array([img.projection_center() for _, img in found])
         true_centres = np.array([truth[f][:3, 3] for f, _ in found])
-        s, R, t = _similarity(centres, true_centres)
+        inliers = _aligned_views(centres, true_centres, seed)
+        s, R, t = _similarity(centres[inliers], true_centres[inliers])
         scale = s
         model_R_cams = [np.asarray(img.cam_from_world().rotation.matrix()).T for _, img in found]
-        turn = _rotation_alignment(model_R_cams, [truth[f][:3, :3] for f, _ in found])
+        turn = _rotation_alignment(
+            [m for m, keep in zip(model_R_cams, inliers, strict=True) if keep],
+            [truth[f][:3, :3] for (f, _), keep in zip(found, inliers, strict=True) if keep],
+        )
         for (frame, img), c, model_R_cam in zip(found, centres, model_R_cams, strict=True):
             cos = (np.trace(truth[frame][:3, :3].T @ turn @ model_R_cam) - 1.0) / 2.0
             # the pose a reconstruction gets: the whole model moved by the one similarity
@@ -269,6 +281,22 @@ def _score(
     return ColmapResult(
         staging, [scores[f] for f in frames], len(models), scale, error, int(model.num_points3D()), settings
     )
+
+
+def _aligned_views(centres: np.ndarray, truth: np.ndarray, seed: int) -> np.ndarray:
+    """Which views the alignment is fitted to: those within :data:`ALIGN_WITHIN` of the truth
+    under pycolmap's robust similarity (LO-RANSAC), so that a few misplaced views do not drag
+    the well-placed ones off; all of them when fewer than three would be left."""
+    import pycolmap
+
+    ransac = pycolmap.RANSACOptions()
+    ransac.max_error = ALIGN_WITHIN
+    ransac.random_seed = seed
+    found = pycolmap.estimate_sim3d_robust(centres, truth, ransac)
+    if not found:
+        return np.ones(len(centres), bool)
+    keep = np.asarray(found["inlier_mask"], bool)
+    return keep if keep.sum() >= 3 else np.ones(len(centres), bool)
 
 
 def _similarity(src: np.ndarray, dst: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
