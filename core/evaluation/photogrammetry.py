@@ -292,10 +292,10 @@ def _aligned_views(centres: np.ndarray, truth: np.ndarray, seed: int) -> np.ndar
     ransac = pycolmap.RANSACOptions()
     ransac.max_error = ALIGN_WITHIN
     ransac.random_seed = seed
-    found = pycolmap.estimate_sim3d_robust(centres, truth, ransac)
+    found: Any = pycolmap.estimate_sim3d_robust(centres, truth, ransac)  # (a dict, whatever its stub says)
     if not found:
         return np.ones(len(centres), bool)
-    keep = np.asarray(found["inlier_mask"], bool)
+    keep = np.array(found["inlier_mask"], dtype=np.bool_)
     return keep if keep.sum() >= 3 else np.ones(len(centres), bool)
 
 
