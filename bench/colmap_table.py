@@ -49,7 +49,9 @@ def main() -> None:
     print("|---|---|---|---|---|---|---|")
     for plant in args.plants:
         run = args.out / (plant + ("-arms" if args.arms else ""))
-        if not (run / "run.json").exists():
+        if (run / "run.json").exists() and json.loads((run / "run.json").read_text())["status"] != "complete":
+            subprocess.run([*agrisim, "run", "--resume", "--out", str(run)], check=True, capture_output=True)
+        elif not (run / "run.json").exists():
             flags = ["--plant", plant, "--resolution", args.resolution, "--recon", "none", "--no-rrd"]
             flags += ["--set", f"renderer.raycast.shadow_samples={args.shadow_samples}", "--out", str(run)]
             subprocess.run(
