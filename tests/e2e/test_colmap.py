@@ -18,9 +18,9 @@ from agrisim.evaluation.photogrammetry import COLMAP_DIR, POSES_JSON
 
 @pytest.fixture(scope="module")
 def run_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    """36 views of coltsfoot, 960x540, the arms hidden (the camera's own arm in view corrupts
-    COLMAP's model: see the README), eight shadow rays a pixel (one gives speckle that SIFT
-    takes for texture), from the part of the hemisphere where neighbouring views overlap."""
+    """36 views of coltsfoot, 960x540, the arms hidden (they move between views), eight shadow
+    rays a pixel (one gives speckle that SIFT takes for texture), from the part of the
+    hemisphere where neighbouring views overlap."""
     out = tmp_path_factory.mktemp("colmap") / "run"
     return small_run(
         out,
