@@ -46,12 +46,17 @@ def _link_poses(run_dir: Path, frame: str) -> dict[str, dict[str, np.ndarray]]:
     return {robot: {link: np.asarray(T, np.float64) for link, T in links.items()} for robot, links in doc.items()}
 
 
+#: folders of the source not carried: its RGB, and what was made from it (COLMAP's model of
+#: those images, the bag that holds them)
+NOT_CARRIED_FOLDERS = {"rgb", layout.RADIANCE, layout.COLMAP, layout.ROSBAG}
+
+
 def _carry(source: Path, out: Path) -> None:
-    """Every file of ``source`` but its RGB, radiance and recording into ``out`` (hard links,
-    else copies)."""
+    """Every file of ``source`` but its RGB and what shows it (:data:`NOT_CARRIED`,
+    :data:`NOT_CARRIED_FOLDERS`) into ``out`` (hard links, else copies)."""
     for root, dirs, files in os.walk(source):
         rel = Path(root).relative_to(source)
-        if rel.parts[:1] in (("rgb",), (layout.RADIANCE,)):
+        if rel.parts[:1] and rel.parts[0] in NOT_CARRIED_FOLDERS:
             dirs.clear()
             continue
         (out / rel).mkdir(parents=True, exist_ok=True)

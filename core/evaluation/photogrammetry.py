@@ -39,7 +39,7 @@ from agrisim.files import layout
 from agrisim.files.atomic import staged_dir, write_json
 from agrisim.files.rundir import read_run
 
-COLMAP_DIR = "colmap"
+COLMAP_DIR = layout.COLMAP
 POSES_JSON = "poses.json"
 Matcher = Literal["exhaustive", "sequential"]
 Intrinsics = Literal["known", "estimated"]

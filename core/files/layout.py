@@ -44,6 +44,8 @@ TRAJECTORIES = "trajectories"
 RADIANCE = "radiance"
 CLOUDS = "clouds"
 MASKS = "masks"
+ROSBAG = "rosbag"
+COLMAP = "colmap"
 #: the image folders of a frame, each holding ``<frame>.png``
 FRAME_FOLDERS = ("rgb", "labels", "labels_vis", "depth", "instances")
 #: the folders every complete rendered frame has (instances only where leaves are numbered)

@@ -52,7 +52,7 @@ from agrisim.files import layout
 from agrisim.files.atomic import staged_dir
 from agrisim.files.rundir import read_json, read_run
 
-ROSBAG_DIR = "rosbag"
+ROSBAG_DIR = layout.ROSBAG
 #: the world frame every other frame hangs from
 WORLD = "world"
 CLOUD_TOPIC = "/reconstruction/cloud"

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import json
 import os
+import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -78,10 +79,20 @@ def sets() -> list[str]:
 def test_rerender_equals_a_mitsuba_run_without_the_heavy_stack(runs: dict[str, Path], tmp_path: Path) -> None:
     """The raycast run re-rendered by mitsuba, in an interpreter without Open3D, pybullet,
     Pinocchio, OMPL or Rerun: its RGB is byte for byte the mitsuba run's, its labels and depth
-    the source's (which are mitsuba's too), and every other file is carried over."""
+    the source's (which are mitsuba's too), and every other file is carried over but those
+    made from the old RGB (COLMAP's model of it, the bag holding it)."""
     out = tmp_path / "re"
-    done = rerender(runs["raycast"], "--out", str(out), *sets())
+    made_from_rgb = [runs["raycast"] / layout.COLMAP / "poses.json", runs["raycast"] / layout.ROSBAG / "metadata.yaml"]
+    for path in made_from_rgb:
+        path.parent.mkdir()
+        path.write_text("{}")
+    try:
+        done = rerender(runs["raycast"], "--out", str(out), *sets())
+    finally:
+        for path in made_from_rgb:
+            shutil.rmtree(path.parent)
     assert done.returncode == 0, done.stderr
+    assert not (out / layout.COLMAP).exists() and not (out / layout.ROSBAG).exists()
     assert "re-rendered" in done.stdout
     assert files(out, "rgb") == files(runs["mitsuba"], "rgb")
     assert files(out, "rgb") != files(runs["raycast"], "rgb")
