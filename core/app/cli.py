@@ -263,8 +263,6 @@ def _cmd_colmap(args: argparse.Namespace) -> int:
     from agrisim.app.progress import EpisodeProgress
     from agrisim.evaluation.photogrammetry import run_colmap
 
-    if args.max_features < 64:
-        raise UserError(f"--max-features must be 64 or more, got {args.max_features}")
     with EpisodeProgress("features") as progress:
         result = run_colmap(
             args.run_dir,

@@ -26,6 +26,7 @@ forward), so rotations compare directly.
 from __future__ import annotations
 
 import json
+import shutil
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass, field
@@ -99,13 +100,15 @@ class ColmapResult:
         return doc
 
 
-def _check(matcher: str, intrinsics: str, overlap: int) -> None:
+def _check(matcher: str, intrinsics: str, overlap: int, max_features: int) -> None:
     if matcher not in MATCHERS:
         raise UserError(f"--matcher {matcher!r} is unknown; allowed: {', '.join(MATCHERS)}")
     if intrinsics not in INTRINSICS:
         raise UserError(f"--intrinsics {intrinsics!r} is unknown; allowed: {', '.join(INTRINSICS)}")
     if overlap < 1:
         raise UserError(f"--overlap must be 1 or more (views matched with each), got {overlap}")
+    if max_features < 64:
+        raise UserError(f"--max-features must be 64 or more, got {max_features}")
 
 
 def _frames_in_routine_order(run: dict[str, Any], frames: list[str]) -> list[str]:
@@ -131,7 +134,7 @@ def run_colmap(
     ``run_dir/colmap/`` (an existing one needs ``overwrite`` and is replaced only when the new
     one is complete). ``progress(stage, done, total)`` hears of each stage (:data:`STAGES`) and,
     while mapping, of each view registered."""
-    _check(matcher, intrinsics, overlap)
+    _check(matcher, intrinsics, overlap, max_features)
     run_dir = Path(run_dir)
     run, cameras = read_run(run_dir)
     frames = _frames_in_routine_order(run, sorted(run.get("frames_complete") or []))
@@ -210,9 +213,10 @@ def run_colmap(
         sparse.mkdir()
         models = pycolmap.incremental_mapping(database, rgb, sparse, options=options, next_image_callback=next_image)
         database.unlink()  # features and matches: large, and what the model holds is kept
-        result = _score(models, frames, names, cameras, staging, settings, seed)
+        for folder in sparse.iterdir():  # the mapper wrote each model; the largest is kept
+            shutil.rmtree(folder)
+        result = _score(models, frames, names, cameras, sparse, settings, seed, out)
         write_json(staging / POSES_JSON, _document(result))
-    result.out = out
     return result
 
 
@@ -229,19 +233,16 @@ def _score(
     frames: list[str],
     names: list[str],
     cameras: dict[str, Any],
-    staging: Path,
+    sparse: Path,
     settings: dict[str, Any],
-    seed: int = 0,
+    seed: int,
+    out: Path,
 ) -> ColmapResult:
-    """Keep the largest model as ``sparse/0`` and score its views against the truth."""
-    sparse = staging / "sparse"
-    for entry in sparse.iterdir():  # (the mapper writes each model in a folder of its own)
-        if entry.is_dir():
-            for f in entry.iterdir():
-                f.unlink()
-            entry.rmdir()
+    """Write the largest model as ``sparse/0`` and score its views against the truth."""
+    from scipy.spatial.transform import Rotation  # (here: the GPU machine reads estimated_poses without SciPy)
+
     if not models:
-        return ColmapResult(staging, [ViewScore(f, False) for f in frames], 0, None, None, 0, settings)
+        return ColmapResult(out, [ViewScore(f, False) for f in frames], 0, None, None, 0, settings)
     model = max(models.values(), key=lambda m: (m.num_reg_images(), m.num_points3D()))
     (sparse / "0").mkdir()
     model.write(sparse / "0")
@@ -257,9 +258,15 @@ def _score(
         s, R, t = _similarity(centres[inliers], true_centres[inliers])
         scale = s
         model_R_cams = [np.asarray(img.cam_from_world().rotation.matrix()).T for _, img in found]
-        turn = _rotation_alignment(
-            [m for m, keep in zip(model_R_cams, inliers, strict=True) if keep],
-            [truth[f][:3, :3] for (f, _), keep in zip(found, inliers, strict=True) if keep],
+        # orientations aligned on their own: the centres' similarity leaves its turn about the
+        # line of centres ill-determined when the views lie near one arc. The rotation A that
+        # minimises sum |world_i - A model_i|^2 is the chordal mean of world_i model_i^T.
+        turn = (
+            Rotation.from_matrix(
+                [truth[f][:3, :3] @ m.T for (f, _), m, keep in zip(found, model_R_cams, inliers, strict=True) if keep]
+            )
+            .mean()
+            .as_matrix()
         )
         for (frame, img), c, model_R_cam in zip(found, centres, model_R_cams, strict=True):
             cos = (np.trace(truth[frame][:3, :3].T @ turn @ model_R_cam) - 1.0) / 2.0
@@ -279,7 +286,7 @@ def _score(
             scores[frame] = ViewScore(frame, True, reprojection_px=_reprojection(model, img))
     error = float(model.compute_mean_reprojection_error()) if model.num_points3D() else None
     return ColmapResult(
-        staging, [scores[f] for f in frames], len(models), scale, error, int(model.num_points3D()), settings
+        out, [scores[f] for f in frames], len(models), scale, error, int(model.num_points3D()), settings
     )
 
 
@@ -300,26 +307,13 @@ def _aligned_views(centres: np.ndarray, truth: np.ndarray, seed: int) -> np.ndar
 
 
 def _similarity(src: np.ndarray, dst: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
-    """(s, R, t) minimising sum |s R src + t - dst|^2 (Umeyama 1991)."""
-    mu_s, mu_d = src.mean(axis=0), dst.mean(axis=0)
-    a, b = src - mu_s, dst - mu_d
-    U, S, Vt = np.linalg.svd(b.T @ a / len(src))
-    D = np.eye(3)
-    D[2, 2] = np.sign(np.linalg.det(U @ Vt))
-    R = U @ D @ Vt
-    var = (a**2).sum() / len(src)
-    s = float(np.trace(np.diag(S) @ D) / var) if var > 0 else 1.0
-    return s, R, mu_d - s * R @ mu_s
+    """(s, R, t) minimising sum |s R src + t - dst|^2 (Umeyama 1991, pycolmap's estimate)."""
+    import pycolmap
 
-
-def _rotation_alignment(model: list[np.ndarray], world: list[np.ndarray]) -> np.ndarray:
-    """The rotation A minimising sum |world_i - A model_i|^2 (Frobenius: the chordal mean of
-    world_i model_i^T). Orientations are aligned on their own: the centres' similarity leaves
-    its rotation about the line of the centres ill-determined when the views lie near one arc."""
-    U, _, Vt = np.linalg.svd(sum(w @ m.T for w, m in zip(world, model, strict=True)))
-    D = np.eye(3)
-    D[2, 2] = np.sign(np.linalg.det(U @ Vt))
-    return U @ D @ Vt
+    sim = pycolmap.estimate_sim3d(src, dst)
+    if sim is None:  # (degenerate centres: all in one point)
+        raise UserError("COLMAP's registered cameras all lie in one point: they cannot be aligned to the truth")
+    return float(sim.scale), np.asarray(sim.rotation.matrix()), np.asarray(sim.translation)
 
 
 def _reprojection(model: Any, image: Any) -> float | None:

@@ -19,7 +19,14 @@ import numpy as np
 from agrisim.errors import UserError
 from agrisim.scene.colour import linear_to_srgb, srgb_to_linear
 from agrisim.scene.model import Mesh, Plant, PointSet
-from agrisim.scene.texturing import interpolate_uv, labels_at_samples, opaque_samples, sample_nearest, sample_surface
+from agrisim.scene.texturing import (
+    interpolate,
+    interpolate_uv,
+    labels_at_samples,
+    opaque_samples,
+    sample_nearest,
+    sample_surface,
+)
 
 #: Most points a plant may have. A traced point costs about 200 bytes (its sphere in the
 #: tracer, its bounding box in the hierarchy, its colour, label and instance), so this bounds a
@@ -65,9 +72,7 @@ def albedo_at_samples(mesh: Mesh, faces: np.ndarray, bary: np.ndarray) -> np.nda
     uv = interpolate_uv(mesh, faces, bary) if mesh.uvs is not None else np.zeros((len(faces), 2))
     tint = np.ones((len(faces), 3))
     if mesh.colors is not None:
-        tri, w1, w2 = mesh.faces[faces], bary[:, 0:1], bary[:, 1:2]
-        c = mesh.colors.astype(np.float64)
-        tint = (1.0 - w1 - w2) * c[tri[:, 0]] + w1 * c[tri[:, 1]] + w2 * c[tri[:, 2]]
+        tint = interpolate(mesh, mesh.colors.astype(np.float64), faces, bary)
     mats = mesh.face_material[faces]
     for i in np.unique(mats):
         sel = np.flatnonzero(mats == i)

@@ -25,14 +25,18 @@ def sample_nearest(image: np.ndarray, uv: np.ndarray) -> np.ndarray:
     return image[rows, cols]
 
 
-def interpolate_uv(mesh: Mesh, faces: np.ndarray, bary: np.ndarray) -> np.ndarray:
-    """UVs at points given by face indices (K,) and barycentric (u, v) of Open3D/Embree
-    convention: point = (1 - u - v) * A + u * B + v * C."""
-    assert mesh.uvs is not None
+def interpolate(mesh: Mesh, values: np.ndarray, faces: np.ndarray, bary: np.ndarray) -> np.ndarray:
+    """Per-vertex ``values`` (N x C) at points given by face indices (K,) and barycentric
+    (u, v) of Open3D/Embree convention: point = (1 - u - v) * A + u * B + v * C."""
     tri = mesh.faces[faces]
     w1, w2 = bary[:, 0:1], bary[:, 1:2]
-    uv = mesh.uvs
-    return (1.0 - w1 - w2) * uv[tri[:, 0]] + w1 * uv[tri[:, 1]] + w2 * uv[tri[:, 2]]
+    return (1.0 - w1 - w2) * values[tri[:, 0]] + w1 * values[tri[:, 1]] + w2 * values[tri[:, 2]]
+
+
+def interpolate_uv(mesh: Mesh, faces: np.ndarray, bary: np.ndarray) -> np.ndarray:
+    """UVs at points given by face indices and barycentrics (:func:`interpolate`)."""
+    assert mesh.uvs is not None
+    return interpolate(mesh, mesh.uvs, faces, bary)
 
 
 def opaque(material: Material, uv: np.ndarray) -> np.ndarray:
