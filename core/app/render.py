@@ -35,6 +35,7 @@ from agrisim.files.exr import write_exr
 from agrisim.files.point_cloud import load_point_plant
 from agrisim.files.rundir import camera_from_json, read_json, read_run
 from agrisim.files.scene_glb import read_scene
+from agrisim.interfaces import CameraModel, Renderer
 
 RENDER_JSON = "render.json"
 #: files of the source not carried into a re-rendered dataset (they show the old RGB)
@@ -169,6 +170,14 @@ class RenderPlan:
             raise OutputError(f"--out {out} already exists; pass --overwrite to replace it")
         return []
 
+    def renderer(self) -> tuple[Renderer, CameraModel]:
+        """The renderer, on the saved scene, and the run's camera."""
+        scene = read_scene(self.scene_path)
+        if self.points_path.is_file():  # the plant as drawn: points, saved beside the scene
+            scene.points = load_point_plant(self.points_path, place=False, up="z").points
+        renderer = self.spec.factory(scene, None, self.config.render, self.options)
+        return renderer, camera_from_json(self.cameras["intrinsics"])
+
     def run(self, progress: Callable[[int, int], None] | None = None) -> Path:
         """Re-render every frame not done yet; returns the output directory."""
         out = self.out
@@ -179,12 +188,8 @@ class RenderPlan:
             _carry(self.run_dir, out)
         record: dict[str, Any] = dict(self.record, status="running", frames_done=list(self.done))
         write_json(out / RENDER_JSON, record)
-        scene = read_scene(self.scene_path)
-        if self.points_path.is_file():  # the plant as drawn: points, saved beside the scene
-            scene.points = load_point_plant(self.points_path, place=False, up="z").points
         settings = self.config.render
-        renderer = self.spec.factory(scene, None, settings, self.options)
-        camera = camera_from_json(self.cameras["intrinsics"])
+        renderer, camera = self.renderer()
         todo = [f for f in self.frames if f not in set(self.done)]
 
         def save(frame: str, rgb: np.ndarray, radiance: np.ndarray | None) -> None:

@@ -195,3 +195,39 @@ def test_a_replaced_folder_keeps_nothing_stale(tmp_path: Path) -> None:
         "test/b.png",
     ]
     assert (tmp_path / "splat" / "split.json").read_bytes() == b"[]"
+
+
+@pytest.mark.parametrize("share", [0.0, 0.5, 1.0])
+def test_plant_init_draws_its_share_of_the_initial_gaussians_on_the_plant(runs: dict[bool, Path], share: float) -> None:
+    """``plant_init``: that share of the initial Gaussians lies on the true plant surface (the
+    saved scene's plant mesh, Open3D's distance to it), the rest on the whole image, where the
+    plant has its share of the pixels."""
+    import json
+
+    from agrisim.evaluation.views import load_view
+    from agrisim.files import layout
+    from agrisim.files.rundir import camera_from_json
+    from agrisim.files.scene_glb import read_scene
+    from agrisim.plugins.recon.splat.options import SplatOptions
+    from agrisim.plugins.recon.splat.reconstructor import SplatReconstructor
+
+    run = runs[True]
+    cameras = json.loads((run / layout.CAMERAS_JSON).read_text())
+    camera = camera_from_json(cameras["intrinsics"])
+    views = [load_view(run, f, camera, np.asarray(d["world_T_camera"])) for f, d in cameras["frames"].items()]
+    plant_pixels = np.mean([np.mean(v.images.labels != 0) for v in views])
+    assert 0.02 < plant_pixels < 0.5
+    scene = read_scene(run / layout.SCENE_GLB)
+    surface = scene.plant_surface()
+    assert surface is not None
+    rec = SplatReconstructor(scene.labels, SplatOptions(plant_init=share, init_points=1000))
+    points, colors = rec._initial_points(views, np.random.default_rng(0))
+    assert points.shape == (1000, 3) and colors.shape == (1000, 3)
+    import open3d as o3d
+
+    surfaces = o3d.t.geometry.RaycastingScene()
+    surfaces.add_triangles(surface.vertices.astype(np.float32), surface.faces.astype(np.uint32))
+    distance = surfaces.compute_distance(points.astype(np.float32)).numpy()
+    on_plant = np.mean(distance < 0.003)  # depth is stored in whole millimetres
+    expected = share + (1 - share) * plant_pixels
+    assert abs(on_plant - expected) < 0.06, (on_plant, expected)

@@ -13,6 +13,7 @@ from __future__ import annotations
 import io
 import json
 import sys
+from collections.abc import Callable
 
 import numpy as np
 from PIL import Image
@@ -74,15 +75,30 @@ class SplatReconstructor(Reconstructor):
             centres = np.array([v.world_T_camera[:3, 3] for v in train])
             lo, hi = centres.min(axis=0), centres.max(axis=0)
             return rng.uniform(lo, hi, (o.init_points, 3)), rng.integers(0, 256, (o.init_points, 3), dtype=np.uint8)
-        per_view = -(-4 * o.init_points // len(train))
+        on_plant = round(o.init_points * o.plant_init)
+        p_all, c_all = self._depth_points(
+            train, lambda v: np.ones(v.images.depth.shape, bool), o.init_points - on_plant, rng
+        )
+        p_plant, c_plant = self._depth_points(train, lambda v: v.images.labels != 0, on_plant, rng)
+        return np.concatenate([p_all, p_plant]), np.concatenate([c_all, c_plant])
+
+    @staticmethod
+    def _depth_points(
+        views: list[View], mask: Callable[[View], np.ndarray], count: int, rng: np.random.Generator
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """``count`` points (and colours) back-projected from the true depth of the pixels in
+        ``mask(view)``, drawn evenly over the views' pixels."""
+        if count == 0:
+            return np.zeros((0, 3)), np.zeros((0, 3), np.uint8)
+        per_view = -(-4 * count // len(views))
         points, colors = [], []
-        for v in train:
-            p, c = backproject(v, np.ones(v.images.depth.shape, bool), np.inf)
+        for v in views:
+            p, c = backproject(v, mask(v), np.inf)
             keep = rng.choice(len(p), min(per_view, len(p)), replace=False)
             points.append(p[keep])
             colors.append(c[keep])
         p, c = np.concatenate(points), np.concatenate(colors)
-        keep = rng.choice(len(p), min(o.init_points, len(p)), replace=False)
+        keep = rng.choice(len(p), min(count, len(p)), replace=False)
         return p[keep], c[keep]
 
     def _vote_labels(self, centres: np.ndarray) -> np.ndarray:
@@ -108,6 +124,12 @@ class SplatReconstructor(Reconstructor):
         label = votes.argmax(axis=1)
         label[votes.sum(axis=1) == 0] = -1
         return label
+
+    def _small_depth(self, depth: np.ndarray) -> np.ndarray:
+        """Depth at the training resolution: the block mean where the whole block was hit, else 0."""
+        k = self.options.downscale
+        whole = downscale_image((depth > 0).astype(np.float32), k) == 1.0
+        return np.where(whole, downscale_image(depth, k), 0.0).astype(np.float32)
 
     def result(self) -> Reconstruction:
         from . import train as gs  # PyTorch and gsplat: only here
@@ -139,7 +161,20 @@ class SplatReconstructor(Reconstructor):
                 print(f"splat: step {step}/{total}", file=sys.stderr, flush=True)
 
         images = [small(v.images.rgb) for v in train]
-        splats = gs.fit(images, viewmats, Ks, init_points, init_colors, scene_scale, o, report)
+        splats = gs.fit(
+            images,
+            viewmats,
+            Ks,
+            init_points,
+            init_colors,
+            scene_scale,
+            o,
+            report,
+            depths=[self._small_depth(v.images.depth) for v in train] if o.depth_weight > 0 else None,
+            masks=[downscale_image((v.images.labels != 0).astype(np.float32), o.downscale) for v in train]
+            if o.plant_weight != 1.0
+            else None,
+        )
 
         # -- held-out views: image quality and depth --------------------------------------
         params = gs.params_from_splats(splats)

@@ -84,6 +84,7 @@ def render(
     sh_degree: int,
     background: torch.Tensor | None = None,
     depth: bool = False,
+    absgrad: bool = False,
 ) -> tuple[torch.Tensor, torch.Tensor | None, torch.Tensor, dict]:
     """(RGB H x W x 3, expected planar depth H x W or None, alpha H x W, gsplat's info) of
     one view."""
@@ -100,6 +101,7 @@ def render(
         sh_degree=sh_degree,
         render_mode="RGB+ED" if depth else "RGB",
         packed=False,  # as gsplat's trainer; the strategy's statistics below assume it
+        absgrad=absgrad,
     )
     rgb, alpha = colors[0, ..., :3], alphas[0, ..., 0]
     if background is not None:  # composited here: gsplat 1.5.3 refuses backgrounds when packed
@@ -140,13 +142,27 @@ def fit(
     scene_scale: float,
     options: SplatOptions,
     progress: Callable[[int, int], None] | None = None,
+    depths: list[np.ndarray] | None = None,
+    masks: list[np.ndarray] | None = None,
 ) -> Splats:
     """Train Gaussians on ``images`` (H x W x 3 uint8, gsplat cameras ``viewmats`` and ``Ks``)
-    from ``init_points`` (M x 3, world) with ``init_colors`` (M x 3 uint8)."""
+    from ``init_points`` (M x 3, world) with ``init_colors`` (M x 3 uint8). ``depths`` (H x W
+    planar depth, m, 0 where nothing was hit) and ``masks`` (H x W, True on the plant) are
+    needed where ``options.depth_weight`` and ``options.plant_weight`` use them."""
     device = "cuda"
     torch.manual_seed(options.seed)
     generator = torch.Generator().manual_seed(options.seed)
     gt = [torch.as_tensor(im, device=device) for im in images]
+    use_depth, use_mask = options.depth_weight > 0.0, options.plant_weight != 1.0
+    if (use_depth and depths is None) or (use_mask and masks is None):
+        raise ValueError("depth_weight needs the views' depths and plant_weight their plant masks")
+    gt_depth = [torch.as_tensor(d, dtype=torch.float32, device=device) for d in depths] if use_depth else []
+    # per-pixel L1 weights, 1 off the plant
+    weights = (
+        [1.0 + (options.plant_weight - 1.0) * torch.as_tensor(m, dtype=torch.float32, device=device) for m in masks]
+        if use_mask
+        else []
+    )
     height, width = images[0].shape[:2]
     vm = torch.as_tensor(viewmats, dtype=torch.float32, device=device)
     ks = torch.as_tensor(Ks, dtype=torch.float32, device=device)
@@ -178,7 +194,11 @@ def fit(
         for name, lr in lrs.items()
     }
     decay = torch.optim.lr_scheduler.ExponentialLR(optimizers["means"], gamma=0.01 ** (1.0 / options.iterations))
-    strategy = DefaultStrategy(verbose=False)
+    strategy = (
+        DefaultStrategy(verbose=False, absgrad=True, grow_grad2d=0.0008)  # AbsGS's threshold
+        if options.absgrad
+        else DefaultStrategy(verbose=False)
+    )
     strategy.check_sanity(params, optimizers)
     state = strategy.initialize_state(scene_scale=scene_scale)
 
@@ -194,13 +214,27 @@ def fit(
             background = torch.rand(3, generator=generator).to(device)
         else:
             background = torch.full((3,), 1.0 if options.background == "white" else 0.0, device=device)
-        image, _, _, info = render(
-            params, vm[i], ks[i], width, height, min(step // 1000, options.sh_degree), background
+        image, depth, _, info = render(
+            params,
+            vm[i],
+            ks[i],
+            width,
+            height,
+            min(step // 1000, options.sh_degree),
+            background,
+            depth=use_depth,
+            absgrad=options.absgrad,
         )
         strategy.step_pre_backward(params, optimizers, state, step, info)
-        l1 = F.l1_loss(image, target)
+        error = (image - target).abs()
+        l1 = (error * weights[i][..., None]).mean() if use_mask else error.mean()
         ssim = _ssim(image.permute(2, 0, 1)[None], target.permute(2, 0, 1)[None])
         loss = (1.0 - options.ssim_weight) * l1 + options.ssim_weight * (1.0 - ssim)
+        if use_depth:
+            assert depth is not None
+            truth = gt_depth[i]
+            hit = truth > 0
+            loss = loss + options.depth_weight * ((depth[hit] - truth[hit]).abs() / truth[hit]).mean()
         loss.backward()
         for opt in optimizers.values():
             opt.step()

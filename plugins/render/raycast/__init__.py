@@ -126,6 +126,7 @@ def agrisim_renderers() -> list[BackendSpec]:
                 soft_shadows=True,
                 supersampling=True,
                 points=True,
+                rerender=True,
             ),
         )
     ]

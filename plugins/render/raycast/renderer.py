@@ -121,6 +121,15 @@ class RaycastRenderer(Renderer):
         images = {k: (v[0] if len(v) == 1 else np.concatenate(v)) if v else None for k, v in parts.items()}
         return Frame(**images)
 
+    def render_rgb(
+        self,
+        camera: CameraModel,
+        world_T_camera: np.ndarray,
+        link_poses: Mapping[str, Mapping[str, np.ndarray]],
+    ) -> tuple[np.ndarray, np.ndarray | None]:
+        # the labels and depth come with the RGB at little cost: one pass draws all three
+        return self.render(camera, world_T_camera, link_poses).rgb, None
+
     def arm_meshes(self) -> dict[str, list[tuple[str, Mesh]]]:
         if self.hide_robots:
             return {}
