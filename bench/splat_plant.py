@@ -35,6 +35,8 @@ from PIL import Image
 
 from agrisim.app.arguments import apply_sets, parse_value
 from agrisim.app.render import RenderPlan
+from agrisim.evaluation.photogrammetry import estimated_poses
+from agrisim.evaluation.session import capture_order
 from agrisim.evaluation.views import load_depth
 from agrisim.files import layout
 from agrisim.files.encoding import mm_to_depth
@@ -72,12 +74,18 @@ def drawn_views(run: Path, renderer: str, overrides: dict) -> list[View]:
     return views
 
 
-def stored_views(run: Path) -> list[View]:
-    """The run's views as stored, its RGB from PNG or (a packed carry) WebP."""
+def stored_views(run: Path, poses: str = "truth") -> list[View]:
+    """The run's views as stored, in capture order (as ``agrisim recon`` takes them), its RGB
+    from PNG or (a packed carry) WebP; with ``poses = "colmap"`` only the views COLMAP placed,
+    at its poses (``agrisim colmap``'s poses.json)."""
     cameras = json.loads((run / layout.CAMERAS_JSON).read_text())
     camera = camera_from_json(cameras["intrinsics"])
+    if poses == "colmap":
+        at = estimated_poses(run)
+    else:
+        at = {f: np.asarray(d["world_T_camera"], np.float64) for f, d in cameras["frames"].items()}
     views = []
-    for frame, doc in cameras["frames"].items():
+    for frame in capture_order(json.loads((run / layout.RUN_JSON).read_text()), at):
         webp = run / "rgb" / f"{frame}.webp"
         rgb = np.asarray(Image.open(webp if webp.is_file() else layout.image(run, "rgb", frame)).convert("RGB"))
         labels = np.asarray(Image.open(layout.image(run, "labels", frame)))
@@ -87,8 +95,7 @@ def stored_views(run: Path) -> list[View]:
             depth = mm_to_depth(np.cumsum(rows, axis=1, dtype=np.int32).astype(np.uint16))
         else:
             depth = load_depth(run, frame)
-        images = Frame(rgb, labels, depth)
-        views.append(View(frame, camera, np.asarray(doc["world_T_camera"], np.float64), images))
+        views.append(View(frame, camera, at[frame], Frame(rgb, labels, depth)))
     return views
 
 
@@ -99,6 +106,9 @@ def pack(run: Path, carry: Path) -> None:
     for name in (layout.RUN_JSON, layout.CAMERAS_JSON):
         shutil.copy2(run / name, carry / name)
     shutil.copytree(run / "labels", carry / "labels")
+    if (run / layout.COLMAP / "poses.json").is_file():
+        (carry / layout.COLMAP).mkdir()
+        shutil.copy2(run / layout.COLMAP / "poses.json", carry / layout.COLMAP / "poses.json")
     (carry / "depth").mkdir()
     for png in sorted((run / "depth").glob("*.png")):  # row differences, xz: 0.09 against 0.16 MB a view
         mm = np.asarray(Image.open(png)).astype(np.int32)
@@ -145,11 +155,19 @@ def figures(views: list[View], files: dict[str, bytes], metrics: dict, folder: P
 def train(args: argparse.Namespace) -> None:
     overrides: dict = {}
     apply_sets(overrides, args.sets)
+    for poses in args.poses:
+        if args.draw and poses != "truth":
+            raise SystemExit("--draw draws the views at their true poses only")
+        views = drawn_views(args.run, args.draw, overrides) if args.draw else stored_views(args.run, poses)
+        plant_share = np.mean([np.mean(v.images.labels != 0) for v in views])
+        print(f"{poses} poses: {len(views)} views; plant pixels {100 * plant_share:.1f}% of the image", flush=True)
+        variants = [(f"{n}-{poses}" if len(args.poses) > 1 else n, o) for n, o in args.variants]
+        train_variants(args, views, variants, {"poses": poses, "draw": args.draw, "render_options": overrides})
+
+
+def train_variants(args: argparse.Namespace, views: list[View], variants: list[tuple[str, dict]], about: dict) -> None:
     labels = LabelTable.from_json(json.loads((args.run / layout.RUN_JSON).read_text())["labels"])
-    views = drawn_views(args.run, args.draw, overrides) if args.draw else stored_views(args.run)
-    plant_share = np.mean([np.mean(v.images.labels != 0) for v in views])
-    print(f"{len(views)} views; plant pixels: {100 * plant_share:.1f}% of the image on average", flush=True)
-    for name, options in args.variants:
+    for name, options in variants:
         rec = SplatReconstructor(labels, SplatOptions(**options))
         for v in views:
             rec.integrate(v)
@@ -165,7 +183,7 @@ def train(args: argparse.Namespace) -> None:
         )
         if args.out is not None:
             args.out.mkdir(parents=True, exist_ok=True)
-            doc = {"options": options, "draw": args.draw, "render_options": overrides, "splat": m}
+            doc = {"options": options, **about, "splat": m}
             (args.out / f"{name}.json").write_text(json.dumps(doc, indent=1) + "\n")
             if name in args.files:
                 figures(views, result.files, m, args.out / name)
@@ -180,6 +198,7 @@ def main() -> None:
     t.add_argument("--set", dest="sets", action="append", default=[], help="renderer.* KEY=VALUE for --draw")
     t.add_argument("--variant", dest="variants", action="append", type=variant, required=True)
     t.add_argument("--out", type=Path)
+    t.add_argument("--poses", nargs="+", choices=["truth", "colmap"], default=["truth"], help="train on these poses")
     t.add_argument("--files", action="append", default=[], help="variants whose files are kept")
     p = sub.add_parser("pack")
     p.add_argument("run", type=Path)

@@ -1,28 +1,26 @@
 """The paper's Table 2, right-hand columns: Gaussian splatting (the ``splat`` reconstructor) on
 every species' hidden-arm run, held-out PSNR and SSIM beside the paper's nerfacto numbers, with
-the geometry columns the paper could not measure. Prints figures; asserts nothing.
+the plant and geometry columns the paper could not measure, on true poses and on COLMAP's.
+Prints figures; asserts nothing.
 
-Three stages, because the views are labelled and measured on the CPU (Open3D) and rendered and
-trained on a GPU machine that takes a small carry:
+The views are made on the CPU (a run, its views path-traced again by ``agrisim render`` at the
+mitsuba defaults, denoised, and COLMAP's poses of those) and packed for a GPU machine, where
+``bench/splat_plant.py`` trains on them, one species a call (a pack is 40-50 MB of a 64 MiB
+carry):
 
-    python bench/splat_table.py prepare DIR [--species ...]   # CPU: runs, split into a carry
-    python bench/splat_table.py gpu DIR WORK [--species ...]  # GPU: agrisim render + recon
-    python bench/splat_table.py table METRICS_DIR             # the table, as Markdown
+    python bench/splat_table.py prepare DIR CARRY [--species ...]   # CPU: DIR/<s>/..., CARRY/<s>
+    python bench/splat_plant.py train CARRY/<s> --variant <s> --poses truth colmap --out M  # GPU
+    python bench/splat_table.py table M                            # the tables, as Markdown
 
-``prepare`` runs ``agrisim run --hide-robots --renderer raycast --recon none`` (100 setpoints,
-960x540) per species into DIR/<species>/full and writes DIR/<species>/run (the saved scene and
-cameras; empty RGB, label and depth files) and DIR/<species>/truth (the label and depth PNGs),
-so that a carry holds the run without its images (the RGB is re-rendered there) and the truth
-travels in a second carry. ``gpu --step render`` re-renders each run with Mitsuba (64 samples
-per pixel, no denoiser); ``gpu --step train`` puts the truth back, trains and measures with
-``agrisim recon --recon splat`` and copies each ``metrics.json`` to WORK/metrics/<species>.json.
+``prepare`` runs ``agrisim run --hide-robots --recon none`` (raycast, 100 setpoints, 960x540)
+into DIR/<s>/full where it is not there yet, re-renders it into DIR/<s>/mitsuba, runs
+``agrisim colmap`` on that, and packs it (``splat_plant.py pack``) into CARRY/<s>.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
-import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -45,58 +43,28 @@ def agrisim(*args: str) -> None:
     subprocess.run([sys.executable, "-c", code], check=True)
 
 
-def prepare(root: Path, species: list[str], resolution: str) -> None:
+def prepare(root: Path, carry: Path, species: list[str], resolution: str) -> None:
+    from splat_plant import pack
+
     for s in species:
-        full = root / s / "full"
+        full, views = root / s / "full", root / s / "mitsuba"
         if not (full / "run.json").is_file():
             agrisim("run", "--plant", s, "--hide-robots", "--resolution", resolution, "--recon", "none",
                     "--no-rrd", "--physics", "kinematic", "--out", str(full))  # fmt: skip
-        run, truth = root / s / "run", root / s / "truth"
-        shutil.rmtree(run, ignore_errors=True)
-        shutil.rmtree(truth, ignore_errors=True)
-        run.mkdir(parents=True)
-        for name in ("run.json", "cameras.json"):
-            shutil.copy2(full / name, run / name)
-        shutil.copytree(full / "scene", run / "scene")
-        for folder in ("labels", "depth"):
-            shutil.copytree(full / folder, truth / folder)
-        for folder in ("rgb", "labels", "depth"):
-            (run / folder).mkdir()
-            for png in (full / folder).glob("*.png"):
-                (run / folder / png.name).touch()
-        size = lambda d: sum(p.stat().st_size for p in d.rglob("*") if p.is_file()) / 1e6  # noqa: E731
-        print(f"{s}: carry {size(run):.1f} MB + truth {size(truth):.1f} MB")
-
-
-def gpu(root: Path, work: Path, species: list[str], step: str) -> None:
-    (work / "metrics").mkdir(parents=True, exist_ok=True)
-    for s in species:
-        out = work / s
-        if step in ("render", "both"):
-            shutil.rmtree(out, ignore_errors=True)
-            agrisim("render", str(root / s / "run"), "--out", str(out),
-                    "--set", "renderer.mitsuba.spp=64", "--set", "renderer.mitsuba.denoise=off")  # fmt: skip
-        if step in ("train", "both"):
-            for folder in ("labels", "depth"):
-                for png in (root / s / "truth" / folder).glob("*.png"):
-                    shutil.copy2(png, out / folder / png.name)
-            agrisim("recon", str(out), "--recon", "splat", "--overwrite")
-            shutil.copy2(out / "metrics.json", work / "metrics" / f"{s}.json")
-            m = json.loads((out / "metrics.json").read_text())["splat"]
-            print(
-                s,
-                json.dumps({k: m[k] for k in ("psnr", "ssim", "psnr_plant", "gaussians", "train_seconds")}),
-                flush=True,
-            )
+        agrisim("render", str(full), "--out", str(views))  # resumes an interrupted one
+        if not (views / "colmap" / "poses.json").is_file():
+            agrisim("colmap", str(views))
+        if not (carry / s).exists():
+            pack(views, carry / s)
 
 
 def table(folder: Path) -> None:
     print(
-        "| plant | PSNR | SSIM | paper PSNR | paper SSIM | plant PSNR | depth error median / p90, mm | centres precision / recall @2mm | Gaussians | training s |"
+        "| plant | PSNR | SSIM | paper PSNR | paper SSIM | plant PSNR | plant depth error median / p90, mm | centres precision / recall @2mm | Gaussians | training s |"
     )
     print("|---|---|---|---|---|---|---|---|---|---|")
     for s in SPECIES:
-        path = folder / f"{s}.json"
+        path = folder / f"{s}-truth.json"
         if not path.is_file():
             continue
         m = json.loads(path.read_text())["splat"]
@@ -104,7 +72,25 @@ def table(folder: Path) -> None:
         p = PAPER[s]
         print(
             f"| {s.replace('_', ' ')} | {m['psnr']:.2f} | {m['ssim']:.3f} | {p[0]:.2f} | {p[1]:.3f} | {m['psnr_plant']:.2f} "
-            f"| {d['median']:.0f} / {d['p90']:.0f} | {g['precision@2mm']:.3f} / {g['recall@2mm']:.3f} | {m['gaussians']:,} | {m['train_seconds']:.0f} |"
+            f"| {d['median']:.1f} / {d['p90']:.0f} | {g['precision@2mm']:.3f} / {g['recall@2mm']:.3f} | {m['gaussians']:,} | {m['train_seconds']:.0f} |"
+        )
+    print()
+    print("| plant | views placed by COLMAP | PSNR true / COLMAP poses | SSIM | plant PSNR | plant recall @2mm |")
+    print("|---|---|---|---|---|---|")
+    for s in SPECIES:
+        paths = [folder / f"{s}-{poses}.json" for poses in ("truth", "colmap")]
+        if not all(p.is_file() for p in paths):
+            continue
+        t, c = (json.loads(p.read_text())["splat"] for p in paths)
+        placed = c["train_views"] + c["test_views"]
+
+        def pair(key: str, f: str, t: dict = t, c: dict = c) -> str:
+            return f"{t[key]:{f}} / {c[key]:{f}}"
+
+        recall = f"{t['geometry']['recall@2mm']:.3f} / {c['geometry']['recall@2mm']:.3f}"
+        print(
+            f"| {s.replace('_', ' ')} | {placed} | {pair('psnr', '.2f')} | {pair('ssim', '.3f')} "
+            f"| {pair('psnr_plant', '.2f')} | {recall} |"
         )
 
 
@@ -113,20 +99,14 @@ def main() -> None:
     sub = parser.add_subparsers(dest="command", required=True)
     p = sub.add_parser("prepare")
     p.add_argument("root", type=Path)
+    p.add_argument("carry", type=Path)
     p.add_argument("--species", nargs="+", default=SPECIES)
     p.add_argument("--resolution", default="960x540")
-    g = sub.add_parser("gpu")
-    g.add_argument("root", type=Path)
-    g.add_argument("work", type=Path)
-    g.add_argument("--species", nargs="+", default=SPECIES)
-    g.add_argument("--step", choices=["render", "train", "both"], default="both")
     t = sub.add_parser("table")
     t.add_argument("folder", type=Path)
     args = parser.parse_args()
     if args.command == "prepare":
-        prepare(args.root, args.species, args.resolution)
-    elif args.command == "gpu":
-        gpu(args.root, args.work, args.species, args.step)
+        prepare(args.root, args.carry, args.species, args.resolution)
     else:
         table(args.folder)
 

@@ -9,7 +9,7 @@ the same session. :func:`write_reconstruction` writes ``clouds/`` and ``metrics.
 from __future__ import annotations
 
 import importlib.util
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from pathlib import Path
 from typing import Any
 
@@ -200,6 +200,14 @@ def truth_from_run(run_dir: Path, samples: int, seed: int = 0) -> GroundTruth | 
     return None
 
 
+def capture_order(run: dict[str, Any], frames: Iterable[str]) -> list[str]:
+    """``frames`` in the order they were captured: as run.json's results list them, then any
+    others by name."""
+    wanted = set(frames)
+    order = [r["frame"] for r in run.get("results", []) if r.get("frame") in wanted]
+    return order + sorted(wanted - set(order))
+
+
 def rebuild(
     run_dir: Path,
     recon: Reconstructor,
@@ -218,10 +226,7 @@ def rebuild(
     frames = cameras["frames"]
     if poses is None:
         poses = {name: np.asarray(frame["world_T_camera"], float) for name, frame in frames.items()}
-    # capture order: the order run.json's results list the frames in
-    order = [r["frame"] for r in run.get("results", []) if r.get("frame") in frames]
-    order += sorted(set(frames) - set(order))
-    order = [name for name in order if name in poses]
+    order = [name for name in capture_order(run, frames) if name in poses]
     for i, name in enumerate(order):
         session.add(load_view(run_dir, name, camera, poses[name]))
         if progress:
