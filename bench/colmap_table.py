@@ -4,7 +4,11 @@ camera centre and rotation errors against the truth, reprojection error, COLMAP'
 Prints the CPU model first; asserts nothing. Each run goes to OUT/<plant>[-arms]/.
 
     python bench/colmap_table.py OUT [--plants coltsfoot boston_fern ...] [--resolution 960x540]
-        [--shadow-samples 8] [--arms] [--matcher exhaustive] [-- EXTRA agrisim run FLAGS]
+        [--shadow-samples 8] [--arms] [--matcher exhaustive] [--rerender] [-- EXTRA agrisim run FLAGS]
+
+``--rerender``: COLMAP on the run's views path-traced again by ``agrisim render`` (mitsuba at its
+defaults, denoised) into OUT/<plant>[-arms]-mitsuba, the views a user of the photoreal renderer
+would make.
 """
 
 from __future__ import annotations
@@ -35,11 +39,13 @@ def main() -> None:
     parser.add_argument("--shadow-samples", type=int, default=8)
     parser.add_argument("--arms", action="store_true", help="leave the arms in view (default: hidden)")
     parser.add_argument("--matcher", default="exhaustive")
+    parser.add_argument("--rerender", action="store_true", help="COLMAP on the views path-traced by mitsuba")
     parser.add_argument("extra", nargs="*", help="more agrisim run flags, after --")
     args = parser.parse_args()
     agrisim = [sys.executable, "-m", "agrisim"]
     print(
-        f"CPU: {cpu_model()}; raycast, {args.resolution}, {args.shadow_samples} shadow rays a pixel, "
+        f"CPU: {cpu_model()}; raycast, {args.resolution}, {args.shadow_samples} shadow rays a pixel"
+        f"{', path-traced again by agrisim render (mitsuba defaults)' if args.rerender else ''}, "
         f"arms {'in view' if args.arms else 'hidden'}; COLMAP {args.matcher} matching, the run's intrinsics"
     )
     print(
@@ -59,6 +65,12 @@ def main() -> None:
                 check=True,
                 capture_output=True,
             )
+        if args.rerender:
+            views = run.with_name(run.name + "-mitsuba")
+            done = views / "render.json"
+            if not (done.is_file() and json.loads(done.read_text()).get("status") == "complete"):
+                subprocess.run([*agrisim, "render", str(run), "--out", str(views)], check=True, capture_output=True)
+            run = views
         t0 = time.perf_counter()
         subprocess.run(
             [*agrisim, "colmap", str(run), "--matcher", args.matcher, "--overwrite"], check=True, capture_output=True
