@@ -147,8 +147,9 @@ def fit(
 ) -> Splats:
     """Train Gaussians on ``images`` (H x W x 3 uint8, gsplat cameras ``viewmats`` and ``Ks``)
     from ``init_points`` (M x 3, world) with ``init_colors`` (M x 3 uint8). ``depths`` (H x W
-    planar depth, m, 0 where nothing was hit) and ``masks`` (H x W, True on the plant) are
-    needed where ``options.depth_weight`` and ``options.plant_weight`` use them."""
+    planar depth, m, 0 where nothing was hit) and ``masks`` (H x W, the plant's share of each
+    pixel, 0 to 1) are needed where ``options.depth_weight`` and ``options.plant_weight`` use
+    them."""
     device = "cuda"
     torch.manual_seed(options.seed)
     generator = torch.Generator().manual_seed(options.seed)
