@@ -10,6 +10,8 @@ carry):
 
     python bench/splat_table.py prepare DIR CARRY [--species ...]   # CPU: DIR/<s>/..., CARRY/<s>
     python bench/splat_plant.py train CARRY/<s> --variant <s> --poses truth colmap --out M  # GPU
+    (or the two poses as two processes at once, --variant <s>-truth --poses truth and
+    --variant <s>-colmap --poses colmap: both fit on one H100, in less time)
     python bench/splat_table.py table M                            # the tables, as Markdown
 
 ``prepare`` runs ``agrisim run --hide-robots --recon none`` (raycast, 100 setpoints, 960x540)
