@@ -2,7 +2,7 @@
 VENV ?= .venv
 ARGS ?=
 
-.PHONY: setup run test lint bench lock clean
+.PHONY: setup run test lint bench lock clean ros
 
 setup:
 	bash scripts/setup.sh
@@ -14,6 +14,10 @@ test: setup
 	bash scripts/test-deps.sh
 	VENV=$(VENV) bash scripts/lint.sh
 	$(VENV)/bin/python -m pytest -q tests
+
+# Debian's ROS 1, for agrisim ros --ros 1 (make test installs it too)
+ros:
+	bash scripts/ros-deps.sh
 
 # ruff's lint rules and formatting, and mypy on the core (also the first step of `make test`)
 lint: setup

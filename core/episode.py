@@ -151,10 +151,36 @@ class Episode:
         return spec, options
 
     # ------------------------------------------------------------------ running
-    # Long on purpose: set-up, the step loop and the finally that always reports and closes
-    # read in order; one step is _step.
     def run(self, progress: Callable[[int, int], None] | None = None) -> tuple[Run, RunSummary]:
         """Run the episode; returns the run (with per-setpoint results) and its summary."""
+        run = self.open()
+        status, error = "complete", ""
+        try:
+            self.start()
+            steps = max(len(s) for s in self.setpoints.values())
+            for k in range(steps):
+                self.step(k)
+                if progress:
+                    progress(k + 1, steps)
+            if self._session is not None and self.recon_spec is not None:
+                with self._stage("metrics"), blame("reconstructor", self.recon_spec, " to finish"):
+                    run.reconstruction, run.metrics = self._session.finish(self._metrics_meta())
+        except KeyboardInterrupt:
+            status, error = "interrupted", "interrupted by the user"
+            raise
+        except Exception as exc:
+            status, error = "failed", f"{type(exc).__name__}: {exc}"
+            raise
+        finally:
+            summary = self.close(status, error)
+        return run, summary
+
+    # Long on purpose: the backends, the run and the sinks are built in order, and undone in the
+    # same order when one fails.
+    def open(self) -> Run:
+        """Build the backends, the output directory and the sinks; nothing has moved yet.
+        :meth:`start` puts the arms home, :meth:`step` runs one setpoint, :meth:`close` reports
+        and closes (an episode is opened once)."""
         # Backends first: if one cannot be built, nothing has been written yet.
         with blame("physics", self.physics_spec, " to start"):
             physics: PhysicsBackend = self.registry.build("physics", self.physics_spec, self.cell, self.physics_options)
@@ -226,51 +252,48 @@ class Episode:
         self._physics, self._planner, self._run = physics, planner, run
         self._rng = np.random.default_rng(self.config.seed)
         try:
-            sinks = self._register_sinks(run)
+            self._sinks = self._register_sinks(run)
         except BaseException:
             physics.close()
+            if renderer is not None:
+                renderer.close()
             raise
-        status, error = "complete", ""
+        return run
+
+    def start(self) -> None:
+        """Put every arm at its home and announce the run (``agrisim_run_started``)."""
+        for arm in self.cell.arms:
+            self._physics.reset(arm.name, np.array(arm.home))
+        self.pm.hook.agrisim_run_started(run=self._run)
+
+    def step(self, k: int) -> None:
+        """The ``k``-th setpoint of every arm that has one."""
+        self._step({r: sps[k] for r, sps in self.setpoints.items() if k < len(sps)})
+
+    def close(self, status: str, error: str = "") -> RunSummary:
+        """Announce the end (``agrisim_run_finished``: the run's files are completed) and close
+        the backends and the sinks; ``status`` is complete, interrupted or failed."""
+        run, physics = self._run, self._physics
+        summary = RunSummary(
+            status=status,
+            setpoints=len(run.results),
+            reached=sum(r.reached for r in run.results),
+            failed=sum(not r.reached for r in run.results),
+            collisions=sum(bool(r.contacts) for r in run.results),
+            sim_time=physics.sim_time,
+            wall_s={k: round(v, 4) for k, v in run.wall_s.items()},
+            error=error,
+            metrics=summary_metrics(run.metrics) if run.metrics is not None else None,
+        )
         try:
-            for arm in self.cell.arms:
-                physics.reset(arm.name, np.array(arm.home))
-            self.pm.hook.agrisim_run_started(run=run)
-            steps = max(len(s) for s in self.setpoints.values())
-            for k in range(steps):
-                targets = {r: sps[k] for r, sps in self.setpoints.items() if k < len(sps)}
-                self._step(targets)
-                if progress:
-                    progress(k + 1, steps)
-            if self._session is not None and self.recon_spec is not None:
-                with self._stage("metrics"), blame("reconstructor", self.recon_spec, " to finish"):
-                    run.reconstruction, run.metrics = self._session.finish(self._metrics_meta())
-        except KeyboardInterrupt:
-            status, error = "interrupted", "interrupted by the user"
-            raise
-        except Exception as exc:
-            status, error = "failed", f"{type(exc).__name__}: {exc}"
-            raise
+            self.pm.hook.agrisim_run_finished(run=run, summary=summary)
         finally:
-            summary = RunSummary(
-                status=status,
-                setpoints=len(run.results),
-                reached=sum(r.reached for r in run.results),
-                failed=sum(not r.reached for r in run.results),
-                collisions=sum(bool(r.contacts) for r in run.results),
-                sim_time=physics.sim_time,
-                wall_s={k: round(v, 4) for k, v in run.wall_s.items()},
-                error=error,
-                metrics=summary_metrics(run.metrics) if run.metrics is not None else None,
-            )
-            try:
-                self.pm.hook.agrisim_run_finished(run=run, summary=summary)
-            finally:
-                physics.close()
-                if renderer is not None:
-                    renderer.close()
-                for sink in sinks:
-                    self.pm.unregister(sink)
-        return run, summary
+            physics.close()
+            if self._renderer is not None:
+                self._renderer.close()
+            for sink in self._sinks:
+                self.pm.unregister(sink)
+        return summary
 
     def _register_sinks(self, run: Run) -> list[object]:
         # The run directory's writer first, always: resume, recon, export and compare need its files.

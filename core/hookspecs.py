@@ -3,7 +3,7 @@
 Two families:
 
 * **Providers** (``agrisim_physics``, ``agrisim_renderers``, ``agrisim_planners``,
-  ``agrisim_reconstructors``, ``agrisim_plants``, ``agrisim_sinks``) return a list of
+  ``agrisim_reconstructors``, ``agrisim_plants``, ``agrisim_sinks``, ``agrisim_bridges``) return a list of
   :class:`agrisim.BackendSpec`. Results of all plugins are concatenated; a name provided twice is
   an error naming both distributions. They are called once per run, never in the inner loop.
 * **Events** (``agrisim_run_started`` ... ``agrisim_run_finished``) announce what an episode does.
@@ -82,6 +82,15 @@ def agrisim_sinks() -> list[BackendSpec]:
     Per-run objects keep sinks' state out of module globals. A spec's ``preflight(config,
     options)`` runs while the run is validated, before anything is written (the Rerun sink
     refuses to replace a recording without ``--overwrite`` there)."""
+
+
+@hookspec
+def agrisim_bridges() -> list[BackendSpec]:
+    """Middleware bridges for live sessions (``agrisim ros --ros 1|2`` picks ``ros1`` or
+    ``ros2``). The core calls ``factory(session: LiveSession, options) -> Bridge`` with the
+    opened :class:`agrisim.live.LiveSession` and the bridge's validated options; the bridge
+    registers its own event hook implementations (``agrisim_capture``, to publish views) on
+    ``session.pm``."""
 
 
 # ---------------------------------------------------------------- episode events

@@ -341,3 +341,23 @@ class PlantSpecies(ABC):
     def build(self, seed: int) -> Plant:
         """The plant, in its own frame (origin at the centre of the soil surface, z up), with
         its label table (organ labels where the species has them)."""
+
+
+class Bridge(ABC):
+    """A middleware serving a live session (``agrisim ros``): it turns messages into the
+    session's commands and publishes the arms and the views. Built with the opened session
+    (:class:`agrisim.live.LiveSession`) and its options; :meth:`start` connects, :meth:`close`
+    disconnects."""
+
+    @abstractmethod
+    def start(self) -> None:
+        """Connect, advertise and subscribe; raises :class:`agrisim.errors.UserError` naming
+        what is missing (no ROS master, the middleware not installed)."""
+
+    @abstractmethod
+    def close(self) -> None:
+        """Stop publishing and leave the middleware; safe to call twice."""
+
+    def describe(self) -> list[str]:
+        """One line per topic or service served, for the command line to print."""
+        return []

@@ -13,10 +13,10 @@ from typing import Any, Literal
 
 from pydantic import BaseModel
 
-from agrisim.interfaces import PhysicsBackend, Planner, PlantSpecies, Reconstructor, Renderer
+from agrisim.interfaces import Bridge, PhysicsBackend, Planner, PlantSpecies, Reconstructor, Renderer
 from agrisim.options import Options
 
-Kind = Literal["physics", "renderer", "planner", "reconstructor", "plant", "sink"]
+Kind = Literal["physics", "renderer", "planner", "reconstructor", "plant", "sink", "bridge"]
 
 
 @dataclass(frozen=True)
@@ -49,6 +49,8 @@ KINDS: dict[str, KindInfo] = {
                       "factory(options) -> PlantSpecies"),
     "sink": KindInfo("agrisim_sinks", None, None,
                      "factory(run: Run, options) -> a plugin object with event hooks, or None"),
+    "bridge": KindInfo("agrisim_bridges", None, Bridge,
+                       "factory(session: LiveSession, options) -> Bridge"),
 }  # fmt: skip
 
 #: kind -> provider hook name

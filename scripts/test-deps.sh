@@ -1,8 +1,11 @@
 #!/usr/bin/env bash
 # What the test suite needs beyond the Python lock: a real headless browser for the web viewer
-# tests (tests/e2e/test_web_view.py), Debian's chromium-headless-shell. Installed only for
-# `make test`; `agrisim view` itself needs no browser on the machine that serves.
+# tests (tests/e2e/test_web_view.py), Debian's chromium-headless-shell, and Debian's ROS 1 for the
+# live ROS tests (scripts/ros-deps.sh). Installed only for `make test`; `agrisim view` itself
+# needs no browser on the machine that serves.
 set -euo pipefail
+
+bash "$(dirname "$0")/ros-deps.sh"
 
 if command -v chromium-headless-shell >/dev/null 2>&1 || command -v chromium >/dev/null 2>&1; then
   exit 0

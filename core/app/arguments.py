@@ -44,61 +44,13 @@ def build_parser() -> argparse.ArgumentParser:
     sub.required = True
 
     run = sub.add_parser("run", help="run one episode of the routine", description="Run one episode of the routine.")
-    run.add_argument("--config", type=Path, metavar="TOML", help="configuration file; flags override it")
-    run.add_argument(
-        "--plant",
-        metavar="NAME|PATH",
-        help="species (agrisim plants), a .glb/.gltf/.obj mesh or a .ply/.pcd point cloud",
-    )
-    run.add_argument("--plant-age", type=float, metavar="DAYS", help="age of a growing plant (helios:*), days")
-    run.add_argument(
-        "--plant-seed", type=int, metavar="N", help="grow another individual of the species (default: --seed)"
-    )
-    run.add_argument(
-        "--as-points",
-        type=int,
-        metavar="N",
-        help="draw the plant as N points sampled on its opaque surface (the paper's Table 3)",
-    )
-    run.add_argument(
-        "--point-size",
-        type=float,
-        metavar="M",
-        help="diameter of each point of a point plant, metres (default: one that covers its surface)",
-    )
-    run.add_argument("--seg-mode", choices=["texture", "repopa"], help="segmentation mode (default: texture)")
-    run.add_argument("--labels", choices=["plant", "organs"], help="one plant label, or one per organ (default: plant)")
-    run.add_argument("--renderer", metavar="NAME", help="renderer (default: raycast; none: robots only)")
-    run.add_argument("--shadow-samples", type=int, metavar="N", help="shadow rays per pixel, 0..32 (default: 1)")
-    run.add_argument("--supersample", type=int, metavar="S", help="S x S RGB rays per pixel, 1..4 (default: 1)")
-    run.add_argument("--hide-robots", action="store_true", default=None, help="render without the arms")
-    run.add_argument(
-        "--depth-format",
-        choices=["png16", "exr", "both"],
-        help="depth as uint16 mm PNG, float32 m EXR, or both (default: png16)",
-    )
-    run.add_argument("--pcg-seed", type=int, metavar="N", help="seed of the lab clutter (default: 42)")
-    run.add_argument("--physics", metavar="NAME", help="physics backend (default: pybullet)")
-    run.add_argument("--planner", metavar="NAME", help="motion planner (default: ompl)")
-    run.add_argument("--recon", metavar="NAME", help="reconstructor (default: pointcloud; none: no reconstruction)")
-    run.add_argument("--camera", metavar="PRESET", help="camera preset (default: rpi3-wide-1080p)")
-    run.add_argument("--resolution", metavar="WxH", help="image size (default: the preset's 1920x1080)")
-    run.add_argument("--setpoints", metavar="LxC", help="L levels x C columns per arm (default: 5x10)")
-    run.add_argument("--setpoints-csv", type=Path, metavar="CSV", help="camera poses from a CSV instead")
-    run.add_argument("--arms", type=int, metavar="N", help="1 or 2 arms (default: 2)")
-    run.add_argument("--seed", type=int, metavar="N", help="seed for IK restarts and planners (default: 0)")
-    run.add_argument("--out", type=Path, metavar="DIR", help="output directory (default: runs/<timestamp>)")
-    rec = run.add_mutually_exclusive_group()
-    rec.add_argument("--rrd", type=Path, metavar="PATH", help="Rerun recording path (default: OUT/recording.rrd)")
-    rec.add_argument("--no-rrd", action="store_true", default=None, help="write no Rerun recording")
-    run.add_argument("--spawn", action="store_true", default=None, help="stream to a spawned Rerun viewer")
+    _episode_flags(run)
     run.add_argument(
         "--serve-web",
         action="store_true",
         help="stream the run live to Rerun's web viewer, served here (print its address; after the run, serve until Ctrl-C)",
     )
     _web_flags(run)
-    run.add_argument("--overwrite", action="store_true", default=None, help="replace an existing --out")
     run.add_argument(
         "--resume",
         action="store_true",
@@ -106,6 +58,28 @@ def build_parser() -> argparse.ArgumentParser:
         help="continue the unfinished run in --out with its saved configuration",
     )
     _set_flag(run, "any setting by its dotted name, e.g. physics.pybullet.position_gain=0.5")
+
+    ros = sub.add_parser(
+        "ros",
+        help="serve the cell live over ROS 1 or ROS 2: trajectories in, views on a trigger, topics out",
+        description="Serve a live session of the cell (loaded as agrisim run loads it) over ROS: joint "
+        "trajectories in, views on a trigger, joint states, TF and images out; every view saved to --out.",
+    )
+    ros.add_argument("--ros", choices=["1", "2"], required=True, help="ROS 1 (Debian's rospy) or ROS 2 (Cyclone DDS)")
+    ros.add_argument(
+        "--routine", action="store_true", help="run the paper's setpoints while serving, then go on serving"
+    )
+    ros.add_argument("--rate", type=float, metavar="HZ", help="/joint_states and /tf rate (default: 50)")
+    ros.add_argument(
+        "--real-time-factor",
+        type=float,
+        default=1.0,
+        metavar="F",
+        help="simulated seconds per wall second when replaying motion (default: 1; 0: as fast as it computes)",
+    )
+    _episode_flags(ros)
+    ros.set_defaults(resume=None)
+    _set_flag(ros, "any setting by its dotted name, e.g. physics.pybullet.position_gain=0.5")
 
     plants = sub.add_parser("plants", help="list the plant species: triangles, organs, area cut away by opacity")
     plants.add_argument("--seed", type=int, default=0, metavar="N", help="seed to grow each species with (0)")
@@ -235,6 +209,60 @@ COMPARE_EPISODE_FLAGS: list[tuple[str, str, Any, str]] = [
     ("--seed", "N", int, "seed for IK restarts and planners (default: 0)"),
     ("--pcg-seed", "N", int, "seed of the lab clutter (default: 42)"),
 ]
+
+
+def _episode_flags(parser: argparse.ArgumentParser) -> None:
+    """The flags that load the cell, the plant and the backends (``run`` and ``ros``)."""
+    run = parser
+    run.add_argument("--config", type=Path, metavar="TOML", help="configuration file; flags override it")
+    run.add_argument(
+        "--plant",
+        metavar="NAME|PATH",
+        help="species (agrisim plants), a .glb/.gltf/.obj mesh or a .ply/.pcd point cloud",
+    )
+    run.add_argument("--plant-age", type=float, metavar="DAYS", help="age of a growing plant (helios:*), days")
+    run.add_argument(
+        "--plant-seed", type=int, metavar="N", help="grow another individual of the species (default: --seed)"
+    )
+    run.add_argument(
+        "--as-points",
+        type=int,
+        metavar="N",
+        help="draw the plant as N points sampled on its opaque surface (the paper's Table 3)",
+    )
+    run.add_argument(
+        "--point-size",
+        type=float,
+        metavar="M",
+        help="diameter of each point of a point plant, metres (default: one that covers its surface)",
+    )
+    run.add_argument("--seg-mode", choices=["texture", "repopa"], help="segmentation mode (default: texture)")
+    run.add_argument("--labels", choices=["plant", "organs"], help="one plant label, or one per organ (default: plant)")
+    run.add_argument("--renderer", metavar="NAME", help="renderer (default: raycast; none: robots only)")
+    run.add_argument("--shadow-samples", type=int, metavar="N", help="shadow rays per pixel, 0..32 (default: 1)")
+    run.add_argument("--supersample", type=int, metavar="S", help="S x S RGB rays per pixel, 1..4 (default: 1)")
+    run.add_argument("--hide-robots", action="store_true", default=None, help="render without the arms")
+    run.add_argument(
+        "--depth-format",
+        choices=["png16", "exr", "both"],
+        help="depth as uint16 mm PNG, float32 m EXR, or both (default: png16)",
+    )
+    run.add_argument("--pcg-seed", type=int, metavar="N", help="seed of the lab clutter (default: 42)")
+    run.add_argument("--physics", metavar="NAME", help="physics backend (default: pybullet)")
+    run.add_argument("--planner", metavar="NAME", help="motion planner (default: ompl)")
+    run.add_argument("--recon", metavar="NAME", help="reconstructor (default: pointcloud; none: no reconstruction)")
+    run.add_argument("--camera", metavar="PRESET", help="camera preset (default: rpi3-wide-1080p)")
+    run.add_argument("--resolution", metavar="WxH", help="image size (default: the preset's 1920x1080)")
+    run.add_argument("--setpoints", metavar="LxC", help="L levels x C columns per arm (default: 5x10)")
+    run.add_argument("--setpoints-csv", type=Path, metavar="CSV", help="camera poses from a CSV instead")
+    run.add_argument("--arms", type=int, metavar="N", help="1 or 2 arms (default: 2)")
+    run.add_argument("--seed", type=int, metavar="N", help="seed for IK restarts and planners (default: 0)")
+    run.add_argument("--out", type=Path, metavar="DIR", help="output directory (default: runs/<timestamp>)")
+    rec = run.add_mutually_exclusive_group()
+    rec.add_argument("--rrd", type=Path, metavar="PATH", help="Rerun recording path (default: OUT/recording.rrd)")
+    rec.add_argument("--no-rrd", action="store_true", default=None, help="write no Rerun recording")
+    run.add_argument("--spawn", action="store_true", default=None, help="stream to a spawned Rerun viewer")
+    run.add_argument("--overwrite", action="store_true", default=None, help="replace an existing --out")
 
 
 def set_dotted(tree: dict[str, Any], dotted: str, value: Any) -> None:

@@ -1,5 +1,5 @@
-"""The ``agrisim`` commands: ``run``, ``view``, ``recon``, ``render``, ``plugins``, ``plants``,
-``export`` and ``compare``, each a function of its parsed flags (:mod:`agrisim.app.arguments`
+"""The ``agrisim`` commands: ``run``, ``ros``, ``view``, ``recon``, ``render``, ``plugins``,
+``plants``, ``export``, ``compare`` and ``colmap``, each a function of its parsed flags (:mod:`agrisim.app.arguments`
 declares them).
 
 Bad input exits with status 2 and one line naming the problem; nothing is written. Internal
@@ -71,6 +71,57 @@ def _cmd_run(args: argparse.Namespace) -> int:
         if viewer is not None:
             viewer.stop()
     return 0
+
+
+def _cmd_ros(args: argparse.Namespace) -> int:
+    import signal
+
+    from agrisim.app.progress import EpisodeProgress
+    from agrisim.config import backend_options
+    from agrisim.live import LiveSession
+
+    config = build_config(load_toml(args.config) if args.config else {}, overrides_from_args(args))
+    session = LiveSession(config, routine=args.routine, real_time_factor=args.real_time_factor)
+    name = f"ros{args.ros}"
+    spec = session.registry.get("bridge", name)
+    options = backend_options(
+        spec.options_model, {"rate": args.rate} if args.rate is not None else {}, f"bridge {name!r}"
+    )
+    if spec.preflight is not None:  # the middleware there, before anything is written
+        spec.preflight(config, options)
+    bridge = session.registry.build("bridge", spec, session, options)
+    # Ctrl-C and SIGTERM end a live session normally: the run is closed and saved. A shell's
+    # background job may have started us with SIGINT ignored.
+    signal.signal(signal.SIGINT, signal.default_int_handler)
+    signal.signal(signal.SIGTERM, _interrupt)
+    run = session.open()
+    status, error = "complete", ""
+    try:
+        session.start()
+        bridge.start()
+        for line in bridge.describe():
+            print(f"  {line}")
+        print(f"serving the cell over ROS {args.ros}; views are saved in {run.out_dir} (Ctrl-C to stop)", flush=True)
+        if args.routine:
+            with EpisodeProgress() as progress:
+                session.run_routine(progress=progress.update)
+            print("the routine is done; still serving (Ctrl-C to stop)", flush=True)
+        session.serve()
+    except KeyboardInterrupt:
+        pass  # how a live session ends
+    except Exception as exc:
+        status, error = "failed", f"{type(exc).__name__}: {exc}"
+        raise
+    finally:
+        bridge.close()
+        summary = session.close(status, error)
+    frames = len(run.results)
+    print(f"stopped: {frames} setpoints ({summary.reached} reached); output: {run.out_dir}", flush=True)
+    return 0
+
+
+def _interrupt(signum: int, frame: Any) -> None:
+    raise KeyboardInterrupt
 
 
 def _report_run(run: Any, summary: Any) -> None:
@@ -372,6 +423,8 @@ def main(argv: Sequence[str] | None = None) -> int:
             return _cmd_colmap(args)
         if args.command == "view":
             return _cmd_view(args)
+        if args.command == "ros":
+            return _cmd_ros(args)
         return _cmd_plugins(args)
     except UserError as exc:
         fail(str(exc))

@@ -38,7 +38,6 @@ from __future__ import annotations
 
 import json
 import os
-import xml.etree.ElementTree as ET
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
@@ -51,10 +50,9 @@ from agrisim.errors import OutputError, UserError
 from agrisim.files import layout
 from agrisim.files.atomic import staged_dir
 from agrisim.files.rundir import read_json, read_run
+from agrisim.robot.tf_tree import WORLD, ArmFrames, quaternions
 
 ROSBAG_DIR = layout.ROSBAG
-#: the world frame every other frame hangs from
-WORLD = "world"
 CLOUD_TOPIC = "/reconstruction/cloud"
 
 
@@ -120,35 +118,6 @@ def arm_track(moves: list[dict[str, Any]], home: np.ndarray, joints: list[str]) 
         q.append(np.asarray(ex["q"], float))
         qd.append(np.asarray(ex["qd"], float) if ex.get("qd") is not None else np.full((len(ex["t"]), dof), np.nan))
     return ArmTrack(joints, np.concatenate(t), np.concatenate(q), np.concatenate(qd))
-
-
-@dataclass(frozen=True)
-class UrdfJoint:
-    name: str
-    kind: str  # revolute, fixed, ...
-    parent: str
-    child: str
-
-
-def urdf_joints(urdf: str) -> list[UrdfJoint]:
-    """The joints of a URDF document, as the TF tree's edges."""
-    root = ET.fromstring(urdf)
-    return [
-        # a joint without <parent link=...> or <child link=...> is no URDF (never one of agrisim's)
-        UrdfJoint(j.get("name", ""), j.get("type", ""), j.find("parent").get("link"), j.find("child").get("link"))  # type: ignore[union-attr, arg-type]
-        for j in root.findall("joint")
-    ]
-
-
-def relative(world_T_parent: np.ndarray, world_T_child: np.ndarray) -> np.ndarray:
-    """``parent_T_child`` of rigid transforms (batched over leading axes)."""
-    R, p = world_T_parent[..., :3, :3], world_T_parent[..., :3, 3]
-    out = np.zeros(np.broadcast_shapes(world_T_parent.shape, world_T_child.shape))
-    Rt = np.swapaxes(R, -1, -2)
-    out[..., :3, :3] = Rt @ world_T_child[..., :3, :3]
-    out[..., :3, 3] = (Rt @ (world_T_child[..., :3, 3] - p)[..., None])[..., 0]
-    out[..., 3, 3] = 1.0
-    return out
 
 
 class BagMessages:
@@ -347,7 +316,7 @@ class RosbagExport:
         self.tracks = {
             arm.name: arm_track(self.moves[arm.name], np.asarray(arm.home), self.joints[arm.name]) for arm in cell.arms
         }
-        self.edges = {arm.name: urdf_joints(arm.urdf) for arm in cell.arms}
+        self.frames_of = {arm.name: ArmFrames(arm.name, self.kin[arm.name], arm.urdf) for arm in cell.arms}
         self.frames = dict(sorted((self.cameras.get("frames") or {}).items()))
         self.rendered = bool(self.run.get("frames_complete")) and isinstance(self.run.get("labels"), list)
         labels = self.run.get("labels")
@@ -366,38 +335,17 @@ class RosbagExport:
     def moving_transforms(self, arm: str, samples: np.ndarray) -> tuple[list[tuple[str, str]], np.ndarray]:
         """The arm's revolute joints as (parent, child) frames, and ``parent_T_child`` at every
         sample index in ``samples`` (S x J x 4 x 4)."""
-        kin, track = self.kin[arm], self.tracks[arm]
-        moving = [j for j in self.edges[arm] if j.kind != "fixed"]
-        links = sorted({j.parent for j in moving} | {j.child for j in moving})
-        parents = [links.index(j.parent) for j in moving]
-        children = [links.index(j.child) for j in moving]
-        out = np.empty((len(samples), len(moving), 4, 4))
-        for s, i in enumerate(samples):
-            poses = kin.link_poses(track.q[i])
-            world = np.stack([poses[name] for name in links])
-            out[s] = relative(world[parents], world[children])
-        return [(f"{arm}/{j.parent}", f"{arm}/{j.child}") for j in moving], out
+        frames, track = self.frames_of[arm], self.tracks[arm]
+        return frames.moving_edges, np.stack([frames.moving(track.q[i]) for i in samples])
 
     def static_transforms(self) -> tuple[list[tuple[str, str]], np.ndarray]:
         """``world`` -> each arm's URDF root and every fixed joint of every arm."""
         edges, T = [], []
-        for arm, kin in self.kin.items():
-            poses = kin.link_poses(self.tracks[arm].q[0])  # fixed joints are the same at any q
-            roots = {j.parent for j in self.edges[arm]} - {j.child for j in self.edges[arm]}
-            for root in sorted(roots):
-                edges.append((WORLD, f"{arm}/{root}"))
-                T.append(poses[root])
-            for j in self.edges[arm]:
-                if j.kind == "fixed":
-                    edges.append((f"{arm}/{j.parent}", f"{arm}/{j.child}"))
-                    T.append(relative(poses[j.parent], poses[j.child]))
-        return edges, np.asarray(T)
-
-
-def _quaternions(T: np.ndarray) -> np.ndarray:
-    from scipy.spatial.transform import Rotation
-
-    return Rotation.from_matrix(T[..., :3, :3].reshape(-1, 3, 3)).as_quat().reshape(*T.shape[:-2], 4)
+        for arm, frames in self.frames_of.items():
+            e, t = frames.static(self.tracks[arm].q[0])
+            edges += e
+            T.append(t)
+        return edges, np.concatenate(T)
 
 
 def _qos_latched() -> Any:
@@ -426,13 +374,13 @@ def bag_messages(export: RosbagExport, msgs: BagMessages) -> Iterator[tuple[str,
         "/tf_static",
         "tf2_msgs/msg/TFMessage",
         0,
-        msgs.TFMessage(transforms=msgs.transforms(0, static_edges, static_T, _quaternions(static_T))),
+        msgs.TFMessage(transforms=msgs.transforms(0, static_edges, static_T, quaternions(static_T))),
     )
     held = {arm: export.arm_samples(arm) for arm in export.tracks}
     moving = {}
     for arm in export.tracks:
         edges, T = export.moving_transforms(arm, np.arange(len(export.tracks[arm].t_ns)))
-        moving[arm] = (edges, T, _quaternions(T))
+        moving[arm] = (edges, T, quaternions(T))
     for k, stamp in enumerate(export.stamps):
         events.append((int(stamp), 0, len(events), "state", k))
     for docs in export.moves.values():
