@@ -32,7 +32,7 @@ bench: setup
 # just added to pyproject.toml).
 UPGRADE ?= --upgrade
 lock: setup
-	$(VENV)/bin/uv pip compile pyproject.toml --extra dev --extra helios $(UPGRADE) --generate-hashes \
+	$(VENV)/bin/uv pip compile pyproject.toml --extra dev --extra helios --extra ros $(UPGRADE) --generate-hashes \
 		--universal --python-version 3.10 --custom-compile-command "make lock" -o requirements.lock
 
 clean:

@@ -9,8 +9,8 @@ Cyclone DDS with ROS 2's names and encoding. Topics, for each arm ``A``:
   (``mono16``, where the plant numbers its leaves) and ``/A/camera/camera_info``, in
   ``A/camera_optical_frame``, latched, one each per view;
 - ``/agrisim/events`` (``std_msgs/String``): one line per command done or refused;
-- in: ``/A/arm_controller/command`` (``trajectory_msgs/JointTrajectory``, as a ros_control
-  trajectory controller takes it); the service ``/A/capture`` (``std_srvs/Trigger``): a view
+- in: ``/A/arm_controller/command`` (ROS 1) or ``/A/arm_controller/joint_trajectory`` (ROS 2)
+  (``trajectory_msgs/JointTrajectory``, as a ros_control trajectory controller takes it); the service ``/A/capture`` (``std_srvs/Trigger``): a view
   now, the frame's name in the answer.
 """
 
@@ -40,5 +40,13 @@ def agrisim_bridges() -> list[BackendSpec]:
             options_model=BridgeOptions,
             limits="Debian's ROS 1 packages (make ros) in a Python of the same version as Debian's",
             preflight=lazy("agrisim.plugins.ros.ros1:preflight"),
+        ),
+        BackendSpec(
+            name="ros2",
+            factory=lazy("agrisim.plugins.ros.ros2:Ros2Bridge"),
+            description="ROS 2 over Cyclone DDS (rmw_cyclonedds' names, QoS and CDR); no ROS 2 install needed",
+            options_model=BridgeOptions,
+            limits="tested against Cyclone DDS clients only; no ROS 2 node graph (ros2 node list) is announced",
+            preflight=lazy("agrisim.plugins.ros.ros2:preflight"),
         ),
     ]
