@@ -18,21 +18,16 @@ The topics are those of :mod:`agrisim.plugins.ros`, except that the trajectory c
 from __future__ import annotations
 
 import os
-import threading
 import time
 from typing import Any
 
 import numpy as np
 
-from agrisim import hookimpl
 from agrisim.errors import UserError
-from agrisim.files.rosbag import rep118
-from agrisim.interfaces import Bridge, Capture
-from agrisim.live import LiveSession, Refused
-from agrisim.records import Run
-from agrisim.robot.tf_tree import ArmFrames, quaternions
+from agrisim.live import LiveSession
 
 from . import BridgeOptions
+from .bridge import IMAGE_TOPICS, RosBridge
 
 
 def preflight(config: Any, options: BridgeOptions) -> None:
@@ -69,18 +64,19 @@ def qos(latched: bool = False) -> Any:
     )
 
 
-class Ros2Bridge(Bridge):
+class Ros2Bridge(RosBridge):
     """Serves a :class:`LiveSession` to ROS 2 clients through Cyclone DDS."""
 
     def __init__(self, session: LiveSession, options: BridgeOptions) -> None:
-        self.session, self.options = session, options
-        self.arms = [a.name for a in session.cell.arms]
-        self.frames = {a.name: ArmFrames(a.name, session.kinematics[a.name], a.urdf) for a in session.cell.arms}
-        self._closed = threading.Event()
-        self._threads: list[threading.Thread] = []
+        super().__init__(session, options)
         self._participant: Any = None
 
-    # ------------------------------------------------------------------ set-up
+    def command_topic(self, arm: str) -> str:
+        return f"/{arm}/arm_controller/joint_trajectory"
+
+    def describe(self) -> list[str]:
+        return [f"ROS_DOMAIN_ID {domain_id()}:", *super().describe()]
+
     def start(self) -> None:
         from cyclonedds.domain import DomainParticipant
         from cyclonedds.pub import DataWriter
@@ -100,175 +96,57 @@ class Ros2Bridge(Bridge):
             )
         }  # fmt: skip
         request = message("std_srvs/srv/Trigger_Request", request_header=True)
-        self.Reply = message("std_srvs/srv/Trigger_Response", request_header=True)
+        reply = message("std_srvs/srv/Trigger_Response", request_header=True)
         dp = self._participant = DomainParticipant(domain_id())
-        topics: dict[str, Any] = {}
 
-        def writer(name: str, ros_type: str, latched: bool = False) -> Any:
-            topic = topics.setdefault(name, Topic(dp, f"rt{name}", self.m[ros_type], qos=qos(latched)))
-            return DataWriter(dp, topic, qos=qos(latched))
+        def writer(name: str, data_type: Any, latched: bool = False) -> Any:
+            return DataWriter(dp, Topic(dp, name, data_type, qos=qos(latched)), qos=qos(latched))
 
-        self.pub_joints = writer("/joint_states", "sensor_msgs/msg/JointState")
-        self.pub_tf = writer("/tf", "tf2_msgs/msg/TFMessage")
-        self.pub_tf_static = writer("/tf_static", "tf2_msgs/msg/TFMessage", latched=True)
-        self.pub_events = writer("/agrisim/events", "std_msgs/msg/String")
-        self.pub_arm_joints = {a: writer(f"/{a}/joint_states", "sensor_msgs/msg/JointState") for a in self.arms}
+        def reader(name: str, data_type: Any) -> Any:
+            return DataReader(dp, Topic(dp, name, data_type, qos=qos()), qos=qos())
+
+        m = self.m
+        self.pub_joints = writer("rt/joint_states", m["sensor_msgs/msg/JointState"])
+        self.pub_tf = writer("rt/tf", m["tf2_msgs/msg/TFMessage"])
+        self.pub_events = writer("rt/agrisim/events", m["std_msgs/msg/String"])
+        self.pub_arm_joints = {a: writer(f"rt/{a}/joint_states", m["sensor_msgs/msg/JointState"]) for a in self.arms}
         self.pub_images = {
-            a: {k: writer(f"/{a}/camera/{k}", "sensor_msgs/msg/Image", True) for k in ("image_raw", "depth", "labels", "instances")}
+            a: {k: writer(f"rt/{a}/camera/{k}", m["sensor_msgs/msg/Image"], True) for k in IMAGE_TOPICS}
             for a in self.arms
-        }  # fmt: skip
-        self.pub_info = {a: writer(f"/{a}/camera/camera_info", "sensor_msgs/msg/CameraInfo", True) for a in self.arms}
+        }
+        self.pub_info = {
+            a: writer(f"rt/{a}/camera/camera_info", m["sensor_msgs/msg/CameraInfo"], True) for a in self.arms
+        }
+        # kept: a latched sample lives as long as its writer
+        self.pub_tf_static = writer("rt/tf_static", m["tf2_msgs/msg/TFMessage"], latched=True)
+        self.pub_tf_static.write(self.static_transforms())
         self.readers: list[tuple[Any, Any]] = []
-        self.replies: dict[str, Any] = {}
         for a in self.arms:
-            t = Topic(
-                dp, f"rt/{a}/arm_controller/joint_trajectory", self.m["trajectory_msgs/msg/JointTrajectory"], qos=qos()
-            )
-            self.readers.append((DataReader(dp, t, qos=qos()), lambda msg, a=a: self._on_trajectory(a, msg)))
-            rq = Topic(dp, f"rq/{a}/captureRequest", request, qos=qos())
-            rr = Topic(dp, f"rr/{a}/captureReply", self.Reply, qos=qos())
-            self.replies[a] = DataWriter(dp, rr, qos=qos())
-            self.readers.append((DataReader(dp, rq, qos=qos()), lambda msg, a=a: self._on_capture(a, msg)))
-        self.pub_tf_static.write(self.m["tf2_msgs/msg/TFMessage"](transforms=self._static_transforms()))
-        self.session.pm.register(self, name="bridge:ros2")
-        for target, name in ((self._publish_state, "state"), (self._listen, "commands")):
-            thread = threading.Thread(target=target, name=f"agrisim-ros2-{name}", daemon=True)
-            thread.start()
-            self._threads.append(thread)
+            replies = writer(f"rr/{a}/captureReply", reply)
 
-    def describe(self) -> list[str]:
-        lines = [f"ROS_DOMAIN_ID {domain_id()}: /joint_states, /tf, /tf_static, /agrisim/events"]
-        for a in self.arms:
-            lines.append(
-                f"/{a}/arm_controller/joint_trajectory (in), /{a}/capture (std_srvs/Trigger), /{a}/joint_states, "
-                f"/{a}/camera/{{image_raw,depth,labels,instances,camera_info}}"
+            def on_trajectory(msg: Any, a: str = a) -> None:
+                self.run_trajectory(
+                    a,
+                    msg.joint_names,
+                    [p.time_from_start.sec + p.time_from_start.nanosec * 1e-9 for p in msg.points],
+                    [list(p.positions) for p in msg.points],
+                    [list(p.velocities) for p in msg.points],
+                )
+
+            def on_capture(msg: Any, a: str = a, replies: Any = replies) -> None:
+                success, text = self.take_view(a)
+                replies.write(reply(client_id=msg.client_id, sequence=msg.sequence, success=success, message=text))
+
+            self.readers.append(
+                (reader(f"rt{self.command_topic(a)}", m["trajectory_msgs/msg/JointTrajectory"]), on_trajectory)
             )
-        return lines
+            self.readers.append((reader(f"rq/{a}/captureRequest", request), on_capture))
+        self.start_threads((self._listen, "commands"))
 
     def close(self) -> None:
-        self._closed.set()
-        for thread in self._threads:
-            thread.join(timeout=5)
-        self._threads = []
-        if self.session.pm.is_registered(self):
-            self.session.pm.unregister(self)
+        self.stop_threads()
         self._participant = None  # Cyclone deletes the participant and its entities with it
 
-    # ------------------------------------------------------------------ out
-    def _stamp(self) -> Any:
-        ns = time.time_ns()
-        return self.m["builtin_interfaces/msg/Time"](sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000)
-
-    def _header(self, frame: str, stamp: Any) -> Any:
-        return self.m["std_msgs/msg/Header"](stamp=stamp, frame_id=frame)
-
-    def _transforms(self, edges: list[tuple[str, str]], T: np.ndarray, stamp: Any) -> list[Any]:
-        m = self.m
-        out = []
-        for (parent, child), Ti, qi in zip(edges, T, quaternions(T), strict=True):
-            x, y, z = (float(v) for v in Ti[:3, 3])
-            qx, qy, qz, qw = (float(v) for v in qi)
-            out.append(
-                m["geometry_msgs/msg/TransformStamped"](
-                    header=self._header(parent, stamp),
-                    child_frame_id=child,
-                    transform=m["geometry_msgs/msg/Transform"](
-                        translation=m["geometry_msgs/msg/Vector3"](x=x, y=y, z=z),
-                        rotation=m["geometry_msgs/msg/Quaternion"](x=qx, y=qy, z=qz, w=qw),
-                    ),
-                )
-            )
-        return out
-
-    def _static_transforms(self) -> list[Any]:
-        stamp = self._stamp()
-        out = []
-        for a, frames in self.frames.items():
-            edges, T = frames.static(np.asarray(self.session.cell.arm(a).home, float))
-            out += self._transforms(edges, T, stamp)
-        return out
-
-    def _joint_state(self, stamp: Any, names: list[str], q: list[float], qd: list[float]) -> Any:
-        return self.m["sensor_msgs/msg/JointState"](
-            header=self._header("", stamp), name=names, position=q, velocity=qd, effort=[]
-        )
-
-    def _publish_state(self) -> None:
-        """/joint_states and /tf at the rate, from where the arms are on the wall clock."""
-        period = 1.0 / self.options.rate
-        tick = time.monotonic()
-        while not self._closed.is_set():
-            state = self.session.motion.state()
-            stamp = self._stamp()
-            names, q_all, qd_all, transforms = [], [], [], []
-            for a in self.arms:
-                q, qd = state[a]
-                joints = self.session.joint_names(a)
-                velocity = [] if np.isnan(qd).any() else [float(v) for v in qd]
-                self.pub_arm_joints[a].write(self._joint_state(stamp, joints, [float(v) for v in q], velocity))
-                names += [f"{a}/{j}" for j in joints]
-                q_all += [float(v) for v in q]
-                qd_all += velocity if velocity else [0.0] * len(q)
-                transforms += self._transforms(self.frames[a].moving_edges, self.frames[a].moving(q), stamp)
-            self.pub_joints.write(self._joint_state(stamp, names, q_all, qd_all))
-            self.pub_tf.write(self.m["tf2_msgs/msg/TFMessage"](transforms=transforms))
-            tick += period
-            self._closed.wait(max(0.0, tick - time.monotonic()))
-            tick = max(tick, time.monotonic() - period)
-
-    def _image(self, frame: str, stamp: Any, pixels: np.ndarray, encoding: str) -> Any:
-        pixels = np.ascontiguousarray(pixels)
-        if pixels.dtype.byteorder == ">":
-            pixels = pixels.astype(pixels.dtype.newbyteorder("<"))
-        return self.m["sensor_msgs/msg/Image"](
-            header=self._header(frame, stamp),
-            height=pixels.shape[0],
-            width=pixels.shape[1],
-            encoding=encoding,
-            is_bigendian=0,
-            step=int(pixels.strides[0]),
-            data=pixels.tobytes(),
-        )
-
-    @hookimpl
-    def agrisim_capture(self, run: Run, capture: Capture) -> None:
-        images = capture.images
-        if images is None or capture.robot not in self.pub_images:
-            return
-        stamp = self._stamp()
-        frame = f"{capture.robot}/camera_optical_frame"
-        K = np.asarray(capture.camera.K, float)
-        P = np.zeros((3, 4))
-        P[:, :3] = K
-        self.pub_info[capture.robot].write(
-            self.m["sensor_msgs/msg/CameraInfo"](
-                header=self._header(frame, stamp),
-                height=int(images.rgb.shape[0]),
-                width=int(images.rgb.shape[1]),
-                distortion_model="plumb_bob",
-                d=[0.0] * 5,
-                k=K.reshape(-1).tolist(),
-                r=np.eye(3).reshape(-1).tolist(),
-                p=P.reshape(-1).tolist(),
-                binning_x=0,
-                binning_y=0,
-                roi=self.m["sensor_msgs/msg/RegionOfInterest"](
-                    x_offset=0, y_offset=0, height=0, width=0, do_rectify=False
-                ),
-            )
-        )
-        pub = self.pub_images[capture.robot]
-        pub["depth"].write(self._image(frame, stamp, rep118(images.depth), "32FC1"))
-        pub["labels"].write(self._image(frame, stamp, images.labels.astype(np.uint8), "mono8"))
-        if images.instances is not None:
-            pub["instances"].write(self._image(frame, stamp, images.instances.astype(np.uint16), "mono16"))
-        pub["image_raw"].write(self._image(frame, stamp, images.rgb, "rgb8"))
-
-    def _event(self, line: str) -> None:
-        print(line, flush=True)
-        self.pub_events.write(self.m["std_msgs/msg/String"](data=line))
-
-    # ------------------------------------------------------------------ in
     def _listen(self) -> None:
         """Take what the readers hold and act on it, one command at a time, in arrival order."""
         while not self._closed.is_set():
@@ -281,44 +159,68 @@ class Ros2Bridge(Bridge):
                     try:
                         act(sample)
                     except Exception as exc:  # a bridge bug must not end the session
-                        self._event(f"failed: {type(exc).__name__}: {exc}")
+                        self.say(f"failed: {type(exc).__name__}: {exc}", "err")
             if not took:
                 self._closed.wait(0.005)
 
-    def _on_trajectory(self, arm: str, msg: Any) -> None:
-        names = [n.removeprefix(f"{arm}/") for n in msg.joint_names]
-        times = [p.time_from_start.sec + p.time_from_start.nanosec * 1e-9 for p in msg.points]
-        positions = [list(p.positions) for p in msg.points]
-        velocities = [list(p.velocities) for p in msg.points]
-        s = self.session
-        try:
-            result = s.submit(lambda: s.execute(arm, names, times, positions, velocities)).result()
-        except Refused as exc:
-            self._event(f"refused: {exc}")
-            return
-        except Exception as exc:
-            self._event(f"failed: {arm} trajectory: {type(exc).__name__}: {exc}")
-            return
-        outcome = "reached" if result.reached else f"not reached: {result.reason}"
-        self._event(f"done: {arm} trajectory {result.frame} ({result.duration_s:.3f} s simulated), {outcome}")
+    # ------------------------------------------------------------------ ROS 2's messages
+    def now(self) -> Any:
+        ns = time.time_ns()
+        return self.m["builtin_interfaces/msg/Time"](sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000)
 
-    def _on_capture(self, arm: str, request: Any) -> None:
-        s = self.session
+    def send(self, publisher: Any, message: Any) -> None:
+        publisher.write(message)
 
-        def reply(success: bool, message: str) -> None:
-            self.replies[arm].write(
-                self.Reply(client_id=request.client_id, sequence=request.sequence, success=success, message=message)
-            )
+    def _header(self, frame: str, stamp: Any) -> Any:
+        return self.m["std_msgs/msg/Header"](stamp=stamp, frame_id=frame)
 
-        try:
-            capture = s.submit(lambda: s.capture(arm)).result()
-        except Refused as exc:
-            self._event(f"refused: {exc}")
-            reply(False, str(exc))
-            return
-        except Exception as exc:
-            self._event(f"failed: {arm} capture: {type(exc).__name__}: {exc}")
-            reply(False, f"{type(exc).__name__}: {exc}")
-            return
-        self._event(f"done: {arm} view {capture.frame}")
-        reply(True, capture.frame)
+    def joint_state(self, stamp: Any, names: list[str], q: list[float], qd: list[float]) -> Any:
+        return self.m["sensor_msgs/msg/JointState"](
+            header=self._header("", stamp), name=names, position=q, velocity=qd, effort=[]
+        )
+
+    def transform(self, parent: str, child: str, stamp: Any, xyz: list[float], quat: list[float]) -> Any:
+        m = self.m
+        (x, y, z), (qx, qy, qz, qw) = xyz, quat
+        return m["geometry_msgs/msg/TransformStamped"](
+            header=self._header(parent, stamp),
+            child_frame_id=child,
+            transform=m["geometry_msgs/msg/Transform"](
+                translation=m["geometry_msgs/msg/Vector3"](x=x, y=y, z=z),
+                rotation=m["geometry_msgs/msg/Quaternion"](x=qx, y=qy, z=qz, w=qw),
+            ),
+        )
+
+    def tf_message(self, transforms: list[Any]) -> Any:
+        return self.m["tf2_msgs/msg/TFMessage"](transforms=transforms)
+
+    def image(self, frame: str, stamp: Any, height: int, width: int, encoding: str, step: int, data: bytes) -> Any:
+        return self.m["sensor_msgs/msg/Image"](
+            header=self._header(frame, stamp),
+            height=height,
+            width=width,
+            encoding=encoding,
+            is_bigendian=0,
+            step=step,
+            data=data,
+        )
+
+    def camera_info(self, frame: str, stamp: Any, height: int, width: int, K: np.ndarray, P: np.ndarray) -> Any:
+        m = self.m
+        return m["sensor_msgs/msg/CameraInfo"](
+            header=self._header(frame, stamp),
+            height=height,
+            width=width,
+            distortion_model="plumb_bob",
+            d=[0.0] * 5,
+            k=K.reshape(-1).tolist(),
+            r=np.eye(3).reshape(-1).tolist(),
+            p=P.reshape(-1).tolist(),
+            binning_x=0,
+            binning_y=0,
+            roi=m["sensor_msgs/msg/RegionOfInterest"](x_offset=0, y_offset=0, height=0, width=0, do_rectify=False),
+        )
+
+    def say(self, line: str, level: str) -> None:
+        print(line, flush=True)  # the node's log, as rospy's loginfo prints it
+        self.pub_events.write(self.m["std_msgs/msg/String"](data=line))

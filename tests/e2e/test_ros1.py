@@ -19,6 +19,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from live_server import live_server
 from PIL import Image
 
 HERE = Path(__file__).parent
@@ -77,18 +78,7 @@ def roscore(tmp_path):  # noqa: ANN001, ANN201
 @needs_ros
 def test_a_ros1_client_drives_the_arm_and_gets_exact_views(roscore, tmp_path) -> None:
     out = tmp_path / "live"
-    server = subprocess.Popen(
-        _agrisim("ros", "--ros", "1", "--plant", "coltsfoot", "--resolution", "96x54", "--physics", "kinematic",
-                 "--recon", "none", "--no-rrd", "--set", "renderer.raycast.shadow_samples=0", "--out", str(out)),
-        env=roscore, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, preexec_fn=_default_sigint,
-    )  # fmt: skip
-    try:
-        assert server.stdout is not None
-        for line in server.stdout:
-            if line.startswith("serving the cell"):
-                break
-        else:
-            pytest.fail(f"agrisim ros exited with {server.wait()} before serving")
+    with live_server("1", out, roscore) as server:
         seen_path = tmp_path / "seen.json"
         client = subprocess.run(
             [DEBIAN_PYTHON, str(HERE / "ros1_client.py"), str(seen_path), "--views", "2"],
@@ -99,11 +89,8 @@ def test_a_ros1_client_drives_the_arm_and_gets_exact_views(roscore, tmp_path) ->
             ["rostopic", "echo", "-n", "1", "/r1/camera/camera_info/K"], env=roscore, capture_output=True, text=True,
             timeout=30,
         )  # fmt: skip
-    finally:
-        server.send_signal(signal.SIGINT)
-        rest, _ = server.communicate(timeout=60)
-    assert server.returncode == 0, rest
-    assert "stopped: " in rest
+    assert server.returncode == 0, server.output
+    assert "stopped: " in server.output
 
     seen = json.loads(seen_path.read_text())
     run = json.loads((out / "run.json").read_text())

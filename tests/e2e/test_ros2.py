@@ -9,7 +9,6 @@ import hashlib
 import json
 import os
 import random
-import signal
 import subprocess
 import sys
 from pathlib import Path
@@ -19,6 +18,8 @@ import pytest
 from PIL import Image
 
 pytest.importorskip("cyclonedds")
+
+from live_server import live_server  # noqa: E402
 
 from agrisim.plugins.ros.ros2_types import message, store  # noqa: E402
 
@@ -76,30 +77,14 @@ def test_what_the_bridge_writes_is_ros2_cdr_as_rosbags_reads_it() -> None:
 
 def test_a_ros2_participant_drives_the_arm_and_gets_exact_views(tmp_path) -> None:
     out, env = tmp_path / "live", _env()
-    server = subprocess.Popen(
-        [sys.executable, "-c", "import sys; from agrisim.app.cli import main; sys.exit(main())",
-         "ros", "--ros", "2", "--plant", "coltsfoot", "--resolution", "96x54", "--physics", "kinematic", "--recon",
-         "none", "--no-rrd", "--set", "renderer.raycast.shadow_samples=0", "--out", str(out)],
-        env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
-        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
-    )  # fmt: skip
-    try:
-        assert server.stdout is not None
-        for line in server.stdout:
-            if line.startswith("serving the cell"):
-                break
-        else:
-            pytest.fail(f"agrisim ros exited with {server.wait()} before serving")
+    with live_server("2", out, env) as server:
         seen_path = tmp_path / "seen.json"
         client = subprocess.run(
             [sys.executable, str(HERE / "ros2_client.py"), str(seen_path)], env=env, capture_output=True, text=True,
             timeout=180,
         )  # fmt: skip
         assert client.returncode == 0, client.stderr[-2000:]
-    finally:
-        server.send_signal(signal.SIGINT)
-        rest, _ = server.communicate(timeout=60)
-    assert server.returncode == 0, rest
+    assert server.returncode == 0, server.output
     seen = json.loads(seen_path.read_text())
     run = json.loads((out / "run.json").read_text())
     cameras = json.loads((out / "cameras.json").read_text())
