@@ -18,19 +18,22 @@ def _default_sigint() -> None:
 
 
 @contextmanager
-def live_server(ros: str, out: Path, env: dict[str, str]) -> Iterator[subprocess.Popen[str]]:
-    """The server, once it says it serves; after the block it has been stopped with SIGINT, and
-    ``server.output`` holds what it printed after that."""
+def live_server(
+    ros: str, out: Path, env: dict[str, str], *extra: str, ready: str = "serving the cell"
+) -> Iterator[subprocess.Popen[str]]:
+    """The server (with ``extra`` flags), once it has printed a line starting with ``ready``;
+    after the block it has been stopped with SIGINT, and ``server.output`` holds what it printed
+    after that."""
     server = subprocess.Popen(
         [sys.executable, "-c", "import sys; from agrisim.app.cli import main; sys.exit(main())",
          "ros", "--ros", ros, "--plant", "coltsfoot", "--resolution", "96x54", "--physics", "kinematic",
-         "--recon", "none", "--no-rrd", "--set", "renderer.raycast.shadow_samples=0", "--out", str(out)],
+         "--recon", "none", "--no-rrd", "--set", "renderer.raycast.shadow_samples=0", "--out", str(out), *extra],
         env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, preexec_fn=_default_sigint,
     )  # fmt: skip
     try:
         assert server.stdout is not None
         for line in server.stdout:
-            if line.startswith("serving the cell"):
+            if line.startswith(ready):
                 break
         else:
             pytest.fail(f"agrisim ros exited with {server.wait()} before serving")

@@ -119,3 +119,14 @@ def test_a_bad_ros_domain_id_is_refused_before_anything_is_written(tmp_path) -> 
     )  # fmt: skip
     assert result.returncode == 2 and "ROS_DOMAIN_ID='300'" in result.stderr
     assert result.stderr.strip().count("\n") == 0 and not out.exists()
+
+
+def test_routine_runs_the_papers_setpoints_while_serving(tmp_path) -> None:
+    """``--routine``: the setpoints run (unpaced here), then the session serves on until Ctrl-C."""
+    out = tmp_path / "live"
+    with live_server("2", out, _env(), "--routine", "--setpoints", "1x1", "--real-time-factor", "0",
+                     ready="the routine is done") as server:  # fmt: skip
+        pass
+    assert server.returncode == 0, server.output
+    run = json.loads((out / "run.json").read_text())
+    assert run["summary"]["status"] == "complete" and run["frames_complete"] == ["r1_000", "r2_000"]
