@@ -40,7 +40,12 @@ T = TypeVar("T")
 
 class Refused(UserError):
     """A command the session will not carry out; its message says why and what is allowed. The
-    session goes on."""
+    session goes on. ``kind``: what was wrong, for middlewares with codes of their own
+    (``joints``: the joint names; ``goal``: anything else)."""
+
+    def __init__(self, message: str, kind: str = "goal") -> None:
+        super().__init__(message)
+        self.kind = kind
 
 
 @dataclass(frozen=True)
@@ -353,7 +358,7 @@ class LiveSession(Episode):
         malformed."""
         joints = self.joint_names(robot)
         if sorted(names) != sorted(joints):
-            raise Refused(f"{robot}: joint names {list(names)}; expected each of {joints} once, in any order")
+            raise Refused(f"{robot}: joint names {list(names)}; expected each of {joints} once, in any order", "joints")
         if not len(times):
             raise Refused(f"{robot}: the trajectory has no points")
         order = [list(names).index(j) for j in joints]

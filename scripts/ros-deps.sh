@@ -4,8 +4,8 @@
 # imports them from a Python of the same version (agrisim.plugins.ros.rospy_env).
 set -euo pipefail
 
-PACKAGES="ros-core python3-sensor-msgs python3-tf2-msgs python3-trajectory-msgs python3-std-srvs"
-if command -v roscore >/dev/null 2>&1 && /usr/bin/python3 -c "import rospy, sensor_msgs.msg, tf2_msgs.msg, trajectory_msgs.msg, std_srvs.srv" 2>/dev/null; then
+PACKAGES="ros-core python3-actionlib python3-sensor-msgs python3-tf2-msgs python3-trajectory-msgs python3-std-srvs"
+if command -v roscore >/dev/null 2>&1 && /usr/bin/python3 -c "import rospy, actionlib, sensor_msgs.msg, tf2_msgs.msg, trajectory_msgs.msg, std_srvs.srv" 2>/dev/null; then
   exit 0
 fi
 if ! command -v apt-get >/dev/null 2>&1; then

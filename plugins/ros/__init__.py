@@ -10,7 +10,9 @@ Cyclone DDS with ROS 2's names and encoding. Topics, for each arm ``A``:
   ``A/camera_optical_frame``, latched, one each per view;
 - ``/agrisim/events`` (``std_msgs/String``): one line per command done or refused;
 - in: ``/A/arm_controller/command`` (ROS 1) or ``/A/arm_controller/joint_trajectory`` (ROS 2)
-  (``trajectory_msgs/JointTrajectory``, as a ros_control trajectory controller takes it); the service ``/A/capture`` (``std_srvs/Trigger``): a view
+  (``trajectory_msgs/JointTrajectory``, as a ros_control trajectory controller takes it); on
+  ROS 1 also the action ``/A/arm_controller/follow_joint_trajectory``
+  (``control_msgs/FollowJointTrajectory``, MoveIt's); the service ``/A/capture`` (``std_srvs/Trigger``): a view
   now, the frame's name in the answer.
 """
 

@@ -174,20 +174,25 @@ class RosBridge(Bridge):
         times: Sequence[float],
         positions: Sequence[Sequence[float]],
         velocities: Sequence[Sequence[float]],
-    ) -> None:
-        """A trajectory message's content, executed by the session; its outcome said."""
+    ) -> tuple[str, str]:
+        """A trajectory message's content, executed by the session; its outcome said, and
+        returned: (``reached``, ``not reached``, ``refused:joints``, ``refused:goal`` or
+        ``failed``; the line)."""
         names = [n.removeprefix(f"{arm}/") for n in names]
         s = self.session
         try:
             result = s.submit(lambda: s.execute(arm, names, times, positions, velocities)).result()
         except Refused as exc:
             self.say(f"refused: {exc}", "warn")
-            return
+            return f"refused:{exc.kind}", f"refused: {exc}"
         except Exception as exc:  # a backend's failure: reported, and the session goes on
-            self.say(f"failed: {arm} trajectory: {type(exc).__name__}: {exc}", "err")
-            return
+            line = f"failed: {arm} trajectory: {type(exc).__name__}: {exc}"
+            self.say(line, "err")
+            return "failed", line
         outcome = "reached" if result.reached else f"not reached: {result.reason}"
-        self.say(f"done: {arm} trajectory {result.frame} ({result.duration_s:.3f} s simulated), {outcome}", "info")
+        line = f"done: {arm} trajectory {result.frame} ({result.duration_s:.3f} s simulated), {outcome}"
+        self.say(line, "info")
+        return ("reached" if result.reached else "not reached"), line
 
     def take_view(self, arm: str) -> tuple[bool, str]:
         """A trigger: (success, the frame's name or why not)."""

@@ -81,7 +81,50 @@ class Ros1Bridge(RosBridge):
             rospy.Service(f"/{a}/capture", Trigger, lambda req, a=a: TriggerResponse(*self.take_view(a)))
             for a in self.arms
         ]
+        self._actions = [self._follow_joint_trajectory(a) for a in self.arms]
         self.start_threads()
+
+    def _follow_joint_trajectory(self, arm: str) -> Any:
+        """``/A/arm_controller/follow_joint_trajectory``, the action MoveIt's controller
+        manager sends trajectories through: each goal executed whole, then succeeded or aborted
+        with control_msgs' error code and the reason."""
+        import actionlib
+
+        from .control_actions import follow_joint_trajectory
+
+        msgs = follow_joint_trajectory()
+        Result = msgs["FollowJointTrajectoryResult"]
+        codes = {
+            "reached": Result.SUCCESSFUL,
+            "refused:joints": Result.INVALID_JOINTS,
+            "refused:goal": Result.INVALID_GOAL,
+            "not reached": Result.GOAL_TOLERANCE_VIOLATED,
+            "failed": Result.INVALID_GOAL,
+        }
+
+        def execute(goal: Any) -> None:
+            t = goal.trajectory
+            outcome, line = self.run_trajectory(
+                arm,
+                t.joint_names,
+                [p.time_from_start.to_sec() for p in t.points],
+                [list(p.positions) for p in t.points],
+                [list(p.velocities) for p in t.points],
+            )
+            result = Result(error_code=codes[outcome], error_string="" if outcome == "reached" else line)
+            if outcome == "reached":
+                server.set_succeeded(result)
+            else:
+                server.set_aborted(result, line)
+
+        server = actionlib.SimpleActionServer(
+            f"/{arm}/arm_controller/follow_joint_trajectory",
+            msgs["FollowJointTrajectoryAction"],
+            execute_cb=execute,
+            auto_start=False,
+        )
+        server.start()
+        return server
 
     def close(self) -> None:
         self.stop_threads()

@@ -18,7 +18,9 @@ from agrisim.errors import UserError
 
 DIST_PACKAGES = Path("/usr/lib/python3/dist-packages")
 #: what ``make ros`` installs (scripts/ros-deps.sh)
-DEBIAN_PACKAGES = "ros-core python3-sensor-msgs python3-tf2-msgs python3-trajectory-msgs python3-std-srvs"
+DEBIAN_PACKAGES = (
+    "ros-core python3-actionlib python3-sensor-msgs python3-tf2-msgs python3-trajectory-msgs python3-std-srvs"
+)
 
 
 def import_rospy() -> ModuleType:

@@ -210,6 +210,42 @@ def main() -> None:
 
         wait(lambda: answer() is not None)
         out["refusals"][name] = answer()
+    # 5. MoveIt's way in: the FollowJointTrajectory action, with control_msgs' MD5 sums
+    import os
+    import sys
+
+    import actionlib
+
+    sys.path.insert(0, os.path.join(os.path.dirname(__file__), "..", "..", "plugins", "ros"))
+    from control_actions import follow_joint_trajectory
+
+    msgs = follow_joint_trajectory()
+    action = actionlib.SimpleActionClient(
+        f"/{ARM}/arm_controller/follow_joint_trajectory", msgs["FollowJointTrajectoryAction"]
+    )
+    if not action.wait_for_server(rospy.Duration(30)):
+        raise TimeoutError("no FollowJointTrajectory action server")
+    out["md5"] = {n: msgs[n]._md5sum for n in ("FollowJointTrajectoryGoal", "FollowJointTrajectoryActionGoal")}
+    out["action"] = {}
+    _, here = arm_positions(seen)
+    goals = {
+        "move": trajectory(JOINTS, [([here[0] - 0.2, *here[1:]], 0.5)]),
+        "beyond_limits": trajectory(JOINTS, [([here[0] + 20.0, *here[1:]], 1.0)]),
+        "wrong_names": trajectory(["nope", *JOINTS[1:]], [(here, 1.0)]),
+    }
+    for name, traj in goals.items():
+        action.send_goal(msgs["FollowJointTrajectoryGoal"](trajectory=traj))
+        action.wait_for_result(rospy.Duration(30))
+        result = action.get_result()
+        out["action"][name] = {
+            "state": action.get_state(),
+            "error_code": result.error_code,
+            "error_string": result.error_string,
+        }
+        if name == "move":
+            time.sleep(0.1)  # a joint state after the end
+            out["after_action_pan"] = arm_positions(seen)[1][0]
+    out["action_target_pan"] = here[0] - 0.2
     out["still_serving"] = capture().success
     out["events"] = seen.events
     rospy.signal_shutdown("done")

@@ -130,6 +130,19 @@ def test_a_ros1_client_drives_the_arm_and_gets_exact_views(roscore, tmp_path) ->
     assert refusals["beyond_limits"].startswith("refused:") and "beyond its limits" in refusals["beyond_limits"]
     assert "expected each of" in refusals["wrong_names"]
     assert "collides" in refusals["collision"]
+    # MoveIt's action: control_msgs' own MD5 sums (1.5, ROS 1), a goal executed and succeeded, bad
+    # goals aborted with control_msgs' codes
+    assert seen["md5"] == {
+        "FollowJointTrajectoryGoal": "69636787b6ecbde4d61d711979bc7ecb",
+        "FollowJointTrajectoryActionGoal": "cff5c1d533bf2f82dd0138d57f4304bb",
+    }
+    action = seen["action"]
+    SUCCEEDED, ABORTED = 3, 4  # actionlib_msgs/GoalStatus
+    assert (action["move"]["state"], action["move"]["error_code"]) == (SUCCEEDED, 0)
+    assert seen["after_action_pan"] == pytest.approx(seen["action_target_pan"], abs=1e-9)
+    assert (action["beyond_limits"]["state"], action["beyond_limits"]["error_code"]) == (ABORTED, -1)
+    assert "beyond its limits" in action["beyond_limits"]["error_string"]
+    assert (action["wrong_names"]["state"], action["wrong_names"]["error_code"]) == (ABORTED, -2)
     assert seen["still_serving"]
     assert seen["joint_states_hz"] == pytest.approx(50, rel=0.2)
 
