@@ -318,3 +318,27 @@ def test_subprocess_existing_out(workdir: Path) -> None:
     )
     assert_one_line_error(proc.returncode, proc.stderr, ["already exists"])
     assert snapshot(workdir) == before
+
+
+ROS_CASES = [
+    pytest.param([], ["--ros"], id="ros-missing"),
+    pytest.param(["--ros", "3"], ["--ros", "'3'", "'1', '2'"], id="ros-unknown"),
+    pytest.param(
+        ["--ros", "2", "--real-time-factor", "-1"], ["real time factor", "0 (unpaced) or a positive"], id="rtf"
+    ),
+    pytest.param(["--ros", "2", "--rate", "0"], ["bridge 'ros2'", "rate", "greater than 0"], id="rate-zero"),
+    pytest.param(["--ros", "2", "--out", "{tmp}/existing"], ["existing", "--overwrite"], id="ros-existing-out"),
+]
+
+
+@pytest.mark.parametrize(("args", "expected"), ROS_CASES)
+def test_bad_ros_input(args: list[str], expected: list[str], workdir: Path, cli) -> None:
+    """``agrisim ros``'s own flags, refused before any middleware is reached or anything written."""
+    before = snapshot(workdir)
+    argv = ["ros", *(a.format(tmp=workdir) for a in args), "--renderer", "none", "--physics", "kinematic"]
+    if "--out" not in argv:
+        argv += ["--out", str(workdir / "out")]
+    code, stdout, err = cli(argv)
+    assert_one_line_error(code, err, expected)
+    assert not (workdir / "out").exists()
+    assert snapshot(workdir) == before, "something was written"
