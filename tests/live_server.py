@@ -41,3 +41,25 @@ def live_server(
     finally:
         server.send_signal(signal.SIGINT)
         server.output, _ = server.communicate(timeout=60)  # type: ignore[attr-defined]
+
+
+def assert_view_is_the_saved_one(view: dict, out: Path) -> None:
+    """What a client saw of one view (its JSON from tests/e2e/ros*_client.py) against the run
+    directory: the TF chain ``world`` -> ``r1/camera_optical_frame`` is the saved pose, the RGB
+    and labels are the saved PNGs' pixels, K is cameras.json's."""
+    import hashlib
+    import json
+
+    import numpy as np
+    from PIL import Image
+
+    frame = view["frame"]
+    cameras = json.loads((out / "cameras.json").read_text())
+    assert view["frame_id"] == "r1/camera_optical_frame"
+    saved = np.asarray(cameras["frames"][frame]["world_T_camera"])
+    assert np.allclose(view["world_T_optical"], saved, atol=1e-6), frame
+    rgb = np.asarray(Image.open(out / "rgb" / f"{frame}.png").convert("RGB"))
+    labels = np.asarray(Image.open(out / "labels" / f"{frame}.png"))
+    assert view["rgb_sha256"] == hashlib.sha256(rgb.tobytes()).hexdigest(), frame
+    assert view["labels_sha256"] == hashlib.sha256(labels.tobytes()).hexdigest(), frame
+    assert np.allclose(view["K"], np.asarray(cameras["intrinsics"]["K"]).reshape(-1))
