@@ -448,6 +448,22 @@ class Episode:
     ) -> None:
         if not moves:
             return
+        plans = {r: timed.discretize(1.0 / TRAJECTORY_RATE) for r, (_, timed) in moves.items()}
+        for robot, world_T_camera in self._run_plans(targets, plans, {r: p for r, (p, _) in moves.items()}, results):
+            if results[robot].reached:
+                self._take_view(targets[robot], world_T_camera)
+
+    def _run_plans(
+        self,
+        targets: dict[str, Setpoint],
+        plans: dict[str, JointTrajectory],
+        paths: dict[str, np.ndarray],
+        results: dict[str, SetpointResult],
+    ) -> Iterator[tuple[str, np.ndarray]]:
+        """Execute the arms' sampled plans together, each settled when its camera is at its
+        target; then, arm by arm, fill in its result, announce its trajectory and yield where
+        its camera ended (``world_T_camera``), so that the caller's view of one arm comes
+        before the next arm's trajectory is announced."""
         m = self.config.motion
         tol_p, tol_r = m.reach_tolerance_mm * 1e-3, m.reach_tolerance_rad
         kin = self.kinematics
@@ -457,13 +473,11 @@ class Episode:
             return ep <= tol_p and er <= tol_r
 
         t_start = self._physics.sim_time
-        plans = {r: timed.discretize(1.0 / TRAJECTORY_RATE) for r, (_, timed) in moves.items()}
         with self._stage("execute"), blame("physics", self.physics_spec, " executing a trajectory"):
             executions = self._physics.execute(plans, settled, m.reach_timeout)
         for robot, ex in executions.items():
             res = results[robot]
-            q_final = self._physics.joint_positions(robot)
-            world_T_camera = kin[robot].fk(q_final)
+            world_T_camera = kin[robot].fk(self._physics.joint_positions(robot))
             ep, er = pose_error(world_T_camera, targets[robot].world_T_camera)
             res.ee_error_mm = ep * 1e3
             res.rot_error_rad = er
@@ -478,36 +492,41 @@ class Episode:
                 run=self._run,
                 robot=robot,
                 trajectory=Trajectory(
-                    robot, targets[robot].index, moves[robot][0], plans[robot].shifted(t_start), ex.executed
+                    robot, targets[robot].index, paths[robot], plans[robot].shifted(t_start), ex.executed
                 ),
             )
-            if res.reached:
-                capture = Capture(
-                    robot=robot,
-                    frame=targets[robot].frame,
-                    setpoint=targets[robot].index,
-                    sim_time=self._physics.sim_time,
-                    world_T_camera=world_T_camera,
-                    camera=self.camera,
-                    link_poses=self._link_poses() if self._renderer is not None else None,
-                )
-                view: View | None = None
-                if capture.frame in self.done_frames:
-                    # complete on disk from before --resume: read back, not rendered again, so
-                    # the recording and the reconstruction see exactly the saved frame
-                    capture.replayed = True
-                    if self._renderer is not None:
-                        view = load_view(self.out_dir, capture.frame, self.camera, world_T_camera)
-                        capture.images = view.images
-                elif self._renderer is not None and self.renderer_spec is not None:
-                    with self._stage("render"), blame("renderer", self.renderer_spec, f" rendering {capture.frame}"):
-                        capture.images = self._renderer.render(self.camera, world_T_camera, capture.link_poses or {})
-                    view = view_from_capture(capture, self.config.render.depth_format != "png16")
-                with self._stage("capture"):
-                    self.pm.hook.agrisim_capture(run=self._run, capture=capture)
-                if self._session is not None and view is not None and self.recon_spec is not None:
-                    with self._stage("recon"), blame("reconstructor", self.recon_spec, f" integrating {capture.frame}"):
-                        self._session.add(view)
+            yield robot, world_T_camera
+
+    def _take_view(self, target: Setpoint, world_T_camera: np.ndarray) -> Capture:
+        """The view of ``target``'s arm from ``world_T_camera``: rendered (or, under --resume,
+        read back when complete on disk), announced (``agrisim_capture``) and reconstructed."""
+        capture = Capture(
+            robot=target.robot,
+            frame=target.frame,
+            setpoint=target.index,
+            sim_time=self._physics.sim_time,
+            world_T_camera=world_T_camera,
+            camera=self.camera,
+            link_poses=self._link_poses() if self._renderer is not None else None,
+        )
+        view: View | None = None
+        if capture.frame in self.done_frames:
+            # complete on disk from before --resume: read back, not rendered again, so
+            # the recording and the reconstruction see exactly the saved frame
+            capture.replayed = True
+            if self._renderer is not None:
+                view = load_view(self.out_dir, capture.frame, self.camera, world_T_camera)
+                capture.images = view.images
+        elif self._renderer is not None and self.renderer_spec is not None:
+            with self._stage("render"), blame("renderer", self.renderer_spec, f" rendering {capture.frame}"):
+                capture.images = self._renderer.render(self.camera, world_T_camera, capture.link_poses or {})
+            view = view_from_capture(capture, self.config.render.depth_format != "png16")
+        with self._stage("capture"):
+            self.pm.hook.agrisim_capture(run=self._run, capture=capture)
+        if self._session is not None and view is not None and self.recon_spec is not None:
+            with self._stage("recon"), blame("reconstructor", self.recon_spec, f" integrating {capture.frame}"):
+                self._session.add(view)
+        return capture
 
     def _metrics_meta(self) -> dict[str, Any]:
         c = self.config

@@ -27,13 +27,10 @@ import pluggy
 from agrisim.config import RunConfig
 from agrisim.episode import TRAJECTORY_RATE, Episode
 from agrisim.errors import UserError
-from agrisim.evaluation.views import view_from_capture
 from agrisim.interfaces import Capture, Execution, JointTrajectory, PhysicsBackend, Trajectory
 from agrisim.records import Run, RunSummary, SetpointResult
-from agrisim.registry import blame
 from agrisim.robot.segments import segment_is_valid
 from agrisim.robot.setpoints import Setpoint
-from agrisim.scene.transforms import pose_error
 
 T = TypeVar("T")
 
@@ -250,7 +247,7 @@ class LiveSession(Episode):
         whole if any check fails."""
         if self.routine_running:
             raise Refused(f"{robot}: the routine is running; trajectories are taken when it has finished")
-        kin = self.kinematics[robot]
+        self._check_arm(robot)
         t, q, qd = self._checked_trajectory(robot, names, times, positions, velocities)
         q_now = np.asarray(self._physics.joint_positions(robot), float)
         if t[0] > 0:  # a trajectory starting later starts from where the arm is
@@ -270,29 +267,10 @@ class LiveSession(Episode):
             if not segment_is_valid(a, b, valid, step):
                 raise Refused(f"{robot}: the trajectory collides between {np.round(a, 3)} and {np.round(b, 3)} rad")
         plan = _sampled(t, q, qd, 1.0 / TRAJECTORY_RATE)
-        goal = kin.fk(q[-1])
-        sp = self._new_setpoint(robot, goal)
-        m = self.config.motion
-
-        def settled(r: str, q_r: np.ndarray) -> bool:
-            ep, er = pose_error(kin.fk(q_r), goal)
-            return ep <= m.reach_tolerance_mm * 1e-3 and er <= m.reach_tolerance_rad
-
-        t_start = self._physics.sim_time
-        with self._stage("execute"), blame("physics", self.physics_spec, " executing a trajectory"):
-            ex = self._physics.execute({robot: plan}, settled, m.reach_timeout)[robot]
-        ep, er = pose_error(kin.fk(self._physics.joint_positions(robot)), goal)
-        result = SetpointResult(robot, sp.index, sp.frame, reached=ex.settled and not ex.contacts)
-        result.ee_error_mm, result.rot_error_rad = ep * 1e3, er
-        result.motion_s = plan.duration + ex.settle_time
-        result.contacts = sorted(set(ex.contacts))
-        if not ex.settled:
-            result.reason = f"not settled within {m.reach_timeout:g} s (error {ep * 1e3:.4f} mm, {er:.2e} rad)"
-        elif ex.contacts:
-            result.reason = f"collision while moving: {', '.join(result.contacts)}"
-        self.pm.hook.agrisim_trajectory(
-            run=self._run, robot=robot, trajectory=Trajectory(robot, sp.index, q, plan.shifted(t_start), ex.executed)
-        )
+        sp = self._new_setpoint(robot, self.kinematics[robot].fk(q[-1]))
+        result = SetpointResult(robot, sp.index, sp.frame, reached=False)
+        for _ in self._run_plans({robot: sp}, {robot: plan}, {robot: q}, {robot: result}):
+            pass  # the result is filled in, the trajectory announced; no view unless triggered
         self._record(result)
         self._uncaptured[robot] = sp
         return MoveResult(robot, sp.frame, result.reached, result.motion_s, result.contacts, result.reason)
@@ -300,8 +278,7 @@ class LiveSession(Episode):
     def capture(self, robot: str) -> Capture:
         """A view from ``robot``'s camera where the arm is now, rendered and saved as a run's
         views are (the frame of its last move, or a new one if that one has its view)."""
-        if robot not in self.kinematics:
-            raise Refused(f"no arm {robot!r}; the cell's arms: {', '.join(self.kinematics)}")
+        self._check_arm(robot)
         q = np.asarray(self._physics.joint_positions(robot), float)
         world_T_camera = self.kinematics[robot].fk(q)
         sp = self._uncaptured[robot]
@@ -314,27 +291,13 @@ class LiveSession(Episode):
             )
             self._record(SetpointResult(robot, sp.index, sp.frame, reached=True, ee_error_mm=0.0, rot_error_rad=0.0))
         self._uncaptured[robot] = None
-        capture = Capture(
-            robot=robot,
-            frame=sp.frame,
-            setpoint=sp.index,
-            sim_time=self._physics.sim_time,
-            world_T_camera=world_T_camera,
-            camera=self.camera,
-            link_poses=self._link_poses() if self._renderer is not None else None,
-        )
-        if self._renderer is not None and self.renderer_spec is not None:
-            with self._stage("render"), blame("renderer", self.renderer_spec, f" rendering {capture.frame}"):
-                capture.images = self._renderer.render(self.camera, world_T_camera, capture.link_poses or {})
-        with self._stage("capture"):
-            self.pm.hook.agrisim_capture(run=self._run, capture=capture)
-        if self._session is not None and capture.images is not None and self.recon_spec is not None:
-            view = view_from_capture(capture, self.config.render.depth_format != "png16")
-            with self._stage("recon"), blame("reconstructor", self.recon_spec, f" integrating {capture.frame}"):
-                self._session.add(view)
-        return capture
+        return self._take_view(sp, world_T_camera)
 
     # ------------------------------------------------------------------ helpers
+    def _check_arm(self, robot: str) -> None:
+        if robot not in self.kinematics:
+            raise Refused(f"no arm {robot!r}; the cell's arms: {', '.join(self.kinematics)}")
+
     def _new_setpoint(self, robot: str, world_T_camera: np.ndarray) -> Setpoint:
         sps = self.setpoints[robot]
         sp = Setpoint(robot, len(sps), np.asarray(world_T_camera, float))

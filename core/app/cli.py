@@ -115,8 +115,7 @@ def _cmd_ros(args: argparse.Namespace) -> int:
     finally:
         bridge.close()
         summary = session.close(status, error)
-    frames = len(run.results)
-    print(f"stopped: {frames} setpoints ({summary.reached} reached); output: {run.out_dir}", flush=True)
+    print(f"stopped: {summary.setpoints} setpoints ({summary.reached} reached); output: {run.out_dir}", flush=True)
     return 0
 
 
