@@ -1,8 +1,27 @@
 """Shared fixtures: the paper's cell and its arms' kinematics (built once per session), the CLI run
 in-process (``cli``), and a plugin that keeps every rendered frame (``frames``). Tests marked
-``gpu`` are skipped where Mitsuba finds no usable NVIDIA GPU (CI)."""
+``gpu`` are skipped where Mitsuba finds no usable NVIDIA GPU (CI).
+
+The suite as another CPU would run it: ``AGRISIM_TEST_CPU=avx2`` (on an AVX-512 machine) makes
+Dr.Jit's LLVM backend, on which ``raycast`` and ``mitsuba`` render, compile every kernel for AVX2
+8 lanes wide, as on an AVX2 machine (AMD EPYC before Zen 4), from the session's start, in this
+process and in the agrisim processes that tests start (it sets ``AGRISIM_LLVM_TARGET``, which
+:func:`isolated_env` keeps). OpenBLAS and numpy choose their kernels when they load, before any
+conftest runs, so their settings must come with it from the shell (the session refuses to start
+without them): ``OPENBLAS_CORETYPE=Haswell`` (OpenBLAS's AVX2 kernels, numpy's and scipy's) and
+``NPY_DISABLE_CPU_FEATURES`` naming numpy's AVX-512 targets (with numpy 2.4)::
+
+    AGRISIM_TEST_CPU=avx2 OPENBLAS_CORETYPE=Haswell NPY_DISABLE_CPU_FEATURES="X86_V4 AVX512_ICL AVX512_SPR" \
+        .venv/bin/python -m pytest -q tests
+
+The header of the session says what it runs on (the CPU, and the emulated target). What stays
+the host's: Embree's and Open Image Denoise's kernels (chosen from CPUID) and the results of
+approximate instructions (:mod:`agrisim.util.cpu`).
+"""
 
 from __future__ import annotations
+
+import os
 
 import pytest
 
@@ -22,6 +41,78 @@ def _cuda_usable() -> bool:
     except ConfigError:
         return False
     return True
+
+
+#: the variable that asks for the emulation, and the OpenBLAS core that must come with each ISA
+TEST_CPU_ENV = "AGRISIM_TEST_CPU"
+_OPENBLAS_CORE = {"avx2": "Haswell"}
+#: the ISA emulated in this session ("": none), kept here: tests may clear AGRISIM_ variables
+_emulated = ""
+
+
+def pytest_configure(config: pytest.Config) -> None:
+    """``AGRISIM_TEST_CPU``: set Dr.Jit's LLVM target before any test compiles a kernel."""
+    global _emulated
+    isa = os.environ.get(TEST_CPU_ENV, "").strip().lower()
+    if not isa:
+        return
+    from agrisim.util.cpu import LLVM_TARGET_ENV, TARGETS
+
+    if isa not in TARGETS:
+        raise pytest.UsageError(f"{TEST_CPU_ENV}={isa}: unknown; known: {', '.join(TARGETS)}")
+    core = _OPENBLAS_CORE[isa]
+    if os.environ.get("OPENBLAS_CORETYPE", "").lower() != core.lower():
+        raise pytest.UsageError(
+            f"{TEST_CPU_ENV}={isa} needs OPENBLAS_CORETYPE={core} from the shell (OpenBLAS reads it when it loads)"
+        )
+    from agrisim.util.cpu import numpy_simd, numpy_wide_targets
+
+    if wide := [t for t in numpy_wide_targets() if t in numpy_simd()[1]]:
+        raise pytest.UsageError(
+            f"{TEST_CPU_ENV}={isa}: numpy uses its {', '.join(wide)} loops; set "
+            f'NPY_DISABLE_CPU_FEATURES="{" ".join(numpy_wide_targets())}" in the shell (numpy reads it when it loads)'
+        )
+    os.environ[LLVM_TARGET_ENV] = isa  # for this process (read once, below) and every child
+    from agrisim.errors import ConfigError
+    from agrisim.plugins.render.mitsuba.variant import resolve_variant
+
+    try:  # Dr.Jit set up as a renderer sets it up: its libLLVM, then the target
+        resolve_variant("llvm")
+    except ConfigError as exc:
+        raise pytest.UsageError(f"{TEST_CPU_ENV}={isa}: {exc}") from None
+    _emulated = isa
+
+
+def pytest_report_header(config: pytest.Config) -> list[str]:
+    from agrisim.util.cpu import cpu_model, numpy_simd, openblas_cores, vector_isa
+
+    cores = ", ".join(sorted(set(openblas_cores().values()))) or "not loaded"
+    used = numpy_simd()[1]
+    lines = [
+        f"cpu: {cpu_model()} ({vector_isa()}); OpenBLAS kernels: {cores}; numpy SIMD: {used[-1] if used else 'baseline'}"
+    ]
+    if _emulated:
+        from agrisim.util.cpu import llvm_target
+
+        target = llvm_target()
+        lines.append(
+            f"emulating {_emulated}: Dr.Jit LLVM target {target.cpu}, {target.width} lanes "
+            f"(host's Embree and Open Image Denoise kernels stay)"
+        )
+    return lines
+
+
+def isolated_env(**extra: str) -> dict[str, str]:
+    """The environment for an agrisim subprocess that must not see the caller's ``AGRISIM_``
+    settings: ``os.environ`` without them, except the emulated CPU (``AGRISIM_LLVM_TARGET``, set
+    by ``AGRISIM_TEST_CPU``: the child computes as this process does); ``extra`` on top."""
+    from agrisim.util.cpu import LLVM_TARGET_ENV
+
+    env = {k: v for k, v in os.environ.items() if not k.startswith("AGRISIM_")}
+    if _emulated:  # from the session, not os.environ: a test's monkeypatch may have cleared it
+        env[LLVM_TARGET_ENV] = _emulated
+    env.update(extra)
+    return env
 
 
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:

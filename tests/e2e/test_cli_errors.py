@@ -13,6 +13,7 @@ import sys
 from pathlib import Path
 
 import pytest
+from conftest import isolated_env
 
 from agrisim.errors import UserError
 from agrisim.robot.urdf import ur10_with_camera
@@ -295,7 +296,7 @@ def test_missing_urdf_is_a_user_error(tmp_path: Path) -> None:
 
 
 def _subprocess(args: list[str], cwd: Path) -> subprocess.CompletedProcess[str]:
-    env = {k: v for k, v in os.environ.items() if not k.startswith("AGRISIM_")}
+    env = isolated_env()
     return subprocess.run(
         [sys.executable, "-m", "agrisim", *args], cwd=cwd, env=env, capture_output=True, text=True, timeout=60
     )

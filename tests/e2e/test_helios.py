@@ -7,13 +7,13 @@ instances), its per-primitive solid fraction (our opacity coverage), its seeded 
 
 from __future__ import annotations
 
-import os
 import subprocess
 import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import isolated_env
 
 from agrisim.app.arguments import build_parser, overrides_from_args
 from agrisim.config import RunConfig, build_config
@@ -249,7 +249,7 @@ def test_without_pyhelios_helios_plants_name_the_extra(tmp_path, monkeypatch, cl
         "from agrisim.app.cli import main\n"
         f"sys.exit(main(['run', '--plant', 'helios:bean', '--out', {str(tmp_path / 'out2')!r}]))\n"
     )
-    env = {k: v for k, v in os.environ.items() if not k.startswith("AGRISIM_")}
+    env = isolated_env()
     proc = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, env=env, timeout=120)
     assert_one_line_error(proc.returncode, proc.stderr, "helios:bean", "agrisim[helios]")
     assert not (tmp_path / "out2").exists()

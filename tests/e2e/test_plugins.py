@@ -20,6 +20,7 @@ from typing import Any
 
 import numpy as np
 import pytest
+from conftest import isolated_env
 
 import agrisim
 from agrisim import hookspecs
@@ -128,7 +129,7 @@ def plugins_cli(capsys: pytest.CaptureFixture[str]) -> tuple[int, str, str]:
 
 
 def subprocess_env(site: Path, **extra: str) -> dict[str, str]:
-    env = {k: v for k, v in os.environ.items() if not k.startswith("AGRISIM_")}
+    env = isolated_env()
     env["PYTHONPATH"] = os.pathsep.join([str(site), env.get("PYTHONPATH", "")]).rstrip(os.pathsep)
     env.update(extra)
     return env

@@ -8,13 +8,13 @@ pybullet, Pinocchio, OMPL and Rerun cannot be imported.
 from __future__ import annotations
 
 import json
-import os
 import shutil
 import subprocess
 import sys
 from pathlib import Path
 
 import pytest
+from conftest import isolated_env
 
 from agrisim.config import build_config
 from agrisim.episode import Episode
@@ -68,7 +68,7 @@ def rerender(run_dir: Path, *args: str, blocked: tuple[str, ...] = HEAVY) -> sub
         "from agrisim.app.cli import main\n"
         f"sys.exit(main({['render', str(run_dir), *args]!r}))\n"
     )
-    env = {k: v for k, v in os.environ.items() if not k.startswith("AGRISIM_")}
+    env = isolated_env()
     return subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=600)
 
 

@@ -134,4 +134,8 @@ def test_ik_iterations_cut_short_by_a_cycle_give_the_full_answer_bit_for_bit(cel
         q_ref, ep_ref, er_ref, visited = _every_iteration(k, target, q0, iterations, tol)
         assert q.tobytes() == q_ref.tobytes() and (ep, er) == (ep_ref, er_ref), n
         cycled += len(set(visited)) < len(visited)
-    assert cycled >= 10, cycled  # the shortcut was taken, not only the plain loop compared
+    # The shortcut was taken, not only the plain loop compared. How many of the 60 cycle is
+    # rounding's choice (iterations on targets out of reach are chaotic): measured 16 here with
+    # numpy's and OpenBLAS's AVX-512 kernels, 19 with their AVX2 ones; 11 to 23 and 9 to 20 with
+    # the rng seeded 20 to 29 instead of 11. A few, then, not a count.
+    assert cycled >= 5, cycled
