@@ -4,7 +4,8 @@ camera centre and rotation errors against the truth, reprojection error, COLMAP'
 Prints the CPU model first; asserts nothing. Each run goes to OUT/<plant>[-arms]/.
 
     python bench/colmap_table.py OUT [--plants coltsfoot boston_fern ...] [--resolution 960x540]
-        [--shadow-samples 8] [--arms] [--matcher exhaustive] [--rerender] [-- EXTRA agrisim run FLAGS]
+        [--shadow-samples 8] [--arms] [--matcher exhaustive] [--colmap-flags '--priors none'] [--rerender]
+        [-- EXTRA agrisim run FLAGS]
 
 ``--rerender``: COLMAP on the run's views path-traced again by ``agrisim render`` (mitsuba at its
 defaults, denoised) into OUT/<plant>[-arms]-mitsuba, the views a user of the photoreal renderer
@@ -39,6 +40,11 @@ def main() -> None:
     parser.add_argument("--shadow-samples", type=int, default=8)
     parser.add_argument("--arms", action="store_true", help="leave the arms in view (default: hidden)")
     parser.add_argument("--matcher", default="exhaustive")
+    parser.add_argument(
+        "--colmap-flags",
+        default="",
+        help="more agrisim colmap flags, e.g. '--priors none --peak-threshold 0.0067' (the tables of 2026-11-25)",
+    )
     parser.add_argument("--rerender", action="store_true", help="COLMAP on the views path-traced by mitsuba")
     parser.add_argument("extra", nargs="*", help="more agrisim run flags, after --")
     args = parser.parse_args()
@@ -47,6 +53,7 @@ def main() -> None:
         f"CPU: {cpu_model()}; raycast, {args.resolution}, {args.shadow_samples} shadow rays a pixel"
         f"{', path-traced again by agrisim render (mitsuba defaults)' if args.rerender else ''}, "
         f"arms {'in view' if args.arms else 'hidden'}; COLMAP {args.matcher} matching, the run's intrinsics"
+        f"{', ' + args.colmap_flags if args.colmap_flags else ''}"
     )
     print(
         "| plant | registered | within 20 mm | centre error mm, median / max | rotation error deg, median / max "
@@ -73,7 +80,9 @@ def main() -> None:
             run = views
         t0 = time.perf_counter()
         subprocess.run(
-            [*agrisim, "colmap", str(run), "--matcher", args.matcher, "--overwrite"], check=True, capture_output=True
+            [*agrisim, "colmap", str(run), "--matcher", args.matcher, *args.colmap_flags.split(), "--overwrite"],
+            check=True,
+            capture_output=True,
         )
         seconds = time.perf_counter() - t0
         s = json.loads((run / "colmap" / "poses.json").read_text())["summary"]

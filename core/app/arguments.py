@@ -85,6 +85,16 @@ def build_parser() -> argparse.ArgumentParser:
     plants.add_argument("--seed", type=int, default=0, metavar="N", help="seed to grow each species with (0)")
     plugins = sub.add_parser("plugins", help="list every backend of every kind and where it comes from")
     plugins.add_argument("--options", action="store_true", help="also list each backend's options")
+    doctor = sub.add_parser(
+        "doctor",
+        help="what this machine can run: CPU, libLLVM, GPUs, ROS, every backend, speed against the README's",
+        description="Report what this machine can run: Python, the CPU's vector instructions, the libLLVM Dr.Jit "
+        "loaded, CUDA for Mitsuba and PyTorch, ROS 1, Cyclone DDS, the tests' browser, every backend (and why "
+        "not), and one 1080p raycast view and the IK timed against the README's figures. Exit status 1 when "
+        "agrisim run with its defaults cannot work here.",
+    )
+    doctor.add_argument("--json", action="store_true", help="write the same facts as JSON to stdout")
+    doctor.add_argument("--no-timing", action="store_true", help="skip the two timings (a few seconds)")
     recon = sub.add_parser(
         "recon",
         help="rebuild a run's reconstruction and metrics from its files",
@@ -136,13 +146,32 @@ def build_parser() -> argparse.ArgumentParser:
     )
     colmap.add_argument("run_dir", type=Path, metavar="RUN_DIR", help="a complete run's output directory")
     colmap.add_argument(
-        "--matcher",
-        default="exhaustive",
-        metavar="exhaustive|sequential",
-        help="match every pair of views (default), or each with the next --overlap views of the routine",
+        "--priors",
+        default="robot",
+        metavar="robot|none",
+        help="robot: the arms' kinematics give COLMAP each view's centre as a pose prior and check each matched "
+        "pair's rotation (default); none: COLMAP from the images alone, as the paper ran it",
     )
     colmap.add_argument(
-        "--overlap", type=int, default=10, metavar="N", help="sequential matching: views matched with each (10)"
+        "--prior-std-mm",
+        type=float,
+        default=10.0,
+        metavar="MM",
+        help="how far the priors are trusted, one standard deviation (10)",
+    )
+    colmap.add_argument(
+        "--matcher",
+        default="exhaustive",
+        metavar="exhaustive|sequential|spatial",
+        help="match every pair of views (default), each with the next --overlap views of the routine, or each with "
+        "its --overlap nearest by prior position (needs --priors robot)",
+    )
+    colmap.add_argument(
+        "--overlap",
+        type=int,
+        default=10,
+        metavar="N",
+        help="sequential and spatial matching: views matched with each (10)",
     )
     colmap.add_argument(
         "--intrinsics",
@@ -153,6 +182,22 @@ def build_parser() -> argparse.ArgumentParser:
     colmap.add_argument(
         "--max-features", type=int, default=8192, metavar="N", help="SIFT features a view at most (8192)"
     )
+    colmap.add_argument(
+        "--peak-threshold",
+        type=float,
+        default=0.001,
+        metavar="T",
+        help="SIFT's contrast threshold: 0.001 for rendered views (default); COLMAP's own is 0.0067",
+    )
+    colmap.add_argument(
+        "--attempts",
+        type=int,
+        default=3,
+        metavar="N",
+        help="map again with the next seed while the largest model holds under 90%% of the views, N mappings in "
+        "all (3)",
+    )
+    colmap.add_argument("--seed", type=int, default=0, metavar="N", help="COLMAP's random seed (0)")
     colmap.add_argument("--overwrite", action="store_true", help="replace an existing RUN_DIR/colmap/")
     view = sub.add_parser(
         "view",
@@ -190,7 +235,40 @@ def build_parser() -> argparse.ArgumentParser:
     for flag, meta, kind, text in COMPARE_EPISODE_FLAGS:
         compare.add_argument(flag, metavar=meta, type=kind, help=text)
     _set_flag(compare, "any setting by its dotted name")
+    _sweep_flags(sub)
     return p
+
+
+def _sweep_flags(sub: Any) -> None:
+    """``agrisim sweep SPEC``: a grid of runs on Ray (:mod:`agrisim.app.sweep`)."""
+    sweep = sub.add_parser(
+        "sweep",
+        help="a grid of runs from one TOML spec ([axes]: settings and their values), runs on Ray",
+        description="Run every cell of the grid that SPEC's [axes] table spans (dotted settings, as --set takes "
+        "them, each with a list of values; the rest of SPEC is the base configuration, as --config reads one) as a "
+        "Ray task, each into its own run folder OUT/<axis values>, with [sweep] after = [colmap, coco, nerfstudio] "
+        "on each complete run; OUT/sweep.json lists every run, its settings, status and figures.",
+    )
+    sweep.add_argument("spec", type=Path, metavar="SPEC", help="the sweep's TOML file")
+    sweep.add_argument(
+        "--out", type=Path, required=True, metavar="DIR", help="the sweep's folder: a run folder per cell"
+    )
+    sweep.add_argument("--overwrite", action="store_true", help="replace an existing --out")
+    sweep.add_argument(
+        "--resume", action="store_true", help="continue the sweep in --out: complete runs kept, unfinished resumed"
+    )
+    sweep.add_argument(
+        "--ray-address", metavar="ADDR", help="join this Ray cluster (HOST:PORT or auto; default: a local Ray)"
+    )
+    sweep.add_argument("--workers", type=int, metavar="N", help="CPU runs at a time (default: one per core)")
+    sweep.add_argument("--gpus", type=int, metavar="N", help="GPU runs at a time, one per GPU (default: every GPU)")
+    sweep.add_argument(
+        "--gpu-resource",
+        default="GPU",
+        metavar="NAME",
+        help="the Ray resource a GPU run takes one of (default: GPU; a custom resource a cluster declares)",
+    )
+    _set_flag(sweep, "any setting of the base configuration by its dotted name")
 
 
 #: the episode options `compare` passes on (as `agrisim run` has them)

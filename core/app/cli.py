@@ -1,5 +1,5 @@
 """The ``agrisim`` commands: ``run``, ``ros``, ``view``, ``recon``, ``render``, ``plugins``,
-``plants``, ``export``, ``compare`` and ``colmap``, each a function of its parsed flags (:mod:`agrisim.app.arguments`
+``doctor``, ``plants``, ``export``, ``compare``, ``sweep`` and ``colmap``, each a function of its parsed flags (:mod:`agrisim.app.arguments`
 declares them).
 
 Bad input exits with status 2 and one line naming the problem; nothing is written. Internal
@@ -265,6 +265,20 @@ def _cmd_plugins(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_doctor(args: argparse.Namespace) -> int:
+    import json
+
+    from agrisim.app.doctor import gather, render_text
+
+    report = gather(timing=not args.no_timing)
+    if args.json:
+        print(json.dumps(report, indent=2))
+    else:
+        for line in render_text(report):
+            print(line)
+    return 0 if report["default_run"]["ok"] else 1
+
+
 def _cmd_plants(args: argparse.Namespace) -> int:
     from agrisim.registry import Registry, make_plugin_manager
     from agrisim.scene.texturing import cutaway_fraction
@@ -318,8 +332,13 @@ def _cmd_colmap(args: argparse.Namespace) -> int:
             args.run_dir,
             matcher=args.matcher,
             intrinsics=args.intrinsics,
+            priors=args.priors,
+            prior_std_mm=args.prior_std_mm,
             overlap=args.overlap,
             max_features=args.max_features,
+            peak_threshold=args.peak_threshold,
+            attempts=args.attempts,
+            seed=args.seed,
             overwrite=args.overwrite,
             progress=progress.stage,
         )
@@ -327,11 +346,19 @@ def _cmd_colmap(args: argparse.Namespace) -> int:
     if not result.models:
         print(f"COLMAP made no model of the {s['views']} views (too few views matched well enough to start one)")
     else:
-        models = f"{result.models} models, the largest kept" if result.models > 1 else "one model"
+        if result.models == 1:
+            models = "one model"
+        elif result.settings["priors"] == "robot":
+            models = f"{result.models} models, each held to the robot's priors"
+        else:
+            models = f"{result.models} models, the largest kept"
         print(
             f"COLMAP registered {s['registered']} of {s['views']} views ({models}: {s['points']:,} points); "
             f"{s['within_20mm']} within 20 mm of the truth"
         )
+        if len(result.attempts) > 1:
+            tried = ", ".join(f"seed {a['seed']}: {a['registered']}" for a in result.attempts)
+            print(f"mapped {len(result.attempts)} times while too few views were placed ({tried})")
     if s["median_centre_error_mm"] is not None:
         print(
             f"camera centres from the truth: median {s['median_centre_error_mm']:.2f} mm, max "
@@ -402,6 +429,38 @@ def _cmd_compare(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_sweep(args: argparse.Namespace) -> int:
+    from agrisim.app.progress import SweepProgress
+    from agrisim.app.sweep import plan_sweep, read_spec
+    from agrisim.app.sweep_run import sweep
+
+    spec = read_spec(args.spec, args.set)
+    # every cell validated and the folder checked before Ray starts or anything is written
+    plan = plan_sweep(spec, out=args.out, overwrite=args.overwrite, resume=args.resume)
+    kept = sum(c.action == "skip" for c in plan.cells)
+    if kept:
+        print(f"resuming: {kept} of {len(plan.cells)} runs complete already")
+    with SweepProgress() as progress:
+        result = sweep(
+            plan,
+            ray_address=args.ray_address,
+            workers=args.workers,
+            gpus=args.gpus,
+            gpu_resource=args.gpu_resource,
+            progress=progress.update,
+        )
+    for r in result.runs:
+        line = f"  {r['name']}: {r['status']}, {r['views']} views"
+        if r.get("seconds") is not None:
+            line += f", {r['seconds']:.1f} s"
+        print(line + (f" ({r['error']})" if r.get("error") else ""))
+    print(f"{len(result.runs) - len(result.failed)} of {len(result.runs)} runs complete in {result.wall_s:.1f} s")
+    print(f"output: {plan.out}  {plan.out / 'sweep.json'}")
+    if result.failed:
+        fail(f"{len(result.failed)} of {len(result.runs)} runs did not complete; --resume continues", status=1)
+    return 0
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``agrisim`` console script."""
     args = build_parser().parse_args(argv)
@@ -418,12 +477,16 @@ def main(argv: Sequence[str] | None = None) -> int:
             return _cmd_render(args)
         if args.command == "compare":
             return _cmd_compare(args)
+        if args.command == "sweep":
+            return _cmd_sweep(args)
         if args.command == "colmap":
             return _cmd_colmap(args)
         if args.command == "view":
             return _cmd_view(args)
         if args.command == "ros":
             return _cmd_ros(args)
+        if args.command == "doctor":
+            return _cmd_doctor(args)
         return _cmd_plugins(args)
     except UserError as exc:
         fail(str(exc))

@@ -41,3 +41,49 @@ class EpisodeProgress:
         self, exc_type: type[BaseException] | None, exc: BaseException | None, tb: TracebackType | None
     ) -> None:
         self._progress.stop()
+
+
+class SweepProgress:
+    """``agrisim sweep``'s bar: views saved out of those planned (the ETA comes from their
+    rate), runs done, views per second since the sweep started."""
+
+    def __init__(self) -> None:
+        from rich.progress import TaskProgressColumn
+
+        self._console = Console(file=sys.stderr)
+        self._progress = Progress(
+            TextColumn("[bold]runs {task.fields[runs]}"),
+            BarColumn(),
+            TextColumn("views {task.completed:.0f}/{task.total:.0f}"),
+            TaskProgressColumn(),
+            TextColumn("{task.fields[rate]}"),
+            TimeElapsedColumn(),
+            TimeRemainingColumn(),
+            console=self._console,
+            transient=True,
+            disable=not self._console.is_terminal,
+        )
+        self._task = self._progress.add_task("sweep", total=None, runs="0/?", rate="")
+        self._start: tuple[float, int] | None = None
+
+    def update(self, runs_done: int, runs: int, views_done: int, views: int) -> None:
+        """``runs_done`` of ``runs`` ended, ``views_done`` of ``views`` saved."""
+        import time
+
+        now = time.monotonic()
+        if self._start is None:  # views kept from before a --resume do not count in the rate
+            self._start = (now, views_done)
+        seconds = now - self._start[0]
+        rate = f"{(views_done - self._start[1]) / seconds:.2f} views/s" if seconds > 1 else ""
+        self._progress.update(
+            self._task, completed=views_done, total=max(views, 1), runs=f"{runs_done}/{runs}", rate=rate
+        )
+
+    def __enter__(self) -> SweepProgress:
+        self._progress.start()
+        return self
+
+    def __exit__(
+        self, exc_type: type[BaseException] | None, exc: BaseException | None, tb: TracebackType | None
+    ) -> None:
+        self._progress.stop()

@@ -65,11 +65,16 @@ _AVX2_FEATURES = ",".join(
 TARGETS: dict[str, LLVMTarget] = {"avx2": LLVMTarget("x86-64-v3", _AVX2_FEATURES, 8)}
 
 
-def _cpuinfo() -> dict[str, str]:
-    """The first processor's fields in ``/proc/cpuinfo`` (empty where there is none)."""
+#: where Linux lists the processors and their flags
+CPUINFO = Path("/proc/cpuinfo")
+
+
+def cpuinfo(path: Path = CPUINFO) -> dict[str, str]:
+    """The first processor's fields in ``path`` (Linux's ``/proc/cpuinfo``; empty where there is
+    none): ``"model name"``, ``"flags"``..."""
     fields: dict[str, str] = {}
     try:
-        text = Path("/proc/cpuinfo").read_text()
+        text = Path(path).read_text()
     except OSError:
         return fields
     for line in text.splitlines():
@@ -85,14 +90,15 @@ def _cpuinfo() -> dict[str, str]:
 def cpu_model() -> str:
     """The CPU's model name (``/proc/cpuinfo``), e.g. ``"AMD EPYC 7B13"``; else what
     :func:`platform.processor` says, else ``"unknown"``."""
-    return _cpuinfo().get("model name") or platform.processor() or "unknown"
+    return cpuinfo().get("model name") or platform.processor() or "unknown"
 
 
-def vector_isa() -> str:
+def vector_isa(info: dict[str, str] | None = None) -> str:
     """The widest vector ISA of the host: ``"AVX-512"``, ``"AVX2"``, ``"AVX"``, ``"SSE4.2"``,
     ``"SSE2"`` (x86-64), ``"NEON"`` (ARM), or ``"unknown"`` (no ``/proc/cpuinfo``). AVX-512 is
-    counted with AVX512VL, as Dr.Jit counts it (its 16-lane vectors need it); AVX2 with FMA."""
-    info = _cpuinfo()
+    counted with AVX512VL, as Dr.Jit counts it (its 16-lane vectors need it); AVX2 with FMA.
+    ``info``: :func:`cpuinfo`'s fields, read here if not given."""
+    info = cpuinfo() if info is None else info
     flags = set((info.get("flags") or info.get("Features") or "").split())
     if not flags:
         return "unknown"

@@ -33,8 +33,18 @@ def run_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
     )
 
 
+#: views of 36 the default places (within 20 mm of the truth) as rendered and under every
+#: perturbation of test_placed_views_hold_a_band_under_perturbation: measured 34 to 36
+PLACED_AT_LEAST = 32
+
+
 def _angle_deg(a: np.ndarray, b: np.ndarray) -> float:
     return float(np.degrees(np.arccos(np.clip((np.trace(a.T @ b) - 1.0) / 2.0, -1.0, 1.0))))
+
+
+def _models(run_dir: Path) -> list[pycolmap.Reconstruction]:
+    sparse = run_dir / COLMAP_DIR / "sparse"
+    return [pycolmap.Reconstruction(sparse / str(k)) for k in range(len(list(sparse.iterdir())))]
 
 
 def test_colmap_recovers_the_cameras_within_a_bound_of_the_truth(run_dir: Path, cli) -> None:  # noqa: ANN001
@@ -44,39 +54,59 @@ def test_colmap_recovers_the_cameras_within_a_bound_of_the_truth(run_dir: Path, 
     doc = json.loads((run_dir / COLMAP_DIR / POSES_JSON).read_text())
     truth = json.loads((run_dir / "cameras.json").read_text())["frames"]
     summary, views = doc["summary"], doc["views"]
+    assert doc["colmap"]["priors"] == "robot" and doc["colmap"]["matcher"] == "exhaustive"
+    assert summary["pairs"]["dropped_by_kinematics"] > 0  # the pairs across the arms, at least
     assert summary["views"] == len(truth) == 36
-    # measured 18 (exhaustive matching, one model); COLMAP's threads make it vary a little
-    assert summary["registered"] >= 10, summary
-    assert summary["median_centre_error_mm"] < 15.0 and summary["median_rotation_error_deg"] < 1.0, summary
-    assert summary["reprojection_px"] < 1.5
-    # a metre in the world is 1/scale model units: COLMAP's scale is arbitrary, never metres
-    assert summary["scale_m_per_unit"] > 0
+    # nearly every view placed, as under every perturbation of test_placed_views_hold_a_band...
+    assert summary["registered"] >= PLACED_AT_LEAST and summary["within_20mm"] >= PLACED_AT_LEAST, summary
+    assert summary["median_centre_error_mm"] < 2.0 and summary["median_rotation_error_deg"] < 0.3, summary
+    assert summary["reprojection_px"] < 1.0
 
-    # The scores again from the written model, aligned by pycolmap's own similarity estimate
-    # fitted to the views placed within 20 mm (all of them here)
-    model = pycolmap.Reconstruction(run_dir / COLMAP_DIR / "sparse" / "0")
-    registered = {img.name.removesuffix(".png"): img for img in model.images.values() if img.has_pose}
+    # Every model kept is held to the robot's priors: in the world's frame and metres already,
+    # before any alignment to the truth
+    models = _models(run_dir)
+    assert len(models) == summary["models"]
+    registered: dict[str, pycolmap.Image] = {}  # each view as the largest model holding it has it
+    owner: dict[str, int] = {}
+    for k, model in enumerate(models):
+        for img in model.images.values():
+            if img.has_pose and img.name.removesuffix(".png") not in registered:
+                registered[img.name.removesuffix(".png")], owner[img.name.removesuffix(".png")] = img, k
     assert sorted(registered) == sorted(v["frame"] for v in views if v["registered"])
+    raw = [
+        np.linalg.norm(img.projection_center() - np.asarray(truth[f]["world_T_camera"])[:3, 3])
+        for f, img in registered.items()
+    ]
+    assert np.median(raw) < 0.005, np.median(raw)
+    assert summary["scale_m_per_unit"] == pytest.approx(1.0, abs=0.01)
+
+    # The scores again from the written models, each aligned by pycolmap's own similarity
+    # estimate fitted to its views placed within 20 mm
     by_frame = {v["frame"]: v for v in views}
-    frames = sorted(registered)
-    assert summary["within_20mm"] == sum(by_frame[f]["centre_error_mm"] <= 20.0 for f in frames)
-    centres = np.array([registered[f].projection_center() for f in frames])
-    true_T = {f: np.asarray(truth[f]["world_T_camera"], float) for f in frames}
-    near = np.array([by_frame[f]["centre_error_mm"] <= 20.0 for f in frames])
-    sim = pycolmap.estimate_sim3d(centres[near], np.array([true_T[f][:3, 3] for f in frames])[near])
-    M = np.asarray(sim.matrix())
-    aligned = centres @ M[:3, :3].T + M[:3, 3]
-    for f, c in zip(frames, aligned, strict=True):
-        assert by_frame[f]["centre_error_mm"] == pytest.approx(np.linalg.norm(c - true_T[f][:3, 3]) * 1e3, abs=1e-3)
-        # the pose a reconstruction on COLMAP's cameras gets: the same centre
-        np.testing.assert_allclose(np.asarray(by_frame[f]["world_T_camera"])[:3, 3], c, atol=1e-6)
-    # rotations: errors are what is left after the one best turn; relative rotations between
-    # views need no alignment at all and must agree with the truth's as closely
-    model_R = {f: np.asarray(registered[f].cam_from_world().rotation.matrix()).T for f in frames}
-    worst = max(v["rotation_error_deg"] for v in views if v["registered"])
-    for a, b in zip(frames, frames[1:], strict=False):
-        relative = _angle_deg(true_T[a][:3, :3].T @ true_T[b][:3, :3], model_R[a].T @ model_R[b])
-        assert relative <= 2.0 * worst + 1e-6
+    for k, model in enumerate(models):
+        frames = sorted(img.name.removesuffix(".png") for img in model.images.values() if img.has_pose)
+        mine = np.array([owner[f] == k for f in frames])
+        assert summary["within_20mm"] >= sum(by_frame[f]["centre_error_mm"] <= 20.0 for f in frames)
+        centres = np.array([model.find_image_with_name(f"{f}.png").projection_center() for f in frames])
+        true_T = {f: np.asarray(truth[f]["world_T_camera"], float) for f in frames}
+        errors = {f: by_frame[f]["centre_error_mm"] for f, m in zip(frames, mine, strict=True) if m}
+        # fitted to the views it scored within 20 mm (all of them here), as the pipeline fits it
+        near = np.array([errors.get(f, 0.0) <= 20.0 for f in frames])
+        sim = pycolmap.estimate_sim3d(centres[near], np.array([true_T[f][:3, 3] for f in frames])[near])
+        M = np.asarray(sim.matrix())
+        aligned = centres @ M[:3, :3].T + M[:3, 3]
+        for f, c in [(f, c) for f, c, m in zip(frames, aligned, mine, strict=True) if m]:
+            assert by_frame[f]["centre_error_mm"] == pytest.approx(np.linalg.norm(c - true_T[f][:3, 3]) * 1e3, abs=1e-3)
+            # the pose a reconstruction on COLMAP's cameras gets: the same centre
+            np.testing.assert_allclose(np.asarray(by_frame[f]["world_T_camera"])[:3, 3], c, atol=1e-6)
+        # rotations: errors are what is left after the one best turn; relative rotations between
+        # views need no alignment at all and must agree with the truth's as closely
+        frames = [f for f, m in zip(frames, mine, strict=True) if m]
+        model_R = {f: np.asarray(registered[f].cam_from_world().rotation.matrix()).T for f in frames}
+        worst = max(by_frame[f]["rotation_error_deg"] for f in frames)
+        for a, b in zip(frames, frames[1:], strict=False):
+            relative = _angle_deg(true_T[a][:3, :3].T @ true_T[b][:3, :3], model_R[a].T @ model_R[b])
+            assert relative <= 2.0 * worst + 1e-6
     for v in views:
         if not v["registered"]:
             assert v["centre_error_mm"] is None and v["rotation_error_deg"] is None
@@ -88,7 +118,7 @@ def test_a_reconstruction_on_colmaps_poses_costs_accuracy(run_dir: Path, cli, tm
     moved into the world; the plant's cloud stays near the true surface (COLMAP's cameras are
     millimetres off) but is measurably less precise than on the true poses."""
     poses_json = run_dir / COLMAP_DIR / POSES_JSON
-    if not poses_json.exists() or json.loads(poses_json.read_text())["colmap"]["matcher"] != "exhaustive":
+    if not poses_json.exists() or json.loads(poses_json.read_text())["colmap"]["priors"] != "robot":
         assert cli(["colmap", str(run_dir), "--overwrite"])[0] == 0  # (run alone: the first test's model)
     registered = json.loads((run_dir / COLMAP_DIR / POSES_JSON).read_text())["summary"]["registered"]
     metrics = {}
@@ -107,28 +137,75 @@ def test_a_reconstruction_on_colmaps_poses_costs_accuracy(run_dir: Path, cli, tm
     assert plant["colmap"]["chamfer_mm"] > plant["truth"]["chamfer_mm"]
 
 
-def test_sequential_matching_replaces_the_model_only_with_overwrite(run_dir: Path, cli) -> None:  # noqa: ANN001
+def test_images_alone_replace_the_model_only_with_overwrite(run_dir: Path, cli) -> None:  # noqa: ANN001
+    """COLMAP from the images alone, as the paper ran it (here with sequential matching along the
+    routine): a model of its own frame, which only the alignment puts in the world."""
     if not (run_dir / COLMAP_DIR).exists():
         assert cli(["colmap", str(run_dir)])[0] == 0
     before = (run_dir / COLMAP_DIR / POSES_JSON).read_bytes()
-    code, _, err = cli(["colmap", str(run_dir), "--matcher", "sequential"])
+    code, _, err = cli(["colmap", str(run_dir), "--priors", "none", "--matcher", "sequential"])
     assert code == 2 and "already exists; pass --overwrite" in err and err.count("\n") == 1
     assert (run_dir / COLMAP_DIR / POSES_JSON).read_bytes() == before
-    code, _, err = cli(["colmap", str(run_dir), "--matcher", "sequential", "--overlap", "6", "--overwrite"])
+    args = ["colmap", str(run_dir), "--priors", "none", "--matcher", "sequential", "--overlap", "3", "--overwrite"]
+    code, _, err = cli(args)
     assert code == 0, err
     doc = json.loads((run_dir / COLMAP_DIR / POSES_JSON).read_text())
-    assert doc["colmap"]["matcher"] == "sequential" and doc["colmap"]["overlap"] == 6
+    assert doc["colmap"]["priors"] == "none" and doc["colmap"]["prior_std_mm"] is None
+    assert doc["colmap"]["matcher"] == "sequential" and doc["colmap"]["overlap"] == 3
     assert doc["summary"]["registered"] >= 3
+    assert len(_models(run_dir)) == 1  # from the images alone the largest model only: the others share no frame
+    # COLMAP's own scale and frame: nothing to do with metres until aligned
+    assert doc["summary"]["scale_m_per_unit"] != pytest.approx(1.0, abs=0.01)
     assert not [p.name for p in run_dir.iterdir() if p.name.startswith(".")], "no staging folder left"
+
+
+def test_placed_views_hold_a_band_under_perturbation(run_dir: Path, tmp_path: Path) -> None:
+    """Another machine renders the same views a grey level apart here and there, runs SIFT on
+    other threads, draws other random numbers: the default pipeline must place nearly every view
+    under each (bench/colmap_robustness.py: PLACED_AT_LEAST's comment), where COLMAP at its own
+    SIFT threshold from the images alone placed 17, 2 or 0 of these 36."""
+    from agrisim.evaluation import photogrammetry as pg
+    from agrisim.testing.perturb import noisy_copy
+
+    # +-1 grey level on every pixel, SIFT on one thread (the first test's ran on every core), and
+    # five seeds of the mapper: the pipeline's own steps, its features and matches made once
+    noisy = noisy_copy(run_dir, tmp_path / "noisy", seed=1)
+    run, cameras = pg.read_run(noisy)
+    frames = sorted(run["frames_complete"])
+    names = [f"{f}.png" for f in frames]
+    poses = {n: np.asarray(cameras["frames"][f]["world_T_camera"], float) for f, n in zip(frames, names, strict=True)}
+    database = tmp_path / "views.db"
+    K = np.asarray(cameras["intrinsics"]["K"])
+    pg.extract_features(database, noisy / "rgb", names, K, "known", 8192, pg.PEAK_THRESHOLD, threads=1)
+    pg.write_position_priors(database, {n: T[:3, 3] for n, T in poses.items()}, pg.PRIOR_STD_MM)
+    pycolmap.set_random_seed(1)
+    pg.match_features(database, "exhaustive", 10, {n: T[:3, :3] for n, T in poses.items()})
+    for seed in range(5):
+        sparse = tmp_path / f"sparse-{seed}"
+        sparse.mkdir()
+        models, _ = pg.map_with_retries(database, noisy / "rgb", sparse, 36, "known", True, pg.PRIOR_STD_MM, seed, 1)
+        # held to the priors, the models are in the world: scored with no alignment at all
+        errors = [
+            np.linalg.norm(img.projection_center() - poses[img.name][:3, 3])
+            for model in models.values()
+            for img in model.images.values()
+            if img.has_pose
+        ]
+        assert sum(e <= 0.02 for e in errors) >= PLACED_AT_LEAST and np.median(errors) < 0.002, (seed, sorted(errors))
 
 
 @pytest.mark.parametrize(
     "args, words",
     [
-        (["--matcher", "vocab"], "allowed: exhaustive, sequential"),
+        (["--matcher", "vocab"], "allowed: exhaustive, sequential, spatial"),
         (["--intrinsics", "guess"], "allowed: known, estimated"),
         (["--overlap", "0"], "--overlap must be 1 or more"),
         (["--max-features", "10"], "--max-features must be 64 or more"),
+        (["--priors", "gps"], "allowed: robot, none"),
+        (["--priors", "none", "--matcher", "spatial"], "--matcher spatial pairs views by their prior positions"),
+        (["--prior-std-mm", "0"], "--prior-std-mm must be a positive number"),
+        (["--peak-threshold", "0"], "--peak-threshold must lie between 0 and 1"),
+        (["--attempts", "0"], "--attempts must be 1 or more"),
     ],
 )
 def test_bad_options_exit_2_with_one_line(run_dir: Path, cli, tmp_path: Path, args, words) -> None:  # noqa: ANN001
@@ -151,3 +228,12 @@ def test_colmap_poses_need_agrisim_colmap_and_a_finished_run(tmp_path: Path, cli
     code, _, err = cli(["run", "--set", "recon.poses=colmap", "--out", str(tmp_path / "new")])
     assert code == 2 and "needs the finished run" in err and err.count("\n") == 1
     assert not (tmp_path / "new").exists()
+
+
+def test_the_command_lines_defaults_are_the_pipelines() -> None:
+    from agrisim.app.arguments import build_parser
+    from agrisim.evaluation import photogrammetry as pg
+
+    args = build_parser().parse_args(["colmap", "RUN"])
+    assert args.peak_threshold == pg.PEAK_THRESHOLD and args.prior_std_mm == pg.PRIOR_STD_MM
+    assert (args.priors, args.matcher, args.attempts, args.seed) == ("robot", "exhaustive", 3, 0)

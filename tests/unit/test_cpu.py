@@ -22,7 +22,7 @@ from agrisim.util import cpu
     ],
 )
 def test_vector_isa_reads_the_flags(monkeypatch: pytest.MonkeyPatch, flags: str, isa: str) -> None:
-    monkeypatch.setattr(cpu, "_cpuinfo", lambda: {"model name": "Some CPU", "flags": flags})
+    monkeypatch.setattr(cpu, "cpuinfo", lambda path=cpu.CPUINFO: {"model name": "Some CPU", "flags": flags})
     assert cpu.vector_isa() == isa
     assert cpu.cpu_model() == "Some CPU"
 
