@@ -119,7 +119,19 @@ def build_parser() -> argparse.ArgumentParser:
     render.add_argument(
         "--ray-address",
         metavar="ADDR",
-        help="several runs: join this Ray cluster (default: a local one), one GPU a run",
+        help="join this Ray cluster (default: a local one where there are several runs or GPUs)",
+    )
+    render.add_argument(
+        "--gpus",
+        type=int,
+        metavar="N",
+        help="GPUs to draw on: a run each, or one run's frames shared among them (default: every GPU)",
+    )
+    render.add_argument(
+        "--gpu-resource",
+        default="GPU",
+        metavar="NAME",
+        help="the Ray resource a GPU task takes one of (default: GPU; a custom resource a cluster declares)",
     )
     render.add_argument("--overwrite", action="store_true", help="replace an existing --out (or RUN_DIR's own RGB)")
     _set_flag(render, "renderer.* settings, e.g. renderer.mitsuba.spp=64")

@@ -173,16 +173,22 @@ def _cmd_recon(args: argparse.Namespace) -> int:
 
 
 def _cmd_render(args: argparse.Namespace) -> int:
+    from agrisim.app.placement import local_gpu_count
     from agrisim.app.progress import EpisodeProgress
     from agrisim.app.render import RenderPlan
 
     overrides: dict[str, Any] = {}
     apply_sets(overrides, args.set)
+    if args.gpus is not None and args.gpus < 1:
+        raise UserError(f"--gpus must be 1 or more, got {args.gpus}")
     if len(args.run_dirs) > 1:
         return _render_several(args, overrides)
     plan = RenderPlan(args.run_dirs[0], args.renderer, overrides, args.out, args.overwrite)
     if plan.done:
         print(f"resuming: {len(plan.done)} of {len(plan.frames)} frames already re-rendered")
+    # one run goes to Ray when its frames can be shared among GPUs, or a cluster is named
+    if args.ray_address is not None or args.gpus is not None or (plan.device != "cpu" and local_gpu_count() > 1):
+        return _render_on_ray(args, overrides, [plan])
     with EpisodeProgress("views") as progress:
         out = plan.run(progress.update)
     print(f"re-rendered {len(plan.frames)} frames of {plan.run_dir} with {plan.spec.name}")
@@ -192,19 +198,32 @@ def _cmd_render(args: argparse.Namespace) -> int:
 
 def _render_several(args: argparse.Namespace, overrides: dict[str, Any]) -> int:
     """``agrisim render RUN1 RUN2 ...``: every run checked first, then re-rendered as Ray tasks."""
-    from agrisim.app.progress import EpisodeProgress
-    from agrisim.app.render import RenderPlan, render_runs
+    from agrisim.app.render import RenderPlan
 
     if args.out is not None:
         raise UserError("--out names the output of one run; with several, each goes to RUN_DIR-<renderer>")
     if len(set(p.resolve() for p in args.run_dirs)) < len(args.run_dirs):
         raise UserError("a run is named twice")
     plans = [RenderPlan(d, args.renderer, overrides, None, args.overwrite) for d in args.run_dirs]
-    with EpisodeProgress("runs") as progress:
-        records = render_runs(plans, overrides, args.overwrite, args.ray_address, progress.update)
+    return _render_on_ray(args, overrides, plans)
+
+
+def _render_on_ray(args: argparse.Namespace, overrides: dict[str, Any], plans: list[Any]) -> int:
+    from agrisim.app.progress import EpisodeProgress
+    from agrisim.app.render import render_runs
+
+    with EpisodeProgress("views") as progress:
+        records = render_runs(
+            plans, overrides, args.ray_address, progress.update, gpus=args.gpus, gpu_resource=args.gpu_resource
+        )
     failed = [r for r in records if "error" in r]
     for r in records:
-        print(f"  {r['run']}: " + (f"failed: {r['error']}" if "error" in r else f"{r['frames']} frames -> {r['out']}"))
+        parts = len(r["parts"])
+        where = f" ({parts} parts on {parts} GPUs)" if parts > 1 else ""
+        print(
+            f"  {r['run']}: "
+            + (f"failed: {r['error']}" if "error" in r else f"{r['frames']} frames{where} -> {r['out']}")
+        )
     if failed:
         fail(f"{len(failed)} of {len(records)} re-renders failed; run the command again to resume them", status=1)
     return 0

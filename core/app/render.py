@@ -14,6 +14,12 @@ and the RGB re-rendered (with its radiance when the renderer keeps it); the Reru
 the source's radiance are not carried (they hold the old light).
 ``render.json`` records what was re-rendered with which options and which frames are done, so
 an interrupted re-render resumes frame by frame. Nothing is replaced without ``--overwrite``.
+
+Several runs, or one run on several GPUs, go to Ray (:func:`render_runs`): a task per run, or a
+run's frames dealt out over the GPUs (:func:`agrisim.app.placement.split_frames`). Each part
+lists the frames it has done in ``render.part-<k>.json`` beside ``render.json`` (one writer a
+file, so none can lose another's record); a resumed or retried part reads them back, and when
+every part of a run is done they are merged into ``render.json`` and removed.
 """
 
 from __future__ import annotations
@@ -40,6 +46,8 @@ from agrisim.interfaces import CameraModel, Renderer
 RENDER_JSON = "render.json"
 #: files of the source not carried into a re-rendered dataset (they show the old RGB)
 NOT_CARRIED = {layout.RECORDING, RENDER_JSON}
+#: where the part ``k`` of a re-render split over GPUs lists its frames done
+PART_JSON = "render.part-{}.json"
 
 
 def _link_poses(run_dir: Path, frame: str) -> dict[str, dict[str, np.ndarray]]:
@@ -62,7 +70,7 @@ def _carry(source: Path, out: Path) -> None:
             continue
         (out / rel).mkdir(parents=True, exist_ok=True)
         for name in files:
-            if rel == Path(".") and name in NOT_CARRIED:
+            if rel == Path(".") and (name in NOT_CARRIED or Path(name).match(PART_JSON.format("*"))):
                 continue
             src, dst = Path(root) / name, out / rel / name
             if dst.exists():
@@ -159,7 +167,8 @@ class RenderPlan:
         if previous.is_file():
             doc = read_json(previous, "")
             if all(doc.get(k) == v for k, v in self.record.items()):
-                return [f for f in doc.get("frames_done") or [] if f in self.frames]
+                done = set(doc.get("frames_done") or []) | self.parts_done()
+                return [f for f in self.frames if f in done]
         if self.in_place:
             if not overwrite:
                 raise OutputError(
@@ -178,19 +187,57 @@ class RenderPlan:
         renderer = self.spec.factory(scene, None, self.config.render, self.options)
         return renderer, camera_from_json(self.cameras["intrinsics"])
 
-    def run(self, progress: Callable[[int, int], None] | None = None) -> Path:
-        """Re-render every frame not done yet; returns the output directory."""
+    def _parts(self) -> list[Path]:
+        return sorted(self.out.glob(PART_JSON.format("*")))
+
+    def _part_record(self, path: Path) -> list[str]:
+        """The frames a part file lists done, if it belongs to this very re-render."""
+        try:
+            doc = read_json(path, "")
+        except UserError:  # a part file cut short by a lost machine: its frames are drawn again
+            return []
+        return list(doc.get("frames_done") or []) if all(doc.get(k) == v for k, v in self.record.items()) else []
+
+    def parts_done(self) -> set[str]:
+        """The frames the part files of this re-render list done."""
+        return {f for path in self._parts() for f in self._part_record(path)}
+
+    def prepare(self) -> None:
+        """The output made ready to draw into: replaced (a checked ``--overwrite``) or kept (a
+        resume), the source's files carried in, ``render.json`` written with status running."""
         out = self.out
         if not self.in_place:
             if out.exists() and not self.done:
                 shutil.rmtree(out)
             out.mkdir(parents=True, exist_ok=True)
             _carry(self.run_dir, out)
-        record: dict[str, Any] = dict(self.record, status="running", frames_done=list(self.done))
-        write_json(out / RENDER_JSON, record)
+        for path in self._parts() if not self.done else []:
+            path.unlink()  # a replaced re-render's parts
+        write_json(out / RENDER_JSON, dict(self.record, status="running", frames_done=list(self.done)))
+
+    def render_frames(
+        self,
+        frames: list[str],
+        part: int | None = None,
+        progress: Callable[[int, int], None] | None = None,
+        on_frame: Callable[[str], None] | None = None,
+    ) -> list[str]:
+        """Draw ``frames`` (those not done yet) into the prepared output, each listed done in
+        ``render.json``, or, for ``part`` k of a split re-render, in its own part file (which a
+        retried part reads back). ``on_frame(frame)`` hears of each frame listed done. Returns
+        the frames drawn now."""
+        out = self.out
+        if part is None:
+            path = out / RENDER_JSON
+            record: dict[str, Any] = read_json(path, "")
+        else:
+            path = out / PART_JSON.format(part)
+            done = self._part_record(path) if path.is_file() else []
+            record = dict(self.record, part=part, frames_done=done)
+        already = set(record["frames_done"]) | set(self.done)
+        todo = [f for f in frames if f not in already]
         settings = self.config.render
         renderer, camera = self.renderer()
-        todo = [f for f in self.frames if f not in set(self.done)]
 
         def save(frame: str, rgb: np.ndarray, radiance: np.ndarray | None) -> None:
             # one writer thread: frames are listed done in order, each after its PNG exists
@@ -198,7 +245,9 @@ class RenderPlan:
                 write_exr(layout.radiance(out, frame), radiance)
             write_png(layout.image(out, "rgb", frame), rgb)
             record["frames_done"].append(frame)
-            write_json(out / RENDER_JSON, record)
+            write_json(path, record)
+            if on_frame is not None:
+                on_frame(frame)
             if progress is not None:
                 progress(len(record["frames_done"]), len(self.frames))
 
@@ -218,54 +267,150 @@ class RenderPlan:
                 renderer.close()
             for f in pending:
                 f.result()
-        record["status"] = "complete"
-        write_json(out / RENDER_JSON, record)
-        return out
+        return todo
+
+    def finish(self) -> list[str]:
+        """Merge the parts' records into ``render.json``; ``status`` complete where every frame
+        is done. Returns the frames not done (empty when complete)."""
+        doc = read_json(self.out / RENDER_JSON, "")
+        done = set(doc.get("frames_done") or []) | self.parts_done()
+        doc["frames_done"] = [f for f in self.frames if f in done]
+        missing = [f for f in self.frames if f not in done]
+        doc["status"] = "running" if missing else "complete"
+        write_json(self.out / RENDER_JSON, doc)
+        if not missing:
+            for path in self._parts():
+                path.unlink()
+        return missing
+
+    @property
+    def device(self) -> str:
+        """``gpu``, ``auto`` or ``cpu``: where the renderer draws, by its ``variant`` option."""
+        return {"cuda": "gpu", "auto": "auto"}.get(str(getattr(self.options, "variant", None)), "cpu")
+
+    def run(self, progress: Callable[[int, int], None] | None = None) -> Path:
+        """Re-render every frame not done yet, in this process; returns the output directory."""
+        self.prepare()
+        self.render_frames(self.frames, progress=progress)
+        self.finish()
+        return self.out
 
 
-def _render_task(run_dir: str, renderer: str, overrides: dict[str, Any], overwrite: bool) -> dict[str, Any]:
-    """One run's re-render in a Ray worker (checked again there: the worker's files are what
-    count), returning what it did."""
-    plan = RenderPlan(Path(run_dir), renderer, overrides, None, overwrite)
-    out = plan.run()
-    return {"run": run_dir, "out": str(out), "frames": len(plan.frames)}
+#: Ray retries a part whose worker or node was lost this many times (it resumes from its part
+#: file); an exception raised by the renderer is recorded, never retried
+MAX_RETRIES = 3
+
+PartTask = Callable[..., dict[str, Any]]
 
 
+def render_part_task(
+    run_dir: str,
+    renderer: str,
+    overrides: dict[str, Any],
+    out: str,
+    frames: list[str],
+    part: int,
+    on_frame: Callable[[str], None] | None = None,
+) -> dict[str, Any]:
+    """Part ``part`` of a re-render in a Ray worker: ``frames`` of ``run_dir`` drawn into the
+    output the driver prepared (checked again here: the worker's files are what count).
+    Returns where it ran and what it drew."""
+    import socket
+    import time
+
+    t0 = time.perf_counter()
+    plan = RenderPlan(Path(run_dir), renderer, overrides, Path(out), overwrite=False)
+    record: dict[str, Any] = {"run": run_dir, "part": part, "host": socket.gethostname(), "pid": os.getpid()}
+    try:
+        import ray
+
+        if ray.is_initialized():
+            record["resources"] = ray.get_runtime_context().get_assigned_resources()
+    except ImportError:  # pragma: no cover - called outside Ray (debugging)
+        pass
+    drawn = plan.render_frames(frames, part=part, on_frame=on_frame)
+    record.update(frames=len(frames), drawn=drawn, seconds=round(time.perf_counter() - t0, 3))
+    return record
+
+
+# Long because Ray's submit/wait loop shares its state (pending parts, records, progress).
 def render_runs(
     plans: list[RenderPlan],
     overrides: dict[str, Any],
-    overwrite: bool,
     ray_address: str | None = None,
     progress: Callable[[int, int], None] | None = None,
+    *,
+    gpus: int | None = None,
+    gpu_resource: str = "GPU",
+    task: PartTask = render_part_task,
 ) -> list[dict[str, Any]]:
-    """Several checked re-renders as Ray tasks, one GPU each where the cluster has GPUs. Returns
-    one record per run, in order."""
-    from agrisim.app.compare import start_ray, stop_ray
+    """Checked re-renders as Ray tasks: one GPU each, and a run's frames split over several GPUs
+    where there are fewer runs than GPUs (:func:`agrisim.app.placement.split_frames`); on a
+    cluster without GPUs, one task a run. ``gpus`` caps the GPUs used (default: every
+    ``gpu_resource`` of the cluster; more than it has is a UserError raised before anything is
+    written). ``progress(views_done, views)`` hears of the frames drawn about once a second.
+    Returns one record per run, in order: its output, frames, parts, or its error. ``task`` is
+    the body of each part (:func:`render_part_task`; tests wrap it)."""
+    import time
 
+    from agrisim.app.compare import start_ray, stop_ray
+    from agrisim.app.placement import split_frames, task_resources
+
+    if gpus is not None and gpus < 1:
+        raise UserError(f"--gpus must be 1 or more, got {gpus}")
     info = start_ray(workers=None, address=ray_address)
     try:
         import ray
 
-        resources = ray.cluster_resources()
-        # Mitsuba's CPU variant spreads one render over every core, so CPU tasks ask for one
-        # CPU each and share the cores (their start-up, JIT compiling, overlaps this way)
-        need: dict[str, Any] = {"num_gpus": 1} if resources.get("GPU", 0) >= 1 else {"num_cpus": 1}
-        task = ray.remote(max_retries=0, **need)(_render_task)
-        refs = {task.remote(str(p.run_dir), p.spec.name, overrides, overwrite): i for i, p in enumerate(plans)}
-        records: list[dict[str, Any]] = [{} for _ in plans]
-        pending = list(refs)
+        have = int(ray.cluster_resources().get(gpu_resource, 0))
+        if gpus is not None and gpus > have:
+            raise UserError(f"--gpus {gpus}: the Ray cluster has {have} {gpu_resource} resource{'s' * (have != 1)}")
+        gpu = have > 0 and any(p.device != "cpu" for p in plans)
+        lacking = [p for p in plans if p.device == "gpu"]
+        if lacking and not gpu:
+            raise UserError(f"renderer variant cuda asks for a GPU but the Ray cluster has no {gpu_resource} resource")
+        todo = [[f for f in p.frames if f not in set(p.done)] for p in plans]
+        # Mitsuba's CPU variant spreads one render over every core: on CPUs a task a run, each
+        # asking for one core, so that their start-up (JIT compiling) overlaps
+        parts = split_frames(todo, (gpus or have) if gpu else len(plans))
+        for p in plans:
+            p.prepare()
+        remote: Any = ray.remote(max_retries=MAX_RETRIES, **task_resources(gpu, gpu_resource))(task)
+        pending = {
+            remote.remote(str(plans[i].run_dir), plans[i].spec.name, overrides, str(plans[i].out), frames, k): i
+            for i, k, frames in parts
+            if frames
+        }
+        records: list[dict[str, Any]] = [
+            {"run": str(p.run_dir), "out": str(p.out), "frames": len(p.frames), "parts": []} for p in plans
+        ]
+        total = sum(len(p.frames) for p in plans)
+        last = 0.0
         while pending:
-            ready, pending = ray.wait(pending, num_returns=1)
-            i = refs[ready[0]]
             try:
-                records[i] = ray.get(ready[0])
-            except ray.exceptions.RayTaskError as exc:
-                records[i] = {
-                    "run": str(plans[i].run_dir),
-                    "error": str(exc.cause if exc.cause else exc).splitlines()[0],
-                }
-            if progress is not None:
-                progress(len(plans) - len(pending), len(plans))
+                ready, _ = ray.wait(list(pending), num_returns=1, timeout=1.0)
+            except KeyboardInterrupt:  # a cluster's workers would draw on: the parts are stopped
+                for ref in pending:
+                    ray.cancel(ref, force=True)
+                raise
+            for ref in ready:
+                i = pending.pop(ref)
+                try:
+                    records[i]["parts"].append(ray.get(ref))
+                except ray.exceptions.RayError as exc:
+                    cause = getattr(exc, "cause", None) or exc
+                    records[i].setdefault("error", (str(cause).strip().splitlines() or [type(exc).__name__])[0])
+            if progress is not None and (ready or time.monotonic() - last > 1.0):
+                last = time.monotonic()
+                progress(sum(len(set(p.done) | p.parts_done()) for p in plans), total)
+        missing = 0
+        for p, record in zip(plans, records, strict=True):
+            left = p.finish()
+            missing += len(left)
+            if left and "error" not in record:
+                record["error"] = f"{len(left)} frames not drawn"
+        if progress is not None:
+            progress(total - missing, total)
         return records
     finally:
         stop_ray(info)

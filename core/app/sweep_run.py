@@ -24,6 +24,7 @@ from typing import Any
 
 from agrisim.app.compare import _probe, start_ray, stop_ray
 from agrisim.app.compare_plan import run_dir_state
+from agrisim.app.placement import task_resources
 from agrisim.app.sweep import MANIFEST, Cell, SweepPlan, follow_up_done
 from agrisim.config import build_config
 from agrisim.errors import OutputError, UserError
@@ -102,17 +103,6 @@ def _follow_up(run_dir: Path, name: str, colmap: Mapping[str, Any]) -> str:
 
 
 # ---------------------------------------------------------------------------------- placement
-
-
-def task_resources(gpu: bool, resource: str = "GPU") -> dict[str, Any]:
-    """Ray's options for one task: a core each, and one ``resource`` more for a GPU run (Ray's
-    own ``GPU``, which also sets ``CUDA_VISIBLE_DEVICES``, or a custom resource a cluster
-    declares its accelerators as)."""
-    if not gpu:
-        return {"num_cpus": 1}
-    if resource == "GPU":
-        return {"num_cpus": 1, "num_gpus": 1}
-    return {"num_cpus": 1, "resources": {resource: 1}}
 
 
 def check_gpus(plan: SweepPlan, cluster: Mapping[str, float], gpus: int | None, resource: str) -> list[bool]:

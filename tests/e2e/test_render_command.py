@@ -11,7 +11,9 @@ import json
 import shutil
 import subprocess
 import sys
+from collections.abc import Callable, Iterator
 from pathlib import Path
+from typing import Any
 
 import pytest
 from conftest import isolated_env
@@ -195,6 +197,9 @@ def test_rerender_resumes_frame_by_frame(runs: dict[str, Path], tmp_path: Path) 
         (lambda d: None, ["--set", "plant=boxwood"], ["only renderer.* settings"]),
         (lambda d: None, ["--out", "{run}"], ["replaces its RGB", "--overwrite"]),
         (lambda d: (d.parent / "taken").mkdir(), ["--out", "{parent}/taken"], []),
+        (lambda d: None, ["--gpus", "3"], ["--gpus 3: the Ray cluster has 0 GPU resources"]),
+        (lambda d: None, ["--gpus", "0"], ["--gpus must be 1 or more"]),
+        (lambda d: None, ["--ray-address", "127.0.0.1:9"], ["--ray-address 127.0.0.1:9"]),
     ],
     ids=[
         "pybullet-cannot",
@@ -205,6 +210,9 @@ def test_rerender_resumes_frame_by_frame(runs: dict[str, Path], tmp_path: Path) 
         "not-a-renderer-setting",
         "in-place-needs-overwrite",
         "existing-out-empty-is-fine",
+        "more-gpus-than-the-cluster",
+        "no-gpus",
+        "unreachable-cluster",
     ],
 )
 def test_bad_input_writes_nothing(runs: dict[str, Path], tmp_path: Path, make, args, expected) -> None:  # noqa: ANN001
@@ -243,3 +251,100 @@ def test_several_runs_go_to_ray_tasks(runs: dict[str, Path], tmp_path: Path) -> 
         assert f"{s}: " in done.stdout
     again = rerender(sources[0], str(sources[1]), "--out", str(tmp_path / "x"), *sets(), blocked=())
     assert again.returncode == 2 and "names the output of one run" in again.stderr
+
+
+# ------------------------------------------------------------------ one run's frames over GPUs
+
+
+@pytest.fixture(scope="module")
+def ray_two_gpus() -> Iterator[None]:
+    """A local Ray of two CPUs and two ``fake_gpu``: Ray's custom resources place tasks as its
+    GPUs would (a task takes one; none waits for a busy one)."""
+    import logging
+    import os
+
+    os.environ.setdefault("RAY_USAGE_STATS_ENABLED", "0")
+    import ray
+
+    ray.init(
+        address="local",
+        num_cpus=2,
+        resources={"fake_gpu": 2},
+        object_store_memory=128 * 2**20,
+        include_dashboard=False,
+        log_to_driver=False,
+        logging_level=logging.ERROR,
+        _node_ip_address="127.0.0.1",
+    )
+    ray.cloudpickle.register_pickle_by_value(sys.modules[__name__])  # the wrapped task below
+    yield
+    ray.shutdown()
+
+
+def logged_part(log: str, marker: str, lost: int) -> Callable[..., dict[str, Any]]:
+    """:func:`render_part_task`, each attempt's start and end and every frame it lists done
+    logged, and part ``lost``'s worker killed after its first frame on its first attempt."""
+
+    def task(*args: Any) -> dict[str, Any]:
+        import os
+        import time
+
+        from agrisim.app.render import render_part_task
+
+        part = args[5]
+
+        def note(event: str, **more: Any) -> None:
+            with open(log, "a") as f:
+                f.write(json.dumps({"part": part, "event": event, "t": time.time(), "pid": os.getpid(), **more}) + "\n")
+
+        def on_frame(frame: str) -> None:
+            note("frame", frame=frame)
+            if part == lost and not Path(marker).exists():
+                Path(marker).write_text(str(os.getpid()))
+                os._exit(1)  # the worker is lost, as to the OOM killer or a node's end
+
+        note("start")
+        record = render_part_task(*args, on_frame=on_frame)
+        note("end")
+        return record
+
+    return task
+
+
+def test_one_run_split_over_two_gpus(runs: dict[str, Path], ray_two_gpus: None, tmp_path: Path) -> None:
+    """One run, two (fake) GPUs: its frames dealt out to two parts that draw at once, each on
+    its own GPU; one part's worker lost after its first frame and retried by Ray, going on from
+    its part file. Every frame drawn exactly once, the whole byte for byte the mitsuba run's,
+    ``render.json`` complete and the part files gone."""
+    from agrisim.app.render import PART_JSON, RenderPlan, render_runs
+
+    src = tmp_path / "run"
+    shutil.copytree(runs["raycast"], src)
+    # variant auto: CUDA where there is a GPU, so the parts go to the (fake) GPUs; Mitsuba's
+    # LLVM variant here, as the runs were drawn
+    overrides = {"renderer": {"mitsuba": dict(MITSUBA, variant="auto")}}
+    plan = RenderPlan(src, "mitsuba", overrides, None, overwrite=False)
+    log, marker = tmp_path / "parts.log", tmp_path / "lost"
+    seen: list[tuple[int, int]] = []
+    records = render_runs(
+        [plan], overrides, None, lambda d, n: seen.append((d, n)), gpu_resource="fake_gpu",
+        task=logged_part(str(log), str(marker), lost=1),
+    )  # fmt: skip
+    events = [json.loads(line) for line in log.read_text().splitlines()]
+    assert marker.exists(), "the lost worker's attempt never ran"
+    assert "error" not in records[0], records
+    drawn = [e["frame"] for e in events if e["event"] == "frame"]
+    assert sorted(drawn) == sorted(plan.frames)  # each once, the lost attempt's frame not again
+    by_part = {p: {e["frame"] for e in events if e["event"] == "frame" and e["part"] == p} for p in (0, 1)}
+    assert all(by_part.values()) and not by_part[0] & by_part[1]
+    starts = {p: min(e["t"] for e in events if e["event"] == "start" and e["part"] == p) for p in (0, 1)}
+    ends = [e["t"] for e in events if e["event"] == "end"]
+    assert max(starts.values()) < min(ends), "the two parts did not draw at once"
+    attempts = {p: {e["pid"] for e in events if e["event"] == "start" and e["part"] == p} for p in (0, 1)}
+    assert len(attempts[0]) == 1 and len(attempts[1]) == 2  # the lost part retried in a new worker
+    out = src.with_name("run-mitsuba")
+    assert files(out, "rgb") == files(runs["mitsuba"], "rgb")
+    doc = json.loads((out / "render.json").read_text())
+    assert doc["status"] == "complete" and doc["frames_done"] == plan.frames
+    assert not list(out.glob(PART_JSON.format("*")))
+    assert seen[-1] == (len(plan.frames), len(plan.frames))
