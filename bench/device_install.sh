@@ -5,11 +5,16 @@
 # points pip would register, so that `python3 -m agrisim render` finds its renderers. No Open3D,
 # pybullet, Pinocchio or OMPL: enough to re-render saved runs and run bench/'s GPU scripts.
 #   bash bench/device_install.sh [WHEELS [TARGET]]      (default TARGET: /tmp/site)
+# WHEELS may also be a site-packages packed by bench/device_site.sh (a .tar.xz), unpacked as it is.
 #   export PYTHONPATH=/tmp/site
 set -euo pipefail
 wheels=${1:-.whl}
 target=${2:-/tmp/site}
-python3 -m pip install -q --no-index --no-deps --no-compile --target "$target" "$wheels"/*.whl 2>/dev/null
+if [[ "$wheels" == *.tar.xz ]]; then
+  mkdir -p "$target" && tar -C "$target" -xJf "$wheels"
+else
+  python3 -m pip install -q --no-index --no-deps --no-compile --target "$target" "$wheels"/*.whl 2>/dev/null
+fi
 rm -rf "$target/agrisim" "$target"/agrisim-*.dist-info
 cp -r core "$target/agrisim"
 cp -r plugins "$target/agrisim/plugins"

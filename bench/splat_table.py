@@ -14,6 +14,16 @@ carry):
     --variant <s>-colmap --poses colmap: both fit on one H100, in less time)
     python bench/splat_table.py table M                            # the tables, as Markdown
 
+Over the GPUs of one host, one species a GPU at a time (a queue: a GPU takes the next species
+when its last is done), each species a ``splat_plant.py train`` process on its own GPU
+(``CUDA_VISIBLE_DEVICES``), the table's wall time printed and kept in M/gpus-<N>.json::
+
+    python bench/splat_table.py train CARRY --gpus 4 --out M [--draw mitsuba] [--species ...]
+    (--devices 1,2 for those GPUs: two tables at once on one host's separate GPUs)
+
+``--draw mitsuba`` takes saved runs (scene, cameras; no images) in CARRY/<s> and path-traces
+their views on the GPU first (Mitsuba's defaults), so that ten species fit one 64 MiB carry.
+
 ``prepare`` runs ``agrisim run --hide-robots --recon none`` (raycast, 100 setpoints, 960x540)
 into DIR/<s>/full where it is not there yet, re-renders it into DIR/<s>/mitsuba, runs
 ``agrisim colmap`` on that, and packs it (``splat_plant.py pack``) into CARRY/<s>.
@@ -60,6 +70,51 @@ def prepare(root: Path, carry: Path, species: list[str], resolution: str) -> Non
             pack(views, carry / s)
 
 
+def train_on_gpus(carry: Path, species: list[str], gpus: list[int], out: Path, draw: str | None) -> None:
+    """Every species of ``carry`` trained on true poses, a ``splat_plant.py train`` process per
+    species, one on each GPU of ``gpus`` at once; prints and saves the wall times."""
+    import os
+    import queue
+    import threading
+    import time
+
+    here = Path(__file__).resolve().parent
+    todo: queue.Queue[str] = queue.Queue()
+    for s in species:
+        todo.put(s)
+    out.mkdir(parents=True, exist_ok=True)
+    rows: list[dict] = []
+    t0 = time.perf_counter()
+
+    def worker(gpu: int) -> None:
+        while True:
+            try:
+                s = todo.get_nowait()
+            except queue.Empty:
+                return
+            cmd = [sys.executable, str(here / "splat_plant.py"), "train", str(carry / s), "--variant", f"{s}-truth",
+                   "--poses", "truth", "--out", str(out)] + (["--draw", draw] if draw else [])  # fmt: skip
+            start = time.perf_counter() - t0
+            with open(out / f"{s}.log", "w") as log:
+                done = subprocess.run(cmd, stdout=log, stderr=subprocess.STDOUT, check=False,
+                                      env=dict(os.environ, CUDA_VISIBLE_DEVICES=str(gpu)))  # fmt: skip
+            end = time.perf_counter() - t0
+            rows.append({"species": s, "gpu": gpu, "start_s": round(start, 1), "end_s": round(end, 1),
+                         "status": done.returncode})  # fmt: skip
+            print(f"{s}: GPU {gpu}, {start:.0f}-{end:.0f} s, exit {done.returncode}", flush=True)
+
+    threads = [threading.Thread(target=worker, args=(g,)) for g in gpus]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    wall = time.perf_counter() - t0
+    busy = sum(r["end_s"] - r["start_s"] for r in rows)
+    print(f"{len(species)} species on {len(gpus)} GPUs: {wall:.0f} s wall, {busy:.0f} s of training", flush=True)
+    doc = {"gpus": gpus, "species": species, "draw": draw, "wall_s": round(wall, 1), "runs": rows}
+    (out / f"gpus-{len(gpus)}.json").write_text(json.dumps(doc, indent=1) + "\n")
+
+
 def table(folder: Path) -> None:
     print(
         "| plant | PSNR | SSIM | paper PSNR | paper SSIM | plant PSNR | plant depth error median / p90, mm | centres precision / recall @2mm | Gaussians | training s |"
@@ -104,11 +159,21 @@ def main() -> None:
     p.add_argument("carry", type=Path)
     p.add_argument("--species", nargs="+", default=SPECIES)
     p.add_argument("--resolution", default="960x540")
+    g = sub.add_parser("train")
+    g.add_argument("carry", type=Path)
+    g.add_argument("--gpus", type=int, help="GPUs 0..N-1")
+    g.add_argument("--devices", help="these GPUs, e.g. 1,2 (instead of --gpus)")
+    g.add_argument("--out", type=Path, required=True)
+    g.add_argument("--draw", metavar="RENDERER")
+    g.add_argument("--species", nargs="+", default=SPECIES)
     t = sub.add_parser("table")
     t.add_argument("folder", type=Path)
     args = parser.parse_args()
     if args.command == "prepare":
         prepare(args.root, args.carry, args.species, args.resolution)
+    elif args.command == "train":
+        gpus = [int(d) for d in args.devices.split(",")] if args.devices else list(range(args.gpus or 1))
+        train_on_gpus(args.carry, args.species, gpus, args.out, args.draw)
     else:
         table(args.folder)
 
