@@ -250,7 +250,7 @@ def _check_cell(registry: Any, config: RunConfig) -> None:
     the renderer can draw."""
     from agrisim.capabilities import check_renderer
     from agrisim.scene.camera import preset
-    from agrisim.scene.plant_choice import check_plant_name, draws_points
+    from agrisim.scene.plant_choice import check_plant_name, draws_points, plant_seed
 
     _check_backends(registry, config)
     for section, kind in (("physics", "physics"), ("planner", "planner"), ("renderer", "renderer")):
@@ -259,8 +259,10 @@ def _check_cell(registry: Any, config: RunConfig) -> None:
     check_plant_name(registry, config)
     species = registry.specs("plant")
     for name, table in config.plants.items():
-        if name in species:
-            backend_options(species[name].options_model, table, f"plant {name!r}")
+        if name in species:  # (every species takes ``seed`` beside its own options)
+            plant_seed(name, table.get("seed", config.seed))
+            options = {k: v for k, v in table.items() if k != "seed"}
+            backend_options(species[name].options_model, options, f"plant {name!r}")
     preset(config.camera.preset, config.camera.resolution)
     if config.recon.poses != "truth":
         raise ConfigError(f"recon.poses = {config.recon.poses!r}: a run reconstructs on the true poses")

@@ -81,7 +81,7 @@ def _read_file(config: RunConfig) -> Plant:
     )
 
 
-def _plant_seed(name: str, value: object) -> int:
+def plant_seed(name: str, value: object) -> int:
     """``[plants.NAME] seed`` (``--plant-seed``), checked: an integer 0 .. 2^32 - 1."""
     if isinstance(value, bool) or not isinstance(value, int) or not 0 <= value <= 2**32 - 1:
         raise UserError(f"[plants.{name}] seed (--plant-seed) must be an integer from 0 to {2**32 - 1}, got {value!r}")
@@ -100,7 +100,7 @@ def resolve_plant(registry: Registry, config: RunConfig) -> Plant:
         table = dict(config.plants.get(name, {}))
         if "age" in table and "age" not in spec.options_model.model_fields:  # --plant-age's usual slip
             raise UserError(f"--plant-age: plant {name!r} has no age; it applies to species that grow (helios:*)")
-        seed = _plant_seed(name, table.pop("seed", config.seed))
+        seed = plant_seed(name, table.pop("seed", config.seed))
         options = backend_options(spec.options_model, table, f"plant {name!r}")
         with blame("plant", spec, f" growing {name!r}"):
             plant: Plant = registry.build("plant", spec, options).build(seed)

@@ -292,6 +292,7 @@ BAD = [
         id="bad-value-in-a-later-cell",
     ),
     pytest.param(BASE + '[axes]\n"renderer.backend" = ["raycast", "nope"]\n', [], ["'nope'"], id="unknown-renderer"),
+    pytest.param(BASE + "[axes]\nplant_seed = [1, -1]\n", [], ["plant_seed=-1", "seed"], id="bad-plant-seed"),
     pytest.param(BASE, [], ["grid is empty"], id="no-axes"),
     pytest.param(BASE + "[axes]\npcg_seed = []\n", [], ["grid is empty", "pcg_seed"], id="empty-axis"),
     pytest.param(BASE + "[axes]\npcg_seed = 3\n", [], ["list"], id="axis-not-a-list"),
@@ -341,3 +342,22 @@ def test_bad_input_exits_2_with_one_line_and_writes_nothing(
     for fragment in expected:
         assert fragment in err, f"{fragment!r} not in {err!r}"
     assert _snapshot(tmp_path) == before
+
+
+@pytest.mark.parametrize("name", ["seeds", "gpus"])
+def test_the_example_specs_plan_as_their_comments_say(name: str, tmp_path: Path) -> None:
+    """The README's example sweeps: every cell checked as a run would check it (the species'
+    ``seed`` too, which the seeds example varies), the grid the product of the axes, and the
+    GPU example's runs each holding a GPU."""
+    import math
+
+    from agrisim.config import load_toml
+
+    path = Path(__file__).resolve().parents[2] / "examples" / "sweeps" / f"{name}.toml"
+    axes = load_toml(path)["axes"]
+    plan = plan_sweep(read_spec(path), out=tmp_path / "out")
+    assert len(plan.cells) == math.prod(len(v) for v in axes.values())
+    assert len({c.name for c in plan.cells}) == len(plan.cells)
+    # seeds: raycast's variant auto, a GPU where the cluster has one; gpus: Mitsuba's cuda
+    assert {c.device for c in plan.cells} == {"gpu" if name == "gpus" else "auto"}
+    assert not (tmp_path / "out").exists()  # planning writes nothing
