@@ -326,6 +326,7 @@ def render_part_task(
 
         if ray.is_initialized():
             record["resources"] = ray.get_runtime_context().get_assigned_resources()
+            record["gpu_ids"] = [str(i) for i in ray.get_gpu_ids()]  # what CUDA_VISIBLE_DEVICES names
     except ImportError:  # pragma: no cover - called outside Ray (debugging)
         pass
     drawn = plan.render_frames(frames, part=part, on_frame=on_frame)

@@ -348,3 +348,28 @@ def test_one_run_split_over_two_gpus(runs: dict[str, Path], ray_two_gpus: None, 
     assert doc["status"] == "complete" and doc["frames_done"] == plan.frames
     assert not list(out.glob(PART_JSON.format("*")))
     assert seen[-1] == (len(plan.frames), len(plan.frames))
+
+
+def test_a_split_render_resumes_from_its_parts(runs: dict[str, Path], tmp_path: Path) -> None:
+    """A split re-render stopped with one part half done: the next ``agrisim render`` reads the
+    part's list, draws only the frames no part listed, merges every list into ``render.json``
+    and removes the part files; the whole is the mitsuba run's RGB."""
+    from agrisim.app.render import PART_JSON, RenderPlan
+
+    src = tmp_path / "run"
+    shutil.copytree(runs["raycast"], src)
+    overrides = {"renderer": {"mitsuba": MITSUBA}}
+    first = RenderPlan(src, "mitsuba", overrides, None, overwrite=False)
+    first.prepare()
+    assert first.render_frames(first.frames[0::2][:2], part=0) == first.frames[0::2][:2]
+    out = first.out
+    assert json.loads((out / "render.json").read_text())["frames_done"] == []  # listed in the part only
+    again = RenderPlan(src, "mitsuba", overrides, None, overwrite=False)
+    assert again.done == first.frames[0::2][:2]
+    again.prepare()
+    assert again.render_frames(again.frames) == [f for f in again.frames if f not in first.frames[0::2][:2]]
+    assert again.finish() == []
+    doc = json.loads((out / "render.json").read_text())
+    assert doc["status"] == "complete" and doc["frames_done"] == again.frames
+    assert not list(out.glob(PART_JSON.format("*")))
+    assert files(out, "rgb") == files(runs["mitsuba"], "rgb")
