@@ -24,14 +24,7 @@ for i in 0 1 2 3; do
   cp -r "$run" "$work/r$i"
   # agrisim render checks that the run's frames are complete (rgb, labels, depth), not what
   # they hold: empty stand-ins for the images the carry left behind
-  python3 - "$work/r$i" <<'PY'
-import json, pathlib, sys
-run = pathlib.Path(sys.argv[1])
-for folder in ("rgb", "labels", "depth"):
-    (run / folder).mkdir(exist_ok=True)
-    for frame in json.loads((run / "run.json").read_text())["frames_complete"]:
-        (run / folder / f"{frame}.png").touch()
-PY
+  python3 bench/stand_in_images.py "$work/r$i"
 done
 log=$work/figures.jsonl
 for g in "${counts[@]}"; do

@@ -21,14 +21,7 @@ done
 # (rgb, labels, depth), not what they hold: empty stand-ins in a copy.
 full=/tmp/run-1920x1080
 rm -rf "$full" && cp -r "$run" "$full"
-python3 - "$full" <<'PY'
-import json, pathlib, sys
-run = pathlib.Path(sys.argv[1])
-for folder in ("rgb", "labels", "depth"):
-    (run / folder).mkdir(exist_ok=True)
-    for frame in json.loads((run / "run.json").read_text())["frames_complete"]:
-        (run / folder / f"{frame}.png").touch()
-PY
+python3 bench/stand_in_images.py "$full"
 half=/tmp/run-960x540
 rm -rf "$half" && cp -r "$full" "$half"
 python3 - "$half/cameras.json" <<'PY'

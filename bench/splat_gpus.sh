@@ -2,8 +2,9 @@
 # The splat table's wall time on 1, 2 and 4 GPUs of one host (bench/splat_table.py train), on a
 # GPU machine with no package index: a minimal install from SITE (bench/device_site.sh with
 # gsplat==1.5.3 wadler-lindig==0.1.8), gsplat's CUDA code compiled once before any clock starts,
-# then each species of CARRY (saved runs: scene/lab.glb, cameras.json, run.json, empty image
-# stand-ins) path-traced at Mitsuba's defaults and trained on true poses, a process per GPU.
+# then each species of CARRY (saved runs: scene/lab.glb, cameras.json, run.json, the empty image
+# stand-ins of bench/stand_in_images.py) path-traced at Mitsuba's defaults and trained on true
+# poses, a process per GPU.
 #   bash bench/splat_gpus.sh CARRY SITE DEVICES [DEVICES ...]
 # Each DEVICES (e.g. 0 or 1,2 or 0,1,2,3) is one table over those GPUs; several run at once, on
 # separate GPUs, so that the 1- and 2-GPU tables fit one call.

@@ -21,7 +21,9 @@ approximate instructions (:mod:`agrisim.util.cpu`).
 
 from __future__ import annotations
 
+import contextlib
 import os
+from collections.abc import Iterator
 
 import pytest
 
@@ -113,6 +115,34 @@ def isolated_env(**extra: str) -> dict[str, str]:
         env[LLVM_TARGET_ENV] = _emulated
     env.update(extra)
     return env
+
+
+@contextlib.contextmanager
+def local_ray(module: str, **resources: float) -> Iterator[None]:
+    """A quiet local Ray of two CPUs on loopback, with ``resources`` (custom resources standing
+    in for GPUs: Ray places tasks by them as by its own); ``module``'s functions travel to the
+    workers by value (they cannot import a test module)."""
+    import logging
+    import sys
+
+    os.environ.setdefault("RAY_USAGE_STATS_ENABLED", "0")
+    import ray
+
+    ray.init(
+        address="local",
+        num_cpus=2,
+        resources=resources,
+        object_store_memory=128 * 2**20,
+        include_dashboard=False,
+        log_to_driver=False,
+        logging_level=logging.ERROR,
+        _node_ip_address="127.0.0.1",
+    )
+    ray.cloudpickle.register_pickle_by_value(sys.modules[module])
+    try:
+        yield
+    finally:
+        ray.shutdown()
 
 
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:

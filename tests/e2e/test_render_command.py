@@ -16,7 +16,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-from conftest import isolated_env
+from conftest import isolated_env, local_ray
 
 from agrisim.config import build_config
 from agrisim.episode import Episode
@@ -260,25 +260,8 @@ def test_several_runs_go_to_ray_tasks(runs: dict[str, Path], tmp_path: Path) -> 
 def ray_two_gpus() -> Iterator[None]:
     """A local Ray of two CPUs and two ``fake_gpu``: Ray's custom resources place tasks as its
     GPUs would (a task takes one; none waits for a busy one)."""
-    import logging
-    import os
-
-    os.environ.setdefault("RAY_USAGE_STATS_ENABLED", "0")
-    import ray
-
-    ray.init(
-        address="local",
-        num_cpus=2,
-        resources={"fake_gpu": 2},
-        object_store_memory=128 * 2**20,
-        include_dashboard=False,
-        log_to_driver=False,
-        logging_level=logging.ERROR,
-        _node_ip_address="127.0.0.1",
-    )
-    ray.cloudpickle.register_pickle_by_value(sys.modules[__name__])  # the wrapped task below
-    yield
-    ray.shutdown()
+    with local_ray(__name__, fake_gpu=2):
+        yield
 
 
 def logged_part(log: str, marker: str, lost: int) -> Callable[..., dict[str, Any]]:

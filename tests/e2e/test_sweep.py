@@ -14,7 +14,6 @@ from __future__ import annotations
 import json
 import os
 import shutil
-import sys
 import time
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import replace
@@ -23,6 +22,7 @@ from typing import Any
 
 import numpy as np
 import pytest
+from conftest import local_ray
 from PIL import Image
 
 from agrisim.app.sweep import plan_sweep, read_spec
@@ -47,25 +47,8 @@ IMAGE_FOLDERS = ("rgb", "labels", "depth")
 @pytest.fixture(scope="module")
 def ray_local() -> Iterator[None]:
     """One local Ray for the module: two CPUs and one ``fake_gpu``."""
-    os.environ.setdefault("RAY_USAGE_STATS_ENABLED", "0")
-    import logging
-
-    import ray
-
-    ray.init(
-        address="local",
-        num_cpus=2,
-        resources={"fake_gpu": 1},
-        object_store_memory=128 * 2**20,
-        include_dashboard=False,
-        log_to_driver=False,
-        logging_level=logging.ERROR,
-        _node_ip_address="127.0.0.1",
-    )
-    # the wrapped task below travels to the workers by value (they cannot import this module)
-    ray.cloudpickle.register_pickle_by_value(sys.modules[__name__])
-    yield
-    ray.shutdown()
+    with local_ray(__name__, fake_gpu=1):
+        yield
 
 
 def logged_task(log: str, marker: str, crash: str) -> Callable[..., dict[str, Any]]:
