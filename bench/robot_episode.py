@@ -24,9 +24,9 @@ from agrisim.plugins.physics.pybullet_physics.backend import BulletPhysics
 from agrisim.plugins.planners.ompl_planner import OmplOptions
 from agrisim.plugins.planners.ompl_planner.backend import OmplPlanner
 from agrisim.robot.kinematics import ArmKinematics
+from agrisim.robot.setpoints import random_views
 from agrisim.robot.trajectory import Limits, time_parametrize
 from agrisim.scene.cell import build_cell
-from agrisim.scene.transforms import look_at
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from machine import cpu_model  # noqa: E402
@@ -44,11 +44,7 @@ def bench_components() -> None:
     k = ArmKinematics(cell.arms[0])
     rng = np.random.default_rng(0)
     home = np.array(cell.arms[0].home)
-    c = cell.plant_center
-    targets = [
-        look_at(c + 0.5 * np.array([np.sin(p) * np.cos(a), np.sin(p) * np.sin(a), np.cos(p)]), c)
-        for p, a in zip(rng.uniform(0.6, 1.3, 50), rng.uniform(-1.2, 1.2, 50), strict=True)
-    ]
+    targets = random_views(cell.plant_center, rng)
     q_warm = [k.ik(T, home, rng=rng).q for T in targets]
     t_cold = per_call(lambda: k._solve(k._base.actInv(__import__("pinocchio").SE3(targets[0])), home, 200, 1e-7), 50)
     t_warm = per_call(lambda: k.ik(k.fk(q_warm[1] + 0.01), q_warm[1], rng=rng), 200)

@@ -363,14 +363,15 @@ def write_outputs(plan: ComparePlan, rows: Sequence[Mapping[str, Any]], report: 
     return paths
 
 
-def prepare_out(plan: ComparePlan) -> None:
-    """Create ``out``; under --overwrite replace what was there (checked by the plan)."""
-    if plan.overwrite and plan.out.exists():
-        shutil.rmtree(plan.out)
+def prepare_out(out: Path, overwrite: bool) -> None:
+    """Create ``out`` (of a compare or a sweep); with ``overwrite`` replace what was there
+    (the plan checked that it may)."""
+    if overwrite and out.exists():
+        shutil.rmtree(out)
     try:
-        plan.out.mkdir(parents=True, exist_ok=True)
+        out.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
-        raise OutputError(f"cannot create --out {plan.out}: {exc}") from None
+        raise OutputError(f"cannot create --out {out}: {exc}") from None
 
 
 @dataclass
@@ -415,7 +416,7 @@ def compare(
     todo = any(e.action != "skip" for e in plan.episodes)
     ray_info = start_ray(workers=workers, address=ray_address) if todo else None
     try:
-        prepare_out(plan)
+        prepare_out(plan.out, plan.overwrite)
         write_json(plan.out / "compare.json", report)
     except BaseException:
         if ray_info is not None:

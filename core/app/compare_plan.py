@@ -349,12 +349,18 @@ def _episode_action(run_dir: Path, config: RunConfig) -> str:
         raise OutputError(
             f"--resume: {run_dir} is a complete run without metrics.json; pass --overwrite to run the compare again"
         )
+    check_same_settings(run_dir, config, "this compare")
+    return "skip" if state == "complete" else "resume"
+
+
+def check_same_settings(run_dir: Path, config: RunConfig, asker: str) -> None:
+    """Under --resume: an OutputError where the run in ``run_dir`` was made with settings that
+    change its outcome from ``config``'s (``asker`` names who asks, in the message)."""
     saved = json.loads((run_dir / layout.RUN_JSON).read_text()).get("config") or {}
     diff = first_difference(outcome_settings(build_config(saved)), outcome_settings(config))
     if diff is not None:
         key, was, now = diff
         raise OutputError(
-            f"--resume: {run_dir} was run with {key} = {was!r}, this compare asks for {now!r}; "
+            f"--resume: {run_dir} was run with {key} = {was!r}, {asker} asks for {now!r}; "
             "give the same settings, or --overwrite"
         )
-    return "skip" if state == "complete" else "resume"

@@ -466,19 +466,14 @@ def _time_ik() -> dict[str, Any]:
 
         from agrisim.config import CellConfig
         from agrisim.robot.kinematics import ArmKinematics
+        from agrisim.robot.setpoints import random_views
         from agrisim.scene.cell import build_cell
-        from agrisim.scene.transforms import look_at
 
         cell = build_cell(CellConfig())
         k = ArmKinematics(cell.arms[0])
         rng = np.random.default_rng(0)
         home = np.array(cell.arms[0].home)
-        c = cell.plant_center
-        # the bench's 50 targets, drawn as it draws them (the first two are used)
-        targets = [
-            look_at(c + 0.5 * np.array([np.sin(p) * np.cos(a), np.sin(p) * np.sin(a), np.cos(p)]), c)
-            for p, a in zip(rng.uniform(0.6, 1.3, 50), rng.uniform(-1.2, 1.2, 50), strict=True)
-        ][:2]
+        targets = random_views(cell.plant_center, rng)[:2]  # the bench's 50 targets (the first two used)
         solved = [k.ik(T, home, rng=rng).q for T in targets]
         # The README's cold figure is of the solver loop itself (no restarts): the same call here.
         target = k._base.actInv(pin.SE3(targets[0]))

@@ -1,28 +1,55 @@
-"""A progress bar for long episodes, on stderr, quiet when stderr is not a terminal."""
+"""Progress bars for long work (episodes, re-renders, sweeps), on stderr, quiet when stderr is
+not a terminal."""
 
 from __future__ import annotations
 
 import sys
 from types import TracebackType
+from typing import TypeVar
 
 from rich.console import Console
-from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
+from rich.progress import (
+    BarColumn,
+    MofNCompleteColumn,
+    Progress,
+    ProgressColumn,
+    TextColumn,
+    TimeElapsedColumn,
+    TimeRemainingColumn,
+)
+
+_B = TypeVar("_B", bound="_Bar")
 
 
-class EpisodeProgress:
+class _Bar:
+    """A rich bar of ``columns`` on stderr, shown while the ``with`` block runs."""
+
+    def __init__(self, *columns: ProgressColumn | str) -> None:
+        self._console = Console(file=sys.stderr)
+        self._progress = Progress(
+            *columns, console=self._console, transient=True, disable=not self._console.is_terminal
+        )
+
+    def __enter__(self: _B) -> _B:
+        self._progress.start()
+        return self
+
+    def __exit__(
+        self, exc_type: type[BaseException] | None, exc: BaseException | None, tb: TracebackType | None
+    ) -> None:
+        self._progress.stop()
+
+
+class EpisodeProgress(_Bar):
     """``with EpisodeProgress() as p: episode.run(progress=p.update)``."""
 
     def __init__(self, description: str = "setpoints") -> None:
-        self._console = Console(file=sys.stderr)
-        self._progress = Progress(
+        super().__init__(
             TextColumn("[bold]{task.description}"),
             BarColumn(),
             MofNCompleteColumn(),
             TimeElapsedColumn(),
             TimeRemainingColumn(),
-            console=self._console,
-            transient=True,
-            disable=not self._console.is_terminal,
         )
         self._task = self._progress.add_task(description, total=None)
 
@@ -33,25 +60,15 @@ class EpisodeProgress:
         """``update``, the bar then named ``name`` (work in stages, each counted apart)."""
         self._progress.update(self._task, description=name, completed=done, total=total)
 
-    def __enter__(self) -> EpisodeProgress:
-        self._progress.start()
-        return self
 
-    def __exit__(
-        self, exc_type: type[BaseException] | None, exc: BaseException | None, tb: TracebackType | None
-    ) -> None:
-        self._progress.stop()
-
-
-class SweepProgress:
+class SweepProgress(_Bar):
     """``agrisim sweep``'s bar: views saved out of those planned (the ETA comes from their
     rate), runs done, views per second since the sweep started."""
 
     def __init__(self) -> None:
         from rich.progress import TaskProgressColumn
 
-        self._console = Console(file=sys.stderr)
-        self._progress = Progress(
+        super().__init__(
             TextColumn("[bold]runs {task.fields[runs]}"),
             BarColumn(),
             TextColumn("views {task.completed:.0f}/{task.total:.0f}"),
@@ -59,9 +76,6 @@ class SweepProgress:
             TextColumn("{task.fields[rate]}"),
             TimeElapsedColumn(),
             TimeRemainingColumn(),
-            console=self._console,
-            transient=True,
-            disable=not self._console.is_terminal,
         )
         self._task = self._progress.add_task("sweep", total=None, runs="0/?", rate="")
         self._start: tuple[float, int] | None = None
@@ -78,12 +92,3 @@ class SweepProgress:
         self._progress.update(
             self._task, completed=views_done, total=max(views, 1), runs=f"{runs_done}/{runs}", rate=rate
         )
-
-    def __enter__(self) -> SweepProgress:
-        self._progress.start()
-        return self
-
-    def __exit__(
-        self, exc_type: type[BaseException] | None, exc: BaseException | None, tb: TracebackType | None
-    ) -> None:
-        self._progress.stop()

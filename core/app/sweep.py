@@ -31,8 +31,8 @@ from pathlib import Path
 from typing import Any
 
 from agrisim.app.arguments import apply_sets, set_dotted
-from agrisim.app.compare_plan import _check_backends, run_dir_state
-from agrisim.config import RunConfig, backend_options, build_config, first_difference, load_toml, outcome_settings
+from agrisim.app.compare_plan import _check_backends, check_same_settings, run_dir_state
+from agrisim.config import RunConfig, backend_options, build_config, load_toml
 from agrisim.errors import ConfigError, OutputError, UserError
 from agrisim.files import layout
 
@@ -356,14 +356,7 @@ def _cell_action(run_dir: Path, config: RunConfig, after: Sequence[str]) -> str:
     state = run_dir_state(run_dir)
     if state in ("empty", "partial"):
         return "run"
-    saved = json.loads((run_dir / layout.RUN_JSON).read_text()).get("config") or {}
-    diff = first_difference(outcome_settings(build_config(saved)), outcome_settings(config))
-    if diff is not None:
-        key, was, now = diff
-        raise OutputError(
-            f"--resume: {run_dir} was run with {key} = {was!r}, this sweep asks for {now!r}; "
-            "give the same settings, or --overwrite"
-        )
+    check_same_settings(run_dir, config, "this sweep")
     if state == "unfinished":
         return "resume"
     return "skip" if all(follow_up_done(run_dir, a) for a in after) else "after"

@@ -22,12 +22,12 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from agrisim.app.compare import _probe, start_ray, stop_ray
+from agrisim.app.compare import _probe, prepare_out, start_ray, stop_ray
 from agrisim.app.compare_plan import run_dir_state
 from agrisim.app.placement import task_resources
 from agrisim.app.sweep import MANIFEST, Cell, SweepPlan, follow_up_done
 from agrisim.config import build_config
-from agrisim.errors import OutputError, UserError
+from agrisim.errors import UserError
 from agrisim.files import layout
 from agrisim.files.atomic import write_json
 
@@ -243,7 +243,7 @@ def sweep(
     earlier = _earlier(plan.out) if plan.resume else {}
     try:
         on_gpu = check_gpus(plan, ray.cluster_resources(), gpus, gpu_resource) if todo else []
-        _prepare_out(plan)
+        prepare_out(plan.out, plan.overwrite)
     except BaseException:
         if info:
             stop_ray(info)
@@ -287,18 +287,6 @@ def sweep(
         if info:
             stop_ray(info)
     return SweepResult(plan, runs, report["status"], report["wall_s"], info)
-
-
-def _prepare_out(plan: SweepPlan) -> None:
-    """Create ``out``; under --overwrite replace what was there (checked by the plan)."""
-    import shutil
-
-    if plan.overwrite and plan.out.exists():
-        shutil.rmtree(plan.out)
-    try:
-        plan.out.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise OutputError(f"cannot create --out {plan.out}: {exc}") from None
 
 
 def _execute(

@@ -27,6 +27,17 @@ class Setpoint:
         return f"{self.robot}_{self.index:03d}"
 
 
+def random_views(center: np.ndarray, rng: np.random.Generator, n: int = 50, radius: float = 0.5) -> list[np.ndarray]:
+    """``n`` camera poses looking at ``center`` from ``radius`` m, drawn from ``rng``: polar
+    angle 0.6-1.3 rad, azimuth within 1.2 rad of +x (the side an arm reaches). The IK timing's
+    targets: ``bench/robot_episode.py`` and ``agrisim doctor`` time the same ones."""
+    polar, azimuth = rng.uniform(0.6, 1.3, n), rng.uniform(-1.2, 1.2, n)
+    return [
+        look_at(center + radius * np.array([np.sin(p) * np.cos(a), np.sin(p) * np.sin(a), np.cos(p)]), center)
+        for p, a in zip(polar, azimuth, strict=True)
+    ]
+
+
 def hemisphere(cell: Cell, cfg: RoutineConfig) -> dict[str, list[Setpoint]]:
     """The paper's routine: per arm, L levels x C columns on its half of the hemisphere.
 
