@@ -156,16 +156,17 @@ class SweepResult:
         return [r for r in self.runs if r["status"] != "complete"]
 
 
-def _record(cell: Cell, task: Mapping[str, Any] | None, earlier: Mapping[str, Any] | None) -> dict[str, Any]:
-    """A cell's manifest record: the plan's, the folder's figures, this sweep's task record
-    (or, for a cell not run now, the earlier manifest's)."""
+def _record(
+    cell: Cell, figures: Mapping[str, Any], task: Mapping[str, Any] | None, earlier: Mapping[str, Any] | None
+) -> dict[str, Any]:
+    """A cell's manifest record: the plan's, the folder's ``figures`` (:func:`cell_figures`),
+    this sweep's task record (or, for a cell not run now, the earlier manifest's)."""
     rec: dict[str, Any] = {
         "name": cell.name,
         "run_dir": cell.name,
         "settings": cell.settings,
         "device": cell.device,
     }
-    figures = cell_figures(cell)
     rec["views"] = figures["views"]
     rec["metrics"] = figures["metrics"]
     if task is not None:
@@ -260,9 +261,20 @@ def sweep(
         "plan": plan.to_json(),
     }
     tasks: dict[int, dict[str, Any]] = {}
+    # a cell's folder no longer changes once its task ended (or it was skipped): read it once,
+    # not at every task's end (a sweep of n cells would read n^2 run.json files)
+    settled: dict[int, dict[str, Any]] = {}
+
+    def figures(i: int, cell: Cell) -> dict[str, Any]:
+        if i in settled:
+            return settled[i]
+        found = cell_figures(cell)
+        if i in tasks or cell.action == "skip":
+            settled[i] = found
+        return found
 
     def write_manifest(status: str) -> list[dict[str, Any]]:
-        runs = [_record(c, tasks.get(i), earlier.get(c.name)) for i, c in enumerate(plan.cells)]
+        runs = [_record(c, figures(i, c), tasks.get(i), earlier.get(c.name)) for i, c in enumerate(plan.cells)]
         for i, run in enumerate(runs):
             if on_gpu:  # where this sweep placed it (cells it skipped keep the earlier word)
                 run["gpu"] = on_gpu[i]
