@@ -93,17 +93,18 @@ def main() -> None:
         T = np.asarray(cameras["frames"][frame]["world_T_camera"], np.float64)
         keep = i > 0
         with stage("posing the arms (their acceleration structure rebuilt)", keep):
-            tracer.place_arms(poses(frame))
+            tracer.place_arms(poses(frame), (camera, T))
             o, d = tracer.camera_rays(camera, T, rows=(0, 1))  # a row's cast: Embree builds lazily
             dr.eval(tracer.trace(o, d).t)
         with stage("camera rays", keep):
             o, d = tracer.camera_rays(camera, T)
             dr.eval(o, d)
         ray = mi.Ray3f(o, d / dr.norm(d))
-        for name, layer in zip(("one cast, static scene", "one cast, arms"), engine.layers, strict=False):
-            with stage(name, keep):
-                dr.eval(layer.ray_intersect_preliminary(ray, coherent=True).t)
-        with stage("the walk (every layer, both scenes, opacity and culling)", keep):
+        names = ["solid static scene (room, table, pot)", "walked static scene (the plant)", "arms in view"]
+        for name, layer in zip(names, engine.layers, strict=True):
+            with stage(f"one cast, {name}", keep):
+                dr.eval(layer.scene.ray_intersect_preliminary(ray, coherent=True).t)
+        with stage("the walk (the solid cast, then every layer of the plant: opacity and culling)", keep):
             s = tracer.trace(o, d)
             dr.eval(s.t, s.face, s.b)
         with stage("annotations (labels, instances, depth)", keep):

@@ -80,7 +80,7 @@ def main() -> None:
     )
 
     def exact_kernels(T, p):  # noqa: ANN001, ANN202 - the pass without the copy to the host
-        tracer.place_arms(p)
+        tracer.place_arms(p, (camera, T))
         o, d = tracer.camera_rays(camera, T)
         s = tracer.trace(o, d, raw=args.seg_mode == "repopa")
         out = tracer.annotate(s, args.seg_mode == "repopa", lmap)
@@ -91,7 +91,10 @@ def main() -> None:
         ("exact pass, kernels only", exact_kernels),
         (
             "exact pass, images in host memory",
-            lambda T, p: (tracer.place_arms(p), tracer.exact(camera, T, seg_mode=args.seg_mode, label_map=lmap)),
+            lambda T, p: (
+                tracer.place_arms(p, (camera, T)),
+                tracer.exact(camera, T, seg_mode=args.seg_mode, label_map=lmap),
+            ),
         ),
     ):
         dr.kernel_history()

@@ -60,7 +60,7 @@ def main() -> None:
             poses = _link_poses(args.run_dir, f)
             t0 = time.perf_counter()
             tracer = renderer.tracer
-            tracer.place_arms(poses)
+            tracer.place_arms(poses, (camera, T))
             images = tracer.exact(camera, T, seg_mode=settings.seg_mode, label_map=label_map(settings.labels))
             t1 = time.perf_counter()
             colour, _ = renderer.render_rgb(camera, T, poses)

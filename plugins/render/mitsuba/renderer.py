@@ -203,7 +203,7 @@ class MitsubaRenderer(Renderer):
 
         tracer = self.tracer
         if tracer.arms:
-            tracer.place_arms(link_poses)
+            tracer.place_arms(link_poses, (camera, world_T_camera))
         exact = tracer.exact(
             camera, world_T_camera, seg_mode=self.settings.seg_mode, label_map=label_map(self.settings.labels)
         )

@@ -87,9 +87,9 @@ class RaycastRenderer(Renderer):
     ) -> Frame:
         H, W = camera.height, camera.width
         tracer = self.tracer
-        if tracer.arms:
-            tracer.place_arms(link_poses)
         T = np.asarray(world_T_camera, np.float64)
+        if tracer.arms:
+            tracer.place_arms(link_poses, (camera, T))
         seed = view_seed(camera, T, self.options.seed)
         repopa = self.seg_mode == "repopa"
         parts: dict[str, list[np.ndarray]] = {"rgb": [], "labels": [], "depth": [], "instances": []}

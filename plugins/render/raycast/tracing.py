@@ -12,9 +12,9 @@ import drjit as dr
 import numpy as np
 
 from agrisim.errors import ConfigError
-from agrisim.plugins.render.raycast import RaycastOptions
+from agrisim.plugins.render.raycast import RaycastOptions, culling
 from agrisim.plugins.render.raycast.engine import Engine, Surface
-from agrisim.plugins.render.raycast.lights import SHADOW_TFAR
+from agrisim.plugins.render.raycast.lights import SHADOW_TFAR, LightTable
 from agrisim.plugins.render.raycast.points import PointTracer
 from agrisim.robot.visuals import arm_link_meshes
 from agrisim.scene.camera import CameraModel
@@ -83,15 +83,48 @@ class SceneTracer:
             self.points is not None and self.points.instances is not None
         )
         self._label_maps: dict[bytes, Any] = {}
+        # what culling arm links needs: the box of the static scene, the lights' points
+        static = [m.vertices for m in scene.meshes if len(m.faces)]
+        if self.points is not None:
+            r = float(scene.points.size or 0.0)  # (a diameter: half of it would do)
+            static += [scene.points.positions - r, scene.points.positions + r]
+        self._bounds = culling.box_corners(np.concatenate(static)) if static else np.zeros((0, 3))
+        self._light_points = LightTable(list(scene.lights)).targets.astype(np.float64)
 
     @property
     def arms(self) -> bool:
         """Does the scene hold arms to pose?"""
         return bool(self.engine.links)
 
-    def place_arms(self, link_poses: Mapping[str, Mapping[str, np.ndarray]]) -> None:
-        """Pose the arms named in ``link_poses``; the others are left out."""
-        self.engine.place_arms(link_poses)
+    def place_arms(
+        self,
+        link_poses: Mapping[str, Mapping[str, np.ndarray]],
+        view: tuple[CameraModel, np.ndarray] | None = None,
+    ) -> None:
+        """Pose the arms named in ``link_poses``; the others are left out. With ``view``
+        (camera, world_T_camera), the links that no ray of that view can meet (its pixel rays,
+        their shadow rays) are not built nor cast (:mod:`.culling`): the images are the same,
+        for rays of that view only."""
+        e = self.engine
+        if view is None or not e.links or e.combined:  # (OptiX casts every link: one scene per kernel)
+            e.place_arms(link_poses)
+            return
+        camera, T = view
+        poses = e.link_poses(link_poses)
+        boxes = [
+            None if P is None else link.corners @ P[:3, :3].T + P[:3, 3] for link, P in zip(e.links, poses, strict=True)
+        ]
+        # the frustum reaches as deep as anything a pixel ray can meet
+        points = np.concatenate([self._bounds, *(b for b in boxes if b is not None)])
+        depth = (points - np.asarray(T, np.float64)[:3, 3]) @ np.asarray(T, np.float64)[:3, 2]
+        far = max(float(depth.max()), self.options.near) + culling.TOLERANCE
+        frustum = culling.frustum_corners(camera, T, self.options.near, far)
+        in_view, lit = culling.hull_planes(frustum), culling.hull_planes(np.concatenate([frustum, self._light_points]))
+        seen = np.array([b is not None and not culling.outside(b, in_view) for b in boxes])
+        # shadow rays leave their surface from a point moved off it by epsilon
+        margin = 2 * self.options.epsilon + culling.TOLERANCE
+        shading = np.array([b is not None and not culling.outside(b, lit, margin) for b in boxes])
+        e.place_arms(link_poses, seen, shading)
 
     # --------------------------------------------------------------------- rays
     def camera_rays(
