@@ -68,9 +68,18 @@ class ReconstructorCapabilities:
     """Writes files of its own into ``RUN/<folder>/`` (beside ``clouds/``)."""
 
 
+@dataclass(frozen=True)
+class SensorCapabilities:
+    """What a depth sensor measures."""
+
+    points: bool = False
+    """Measures a point plant (``Scene.points``: spheres) as well as meshes."""
+
+
 #: kind -> its capabilities type (kinds without one declare nothing)
 CAPABILITIES: dict[str, type] = {
     "renderer": RendererCapabilities,
+    "sensor": SensorCapabilities,
     "physics": PhysicsCapabilities,
     "reconstructor": ReconstructorCapabilities,
 }
@@ -113,6 +122,16 @@ def check_renderer(
             f"renderer backend {spec.name!r} cannot draw {' or '.join(lacking)} "
             f"(it does segmentation modes {modes}{', organ labels' if spec.capabilities.organ_labels else ', no organ labels'})"
             f"{offer}"
+        )
+
+
+def check_sensor(spec: BackendSpec, sensors: Mapping[str, BackendSpec], points: bool = False) -> None:
+    """Refuse measuring a point plant (``points``) with a sensor ``spec`` that cannot see one,
+    naming the sensors that can (``sensors``: all installed)."""
+    if points and not spec.capabilities.points:
+        able = [name for name, other in sensors.items() if other.capabilities.points]
+        raise UserError(
+            f"depth sensor {spec.name!r} cannot see point plants (spheres); sensors that can: {', '.join(able) or 'none'}"
         )
 
 

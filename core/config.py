@@ -80,11 +80,20 @@ class RendererChoice(BackendChoice):
     """Renderer (``--renderer``): raycast or pybullet, or a plugin's."""
 
 
+class SensorChoice(BackendChoice):
+    backend: str = "exact"
+    """Depth sensor (``--depth-sensor``): exact (the renderer's depth), azure-kinect-nfov, or a
+    plugin's; what it measures goes to ``depth_sensor/`` beside the exact ``depth/``."""
+
+
 class ReconChoice(BackendChoice):
     backend: str = "pointcloud"
     """Reconstructor (``--recon``): pointcloud or tsdf, or a plugin's; none: no reconstruction."""
     merged_every: int = Field(default=10, ge=1, le=10_000)
     """Announce the merged clouds (to Rerun) every this many views, and at the end."""
+    depth: Literal["sensor", "truth"] = "sensor"
+    """The depth the reconstructor is given: ``sensor``, what the run's depth sensor measured
+    (``depth_sensor/``; the exact depth with the exact sensor); ``truth``, the exact depth."""
     poses: Literal["truth", "colmap"] = "truth"
     """The camera poses the reconstructor is given: ``truth``, the simulator's; ``colmap``,
     COLMAP's estimates aligned to the world (``agrisim colmap RUN`` first; ``agrisim recon``
@@ -303,6 +312,8 @@ class RunConfig(_Model):
     renderer: RendererChoice = RendererChoice()
     """Renderer and per-backend options (``[renderer.raycast]``)."""
     render: RenderConfig = RenderConfig()
+    sensor: SensorChoice = SensorChoice()
+    """Depth sensor and per-backend options (``[sensor.azure-kinect-nfov]``)."""
     recon: ReconChoice = ReconChoice()
     """Reconstructor and per-backend options (``[recon.pointcloud]``, ``[recon.tsdf]``)."""
     metrics: MetricsConfig = MetricsConfig()
@@ -314,6 +325,12 @@ class RunConfig(_Model):
     sink: dict[str, dict[str, Any]] = {}
     """Options per sink (``[sink.rerun]``), validated by the sink's own model. Every installed
     sink observes every run."""
+
+
+def depth_read(config: RunConfig) -> str:
+    """Which depth a reconstruction of ``config`` reads, as metrics.json says it: ``truth``
+    (``recon.depth = "truth"``), or ``sensor:NAME`` (``sensor:exact``: the exact depth too)."""
+    return "truth" if config.recon.depth == "truth" else f"sensor:{config.sensor.backend}"
 
 
 def parse_grid(text: str) -> tuple[int, int]:

@@ -19,17 +19,18 @@ import numpy as np
 import pluggy
 from pydantic import BaseModel
 
-from agrisim.capabilities import check_reconstructor, check_renderer
-from agrisim.config import BackendChoice, RunConfig, backend_options
+from agrisim.capabilities import check_reconstructor, check_renderer, check_sensor
+from agrisim.config import BackendChoice, RunConfig, backend_options, depth_read
 from agrisim.errors import BackendFailure, ConfigError
 from agrisim.evaluation.metrics import GroundTruth
 from agrisim.evaluation.session import ReconSession, summary_metrics
-from agrisim.evaluation.views import View, load_view, view_from_capture
+from agrisim.evaluation.views import View, load_frame, view_from_capture, view_of
 from agrisim.files.atomic import remove_partial
 from agrisim.files.dataset import DatasetWriter
 from agrisim.files.rundir import prepare_out_dir, resolve_out_dir, saved_run
 from agrisim.interfaces import (
     Capture,
+    DepthSensor,
     JointTrajectory,
     PhysicsBackend,
     Planner,
@@ -89,6 +90,7 @@ class Episode:
         # Rendering needs a plant and the lab around it; a robot-only run (renderer "none")
         # builds neither, but a plant it names must still exist.
         self.renderer_spec = None
+        self.sensor_spec = None
         self.recon_spec = None
         self.scene: Scene | None = None
         if config.recon.poses != "truth":  # COLMAP runs on the finished views
@@ -100,6 +102,7 @@ class Episode:
             check_plant_name(self.registry, config)
             # nothing renders, but a typo or a bad value in an option table is still refused
             config.renderer.check_tables("renderer", self.registry.specs("renderer"))
+            config.sensor.check_tables("sensor", self.registry.specs("sensor"))
             config.recon.check_tables("recon", self.registry.specs("reconstructor"))
         else:
             self.renderer_spec, self.renderer_options = self._backend("renderer", config.renderer)
@@ -110,6 +113,8 @@ class Episode:
                 config.render.labels,
                 points=draws_points(config),
             )
+            self.sensor_spec, self.sensor_options = self._backend("sensor", config.sensor)
+            check_sensor(self.sensor_spec, self.registry.specs("sensor"), points=draws_points(config))
             with _timed(self._prep_wall, "plant"):
                 self.plant = resolve_plant(self.registry, config)
             with _timed(self._prep_wall, "scene"):
@@ -185,6 +190,7 @@ class Episode:
         with blame("physics", self.physics_spec, " to start"):
             physics: PhysicsBackend = self.registry.build("physics", self.physics_spec, self.cell, self.physics_options)
         renderer: Renderer | None = None
+        sensor: DepthSensor | None = None
         try:
             with blame("planner", self.planner_spec, " to start"):
                 planner: Planner = self.registry.build("planner", self.planner_spec, self.planner_options)
@@ -192,6 +198,11 @@ class Episode:
                 with blame("renderer", self.renderer_spec, " to start"):
                     renderer = self.registry.build(
                         "renderer", self.renderer_spec, self.scene, self.cell, self.config.render, self.renderer_options
+                    )
+            if self.sensor_spec is not None:
+                with blame("sensor", self.sensor_spec, " to start"):
+                    sensor = self.registry.build(
+                        "sensor", self.sensor_spec, self.scene, self.cell, self.config.render, self.sensor_options
                     )
             recon: Reconstructor | None = None
             if self.recon_spec is not None:
@@ -203,10 +214,11 @@ class Episode:
                 remove_partial(self.out_dir)  # half-written files of a killed run
         except BaseException:
             physics.close()
-            if renderer is not None:
-                renderer.close()
+            for backend in (renderer, sensor):
+                if backend is not None:
+                    backend.close()
             raise
-        self._renderer = renderer
+        self._renderer, self._sensor = renderer, sensor
         run = Run(
             config=self.config,
             cell=self.cell,
@@ -233,6 +245,10 @@ class Episode:
         if self.renderer_spec is not None:
             run.backends["renderer"] = self.renderer_spec.name
             run.backend_options["renderer"] = self.renderer_options.model_dump(mode="json")
+        if sensor is not None and self.sensor_spec is not None:
+            run.backends["sensor"] = self.sensor_spec.name
+            run.backend_options["sensor"] = self.sensor_options.model_dump(mode="json")
+            run.sensor = sensor.geometry(self.camera)
         self._session: ReconSession | None = None
         if recon is not None and self.scene is not None and self.recon_spec is not None:
             run.backends["recon"] = self.recon_spec.name
@@ -255,8 +271,9 @@ class Episode:
             self._sinks = self._register_sinks(run)
         except BaseException:
             physics.close()
-            if renderer is not None:
-                renderer.close()
+            for backend in (renderer, sensor):
+                if backend is not None:
+                    backend.close()
             raise
         return run
 
@@ -289,8 +306,9 @@ class Episode:
             self.pm.hook.agrisim_run_finished(run=run, summary=summary)
         finally:
             physics.close()
-            if self._renderer is not None:
-                self._renderer.close()
+            for backend in (self._renderer, self._sensor):
+                if backend is not None:
+                    backend.close()
             for sink in self._sinks:
                 self.pm.unregister(sink)
         return summary
@@ -515,12 +533,17 @@ class Episode:
             # the recording and the reconstruction see exactly the saved frame
             capture.replayed = True
             if self._renderer is not None:
-                view = load_view(self.out_dir, capture.frame, self.camera, world_T_camera)
-                capture.images = view.images
+                capture.images = load_frame(self.out_dir, capture.frame, self.camera)
+                view = view_of(capture, self.config.recon.depth)
         elif self._renderer is not None and self.renderer_spec is not None:
             with self._stage("render"), blame("renderer", self.renderer_spec, f" rendering {capture.frame}"):
                 capture.images = self._renderer.render(self.camera, world_T_camera, capture.link_poses or {})
-            view = view_from_capture(capture, self.config.render.depth_format != "png16")
+            if self._sensor is not None and self.sensor_spec is not None:
+                with self._stage("sensor"), blame("sensor", self.sensor_spec, f" measuring {capture.frame}"):
+                    capture.images.depth_sensor = self._sensor.measure(
+                        self.camera, world_T_camera, capture.link_poses or {}, capture.images
+                    )
+            view = view_from_capture(capture, self.config.render.depth_format != "png16", self.config.recon.depth)
         with self._stage("capture"):
             self.pm.hook.agrisim_capture(run=self._run, capture=capture)
         if self._session is not None and view is not None and self.recon_spec is not None:
@@ -535,6 +558,7 @@ class Episode:
             "seg_mode": c.render.seg_mode,
             "labels_mode": c.render.labels,
             "recon": c.recon.backend,
+            "depth": depth_read(c),
             "seed": c.seed,
         }
 

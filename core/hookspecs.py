@@ -2,7 +2,7 @@
 
 Two families:
 
-* **Providers** (``agrisim_physics``, ``agrisim_renderers``, ``agrisim_planners``,
+* **Providers** (``agrisim_physics``, ``agrisim_renderers``, ``agrisim_sensors``, ``agrisim_planners``,
   ``agrisim_reconstructors``, ``agrisim_plants``, ``agrisim_sinks``, ``agrisim_bridges``) return a list of
   :class:`agrisim.BackendSpec`. Results of all plugins are concatenated; a name provided twice is
   an error naming both distributions. They are called once per run, never in the inner loop.
@@ -45,6 +45,14 @@ def agrisim_renderers() -> list[BackendSpec]:
     options) -> Renderer``: what to draw, the arms' URDFs, the run-wide rendering settings and
     the backend's options; the result must be an :class:`agrisim.interfaces.Renderer`. Declare
     :class:`agrisim.capabilities.RendererCapabilities` in the spec."""
+
+
+@hookspec
+def agrisim_sensors() -> list[BackendSpec]:
+    """Depth sensors. The core calls ``factory(scene: Scene, cell: Cell, settings:
+    RenderConfig, options) -> DepthSensor`` when the run renders, with what the renderer gets;
+    the result must be an :class:`agrisim.interfaces.DepthSensor`, whose measurement the run
+    writes as ``depth_sensor/`` and reconstructs from (``recon.depth = "sensor"``)."""
 
 
 @hookspec

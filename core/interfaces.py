@@ -78,6 +78,9 @@ class Frame:
     #: float32 H x W x 3 linear RGB radiance before exposure and tone mapping, from renderers
     #: asked to keep it (the dataset writes it as ``radiance/<frame>.exr``)
     radiance: np.ndarray | None = None
+    #: float32 H x W planar depth in metres on these pixels as the run's depth sensor measured
+    #: it (:class:`DepthSensor`; 0 where it gave none), or None when the sensor is exact
+    depth_sensor: np.ndarray | None = None
     # depth_mm's answer, kept: the dataset writer, the recording and the reconstruction all ask
     _depth_mm: np.ndarray | None = field(default=None, init=False, repr=False, compare=False)
 
@@ -94,7 +97,16 @@ class Frame:
         as it is where the dataset keeps it exactly (EXR), so that a run, its ``--resume`` and
         ``agrisim recon`` integrate bit-identical data."""
         depth = np.asarray(self.depth, np.float32) if exact_depth else mm_to_depth(self.depth_mm())
-        return Frame(self.rgb, self.labels, depth, self.instances, self.radiance)
+        sensed = None if self.depth_sensor is None else mm_to_depth(depth_to_mm(self.depth_sensor))
+        return Frame(self.rgb, self.labels, depth, self.instances, self.radiance, sensed)
+
+    def with_depth(self, source: str) -> Frame:
+        """These images with the depth that ``source`` names: ``truth`` (as they are) or
+        ``sensor`` (the sensor's measurement in place of the exact depth; as they are when the
+        sensor is exact)."""
+        if source == "truth" or self.depth_sensor is None:
+            return self
+        return Frame(self.rgb, self.labels, self.depth_sensor, self.instances, self.radiance, self.depth_sensor)
 
     def copy(self) -> Frame:
         """A deep copy (the arrays too)."""
@@ -104,6 +116,7 @@ class Frame:
             self.depth.copy(),
             None if self.instances is None else self.instances.copy(),
             None if self.radiance is None else self.radiance.copy(),
+            None if self.depth_sensor is None else self.depth_sensor.copy(),
         )
 
 
@@ -252,6 +265,53 @@ class Renderer(ABC):
         link's frame)), saved with the run's scene so that ``agrisim render`` draws the same
         arms; empty when it draws none or cannot say."""
         return {}
+
+    def close(self) -> None:  # noqa: B027 - optional hook for backends holding resources
+        """Release resources."""
+
+
+@dataclass(frozen=True)
+class SensorGeometry:
+    """Where a depth sensor sits beside the colour camera and what its imager sees."""
+
+    camera: CameraModel
+    """The sensor's own pinhole model: its image size and intrinsics (OpenCV)."""
+    camera_T_sensor: np.ndarray
+    """4 x 4 pose of the sensor's optical frame in the colour camera's (OpenCV axes, metres)."""
+
+
+class DepthSensor(ABC):
+    """A depth camera mounted with the colour camera: what the device measures of the scene,
+    as planar depth on the colour camera's pixels (its depth aligned to colour, as
+    librealsense's ``align`` and the Azure Kinect SDK's transformation give it).
+
+    Built once per run as ``factory(scene, cell, settings, options)``, like a renderer (the
+    sensor casts its own rays into the same scene); the exact sensor measures what the renderer
+    drew and returns None.
+    """
+
+    def __init__(self, scene: Scene, cell: Cell | None, settings: RenderConfig, options: Any) -> None:
+        self.scene = scene
+        self.cell = cell
+        self.settings = settings
+        self.options = options
+
+    @abstractmethod
+    def geometry(self, camera: CameraModel) -> SensorGeometry | None:
+        """The sensor's imager and its pose against the colour ``camera``; None: the colour
+        camera's own pixels, exactly (the exact sensor)."""
+
+    @abstractmethod
+    def measure(
+        self,
+        camera: CameraModel,
+        world_T_camera: np.ndarray,
+        link_poses: Mapping[str, Mapping[str, np.ndarray]],
+        frame: Frame,
+    ) -> np.ndarray | None:
+        """What the sensor measures when the colour ``camera`` is at ``world_T_camera`` and
+        the arms at ``link_poses``: float32 H x W planar depth on the colour camera's pixels,
+        metres, 0 where the device gives none; None when it is ``frame.depth`` exactly."""
 
     def close(self) -> None:  # noqa: B027 - optional hook for backends holding resources
         """Release resources."""

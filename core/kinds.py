@@ -13,10 +13,10 @@ from typing import Any, Literal
 
 from pydantic import BaseModel
 
-from agrisim.interfaces import Bridge, PhysicsBackend, Planner, PlantSpecies, Reconstructor, Renderer
+from agrisim.interfaces import Bridge, DepthSensor, PhysicsBackend, Planner, PlantSpecies, Reconstructor, Renderer
 from agrisim.options import Options
 
-Kind = Literal["physics", "renderer", "planner", "reconstructor", "plant", "sink", "bridge"]
+Kind = Literal["physics", "renderer", "sensor", "planner", "reconstructor", "plant", "sink", "bridge"]
 
 
 @dataclass(frozen=True)
@@ -41,6 +41,8 @@ KINDS: dict[str, KindInfo] = {
                         "factory(cell: Cell, options) -> PhysicsBackend"),
     "renderer": KindInfo("agrisim_renderers", "renderer", Renderer,
                          "factory(scene: Scene, cell: Cell, settings: RenderConfig, options) -> Renderer"),
+    "sensor": KindInfo("agrisim_sensors", "sensor", DepthSensor,
+                       "factory(scene: Scene, cell: Cell, settings: RenderConfig, options) -> DepthSensor"),
     "planner": KindInfo("agrisim_planners", "planner", Planner,
                         "factory(options) -> Planner"),
     "reconstructor": KindInfo("agrisim_reconstructors", "recon", Reconstructor,

@@ -12,7 +12,7 @@ from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
     from agrisim.config import RunConfig
-    from agrisim.interfaces import Reconstruction
+    from agrisim.interfaces import Reconstruction, SensorGeometry
     from agrisim.robot.kinematics import ArmKinematics
     from agrisim.robot.setpoints import Setpoint
     from agrisim.scene.camera import CameraModel
@@ -72,6 +72,8 @@ class Run:
     backend_options: dict[str, dict[str, Any]] = field(default_factory=dict)
     scene: Scene | None = None  # what the renderer draws (None without a renderer)
     labels: LabelTable | None = None  # the label table of the images
+    #: the depth sensor's imager and pose against the camera (None: the exact sensor, or none)
+    sensor: SensorGeometry | None = None
     run_id: str = field(default_factory=lambda: uuid.uuid4().hex)
     results: list[SetpointResult] = field(default_factory=list)
     wall_s: dict[str, float] = field(default_factory=dict)

@@ -290,6 +290,7 @@ COMPARE_EPISODE_FLAGS: list[tuple[str, str, Any, str]] = [
     ("--plant-seed", "N", int, "the individual every species grows (default: --seed)"),
     ("--renderer", "NAME", str, "renderer (default: raycast)"),
     ("--shadow-samples", "N", int, "shadow rays per pixel, 0..32 (default: 1)"),
+    ("--depth-sensor", "NAME", str, "depth camera for depth_sensor/ and the reconstruction (default: exact)"),
     ("--physics", "NAME", str, "physics backend (default: pybullet)"),
     ("--planner", "NAME", str, "motion planner (default: ompl)"),
     ("--recon", "NAME", str, "reconstructor (default: pointcloud)"),
@@ -330,6 +331,12 @@ def _episode_flags(parser: argparse.ArgumentParser) -> None:
     run.add_argument("--labels", choices=["plant", "organs"], help="one plant label, or one per organ (default: plant)")
     run.add_argument("--renderer", metavar="NAME", help="renderer (default: raycast; none: robots only)")
     run.add_argument("--shadow-samples", type=int, metavar="N", help="shadow rays per pixel, 0..32 (default: 1)")
+    run.add_argument(
+        "--depth-sensor",
+        metavar="NAME",
+        help="the depth camera whose measurement goes to depth_sensor/ and to the reconstruction "
+        "(default: exact; azure-kinect-nfov; see agrisim plugins)",
+    )
     run.add_argument("--supersample", type=int, metavar="S", help="S x S RGB rays per pixel, 1..4 (default: 1)")
     run.add_argument("--hide-robots", action="store_true", default=None, help="render without the arms")
     run.add_argument(
@@ -424,6 +431,7 @@ def overrides_from_args(args: argparse.Namespace) -> dict[str, Any]:
         "render.seg_mode": args.seg_mode,
         "render.labels": args.labels,
         "renderer.backend": args.renderer,
+        "sensor.backend": getattr(args, "depth_sensor", None),
         "render.shadow_samples": args.shadow_samples,
         "render.supersample": args.supersample,
         "render.hide_robots": args.hide_robots,

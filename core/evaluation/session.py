@@ -218,9 +218,11 @@ def rebuild(
     thresholds_mm: list[float],
     progress: Callable[[int, int], None] | None = None,
     poses: dict[str, np.ndarray] | None = None,
+    depth: str = "truth",
 ) -> ReconSession:
     """Feed every complete frame of a saved run, in capture order, to a fresh session; with
-    ``poses`` (estimated ones, by frame) only those frames, at those poses."""
+    ``poses`` (estimated ones, by frame) only those frames, at those poses; with the depth
+    ``depth`` names (``truth``, or ``sensor``: what the run's depth sensor measured)."""
     session = ReconSession(recon, labels, truth, thresholds_mm)
     camera = camera_from_json(cameras["intrinsics"])
     frames = cameras["frames"]
@@ -228,7 +230,7 @@ def rebuild(
         poses = {name: np.asarray(frame["world_T_camera"], float) for name, frame in frames.items()}
     order = [name for name in capture_order(run, frames) if name in poses]
     for i, name in enumerate(order):
-        session.add(load_view(run_dir, name, camera, poses[name]))
+        session.add(load_view(run_dir, name, camera, poses[name], depth))
         if progress:
             progress(i + 1, len(order))
     return session
@@ -266,7 +268,7 @@ def reconstruct_saved_run(
     is the run's saved configuration. Writes into ``out_dir`` (default: the run directory) and
     returns it with the metrics. Every input is checked before any work or write.
     """
-    from agrisim.config import backend_options, build_config
+    from agrisim.config import backend_options, build_config, depth_read
     from agrisim.registry import Registry, make_plugin_manager
 
     unknown = set(overrides) - {"recon", "metrics"}
@@ -309,6 +311,7 @@ def reconstruct_saved_run(
         config.metrics.thresholds_mm,
         progress,
         estimated,
+        config.recon.depth,
     )
     meta = {
         "plant": config.plant,
@@ -318,6 +321,7 @@ def reconstruct_saved_run(
         "seed": config.seed,
         "source": str(run_dir),
         "poses": config.recon.poses,
+        "depth": depth_read(config),
     }
     if not measurable:
         meta["truth_note"] = "accuracy not measured: Open3D is not installed here"

@@ -21,12 +21,25 @@ from agrisim.files.exr import read_exr
 from agrisim.interfaces import CameraModel, Capture, Frame, View
 
 
-def view_from_capture(capture: Capture, exact_depth: bool = False) -> View:
+def view_from_capture(capture: Capture, exact_depth: bool = False, depth: str = "truth") -> View:
     """The view of a freshly rendered capture, with depth as the dataset stores it: rounded to
-    millimetres, or exact where the run keeps EXR depth."""
+    millimetres, or exact where the run keeps EXR depth; ``depth`` = ``sensor`` puts what the
+    depth sensor measured in its place (:meth:`Frame.with_depth`)."""
     assert capture.images is not None, "a capture without images has no view"
     return View(
-        capture.frame, capture.camera, np.asarray(capture.world_T_camera, float), capture.images.stored(exact_depth)
+        capture.frame,
+        capture.camera,
+        np.asarray(capture.world_T_camera, float),
+        capture.images.stored(exact_depth).with_depth(depth),
+    )
+
+
+def view_of(capture: Capture, depth: str = "truth") -> View:
+    """The view of a capture whose images were read back from the run directory (already as
+    stored), with the depth ``depth`` names."""
+    assert capture.images is not None, "a capture without images has no view"
+    return View(
+        capture.frame, capture.camera, np.asarray(capture.world_T_camera, float), capture.images.with_depth(depth)
     )
 
 
@@ -49,9 +62,9 @@ def load_depth(run_dir: Path, frame: str) -> np.ndarray:
     return mm_to_depth(_read_png(layout.image(run_dir, "depth", frame), "depth").astype(np.uint16))
 
 
-def load_view(run_dir: Path, frame: str, camera: CameraModel, world_T_camera: np.ndarray) -> View:
-    """A frame of a dataset on disk (``rgb/``, ``labels/``, ``depth/`` as EXR if there, else
-    PNG, ``instances/``)."""
+def load_frame(run_dir: Path, frame: str, camera: CameraModel) -> Frame:
+    """A frame's images on disk (``rgb/``, ``labels/``, ``depth/`` as EXR if there, else PNG,
+    ``instances/`` and ``depth_sensor/`` where the run has them)."""
     rgb = _read_png(layout.image(run_dir, "rgb", frame), "rgb")
     labels = _read_png(layout.image(run_dir, "labels", frame), "labels")
     depth = load_depth(run_dir, frame)
@@ -64,7 +77,17 @@ def load_view(run_dir: Path, frame: str, camera: CameraModel, world_T_camera: np
     path = layout.image(run_dir, "instances", frame)
     if path.exists():
         instances = _read_png(path, "instances").astype(np.uint16)
-    images = Frame(rgb, labels.astype(np.uint8), depth, instances)
+    sensed = None
+    path = layout.image(run_dir, layout.DEPTH_SENSOR, frame)
+    if path.exists():
+        sensed = mm_to_depth(_read_png(path, "depth_sensor").astype(np.uint16))
+    return Frame(rgb, labels.astype(np.uint8), depth, instances, depth_sensor=sensed)
+
+
+def load_view(run_dir: Path, frame: str, camera: CameraModel, world_T_camera: np.ndarray, depth: str = "truth") -> View:
+    """A frame of a dataset on disk (:func:`load_frame`) as a view, with the depth ``depth``
+    names (``truth``, or ``sensor``: ``depth_sensor/`` where the run has it)."""
+    images = load_frame(run_dir, frame, camera).with_depth(depth)
     return View(frame, camera, np.asarray(world_T_camera, float), images)
 
 

@@ -10,7 +10,9 @@ run got (``status`` running / complete / failed / interrupted) and what each set
 ``trajectories/`` every move of an arm (planned and executed joints in simulated time, what the
 ROS 2 bag export publishes as joint states and TF), rendered or not. Rendered
 frames go to ``rgb/``, ``labels/`` (uint8 ids), ``labels_vis/`` (label colours), ``depth/``
-(uint16 millimetres, 0 = no hit) and ``instances/`` (uint16 leaf ids), each PNG written
+(uint16 millimetres, 0 = no hit), ``instances/`` (uint16 leaf ids) and, with a depth sensor
+other than the exact one, ``depth_sensor/`` (what it measured, aligned to the camera's pixels,
+uint16 millimetres, 0 = no measurement; its imager and pose in ``cameras.json``), each PNG written
 atomically; a frame is listed in ``run.json`` only once all its files exist. A complete run's
 reconstruction goes to ``clouds/`` and its accuracy to ``metrics.json`` before ``run.json``
 says ``complete``.
@@ -31,6 +33,7 @@ import numpy as np
 from agrisim.evaluation.session import write_reconstruction
 from agrisim.files import json_text, layout
 from agrisim.files.atomic import to_json, write_bytes, write_json
+from agrisim.files.encoding import depth_to_mm
 from agrisim.files.exr import write_exr
 from agrisim.files.glb import export_glb
 from agrisim.files.nerfstudio import write_nerfstudio
@@ -107,6 +110,7 @@ class DatasetWriter:
         self.status = "running"
         self.summary: dict[str, Any] | None = None
         self.camera: CameraModel | None = None
+        self.sensor = None if run.sensor is None else (run.backends.get("sensor", ""), run.sensor)
         self.versions = package_versions()  # once: run.json is rewritten after every setpoint
         self._writer = ThreadPoolExecutor(max_workers=1, thread_name_prefix="agrisim-dataset")
         self._pending: list[tuple[Future[None], str, dict[str, Any]]] = []
@@ -164,9 +168,23 @@ class DatasetWriter:
             {
                 "convention": "OpenCV (x right, y down, z forward); pixel centres at integer coordinates",
                 "intrinsics": {"width": cam.width, "height": cam.height, "K": cam.K.tolist(), "hfov_deg": cam.hfov_deg},
+                **({"sensor": self._sensor_doc()} if self.sensor is not None else {}),
                 "frames": self._frame_texts.object(dict(sorted(self.frames.items()))),
             },
         )
+
+    def _sensor_doc(self) -> dict[str, Any]:
+        """The depth sensor's imager and pose against the camera (what ``depth_sensor/`` was
+        measured with, then aligned to the camera's pixels)."""
+        assert self.sensor is not None
+        name, geometry = self.sensor
+        sc = geometry.camera
+        return {
+            "name": name,
+            "intrinsics": {"width": sc.width, "height": sc.height, "K": sc.K.tolist(), "hfov_deg": sc.hfov_deg},
+            "camera_T_sensor": np.asarray(geometry.camera_T_sensor, np.float64).tolist(),
+            "depth": f"{layout.DEPTH_SENSOR}/: uint16 mm, planar, on the camera's pixels (aligned), 0 = no measurement",
+        }
 
     def _write(self, run: Run) -> None:
         self._collect()
@@ -298,3 +316,5 @@ def write_frame(
         write_png(layout.image(out, "depth", frame), images.depth_mm())
     if images.instances is not None:
         write_png(layout.image(out, "instances", frame), images.instances.astype(np.uint16))
+    if images.depth_sensor is not None:
+        write_png(layout.image(out, layout.DEPTH_SENSOR, frame), depth_to_mm(images.depth_sensor))

@@ -46,8 +46,11 @@ CLOUDS = "clouds"
 MASKS = "masks"
 ROSBAG = "rosbag"
 COLMAP = "colmap"
+#: what the run's depth sensor measured, uint16 mm on the colour camera's pixels (not with the
+#: exact sensor, whose measurement is ``depth/``)
+DEPTH_SENSOR = "depth_sensor"
 #: the image folders of a frame, each holding ``<frame>.png``
-FRAME_FOLDERS = ("rgb", "labels", "labels_vis", "depth", "instances")
+FRAME_FOLDERS = ("rgb", "labels", "labels_vis", "depth", "instances", DEPTH_SENSOR)
 #: the folders every complete rendered frame has (instances only where leaves are numbered)
 REQUIRED_FOLDERS = ("rgb", "labels", "depth")
 

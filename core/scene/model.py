@@ -78,6 +78,10 @@ class Material:
     image: the direction v shrinks) and z along the surface normal. Path tracers use it."""
     normal_scale: float = 1.0
     """glTF's ``normalTexture.scale``: multiplies the map's x and y before normalising."""
+    nir: float | None = None
+    """Diffuse reflectance in the near infrared (about 850 nm, where depth cameras illuminate),
+    0 to 1; None: estimated from the visible albedo (:func:`agrisim.scene.nir.nir_reflectance`).
+    Depth sensors use it; leaves are far brighter there than their green suggests."""
     back_color: tuple[float, float, float] | None = None
     """Double-sided surfaces whose back differs from their front (a leaf's lower side, paler
     than its upper side): linear R, G, B factors of the back's colour against the front's

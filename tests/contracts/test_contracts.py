@@ -69,6 +69,20 @@ def test_a_renderer_with_depth_2_percent_long_breaks_its_contract() -> None:
         _broken("renderer", "raycast", wrap)
 
 
+def test_a_sensor_2_percent_long_breaks_its_contract() -> None:
+    def wrap(sensor):
+        measure = sensor.measure
+
+        def longer(*args):
+            return measure(*args) * np.float32(1.02)
+
+        sensor.measure = longer
+        return sensor
+
+    with pytest.raises(AssertionError, match="floor 1 m away"):
+        _broken("sensor", "azure-kinect-nfov", wrap)
+
+
 def test_a_planner_that_ignores_collisions_breaks_its_contract() -> None:
     def wrap(planner):
         planner.plan = lambda start, goal, *rest: np.array([start, goal])

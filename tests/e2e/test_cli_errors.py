@@ -203,6 +203,20 @@ CASES = [
     pytest.param(
         ["--plant", "{tmp}/good.ply", "--as-points", "10"], ["already a point cloud"], id="as-points-of-a-cloud"
     ),
+    pytest.param(["--depth-sensor", "kinect9"], ["kinect9", "azure-kinect-nfov", "exact"], id="unknown-depth-sensor"),
+    pytest.param(
+        ["--depth-sensor", "azure-kinect-nfov", "--set", "sensor.azure-kinect-nfov.mode=wfov-binned"],
+        ["mode", "nfov-unbinned", "wfov-binned"],
+        id="depth-sensor-mode-it-lacks",
+    ),
+    pytest.param(
+        ["--depth-sensor", "azure-kinect-nfov", "--as-points", "5000"],
+        ["azure-kinect-nfov", "cannot see point plants", "exact"],
+        id="depth-sensor-on-points",
+    ),
+    pytest.param(
+        ["--set", "recon.depth=sensed"], ["recon.depth", "sensor", "truth"], id="recon-depth-neither-sensor-nor-truth"
+    ),
 ]
 
 

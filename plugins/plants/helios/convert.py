@@ -31,6 +31,7 @@ from typing import Any
 
 import numpy as np
 
+from agrisim.scene import nir
 from agrisim.scene.colour import srgb_to_linear
 from agrisim.scene.model import LEAF_ROUGHNESS, LEAF_TRANSMITTANCE, Label, LabelTable, Material, Mesh
 from agrisim.scene.palette import PALETTE
@@ -49,10 +50,15 @@ TRANSLUCENT_ORGANS = ("leaf", "flower")
 
 
 def _look(organ: str) -> dict:
-    """Path-tracing looks of an organ's material: translucent leaves and petals, rougher stems."""
+    """Looks of an organ's material: translucent leaves and petals, rougher stems (path
+    tracers), and its near-infrared reflectance (depth sensors, :mod:`agrisim.scene.nir`)."""
     if organ in TRANSLUCENT_ORGANS:
-        return {"roughness": LEAF_ROUGHNESS, "transmittance": LEAF_TRANSMITTANCE}
-    return {"roughness": 0.7}
+        return {
+            "roughness": LEAF_ROUGHNESS,
+            "transmittance": LEAF_TRANSMITTANCE,
+            "nir": nir.PETAL if organ == "flower" else nir.LEAF,
+        }
+    return {"roughness": 0.7, "nir": nir.STEM}
 
 
 HELIOS_ALPHA_CUTOFF = 249.5 / 255.0

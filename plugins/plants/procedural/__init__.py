@@ -17,7 +17,7 @@ from pydantic import Field
 
 from agrisim import BackendSpec, Options, hookimpl
 from agrisim.interfaces import PlantSpecies
-from agrisim.scene import colour
+from agrisim.scene import colour, nir
 from agrisim.scene.model import (
     PLANT_FIT_HEIGHT,
     PLANT_FIT_RADIUS,
@@ -96,6 +96,7 @@ def grow(species: str, seed: int, options: ProceduralPlantOptions | None = None)
         normal_map=grown.atlas.normals if grown.atlas.relief else None,
         back_color=look.back_color,
         back_roughness=look.back_roughness,
+        nir=nir.LEAF,  # (flowers share the leaves' cards: the leaves' value)
     )
     stem_label = grown.labels.by_name("stem").id
     stems = Material(
@@ -105,6 +106,7 @@ def grow(species: str, seed: int, options: ProceduralPlantOptions | None = None)
         alpha_mode="OPAQUE",
         double_sided=True,
         roughness=0.6,
+        nir=nir.STEM,
     )
     wood = Material(
         f"{species}_wood",
@@ -113,6 +115,7 @@ def grow(species: str, seed: int, options: ProceduralPlantOptions | None = None)
         alpha_mode="OPAQUE",
         double_sided=True,
         roughness=0.85,
+        nir=nir.WOOD,
     )
     mesh = b.build(species, [cards, stems, wood])
     mesh.colors = _leaf_colours(mesh, look, np.random.default_rng(tint_ss))
