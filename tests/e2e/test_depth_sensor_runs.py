@@ -23,7 +23,9 @@ def runs(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
     base = tmp_path_factory.mktemp("sensor")
     return {
         "exact": small_run(base / "exact", plant="boston_fern"),
-        "tof": small_run(base / "tof", plant="boston_fern", sensor=SENSOR),
+        "tof": small_run(
+            base / "tof", plant="boston_fern", sensor=SENSOR, output={"out": str(base / "tof"), "no_rrd": False}
+        ),
     }
 
 
@@ -71,3 +73,26 @@ def test_the_reconstruction_fuses_the_sensor_depth(runs: dict[str, Path], tmp_pa
     _, truth = reconstruct_saved_run(runs["tof"], {"recon": {"depth": "truth"}}, out_dir=tmp_path / "truth")
     assert truth["depth"] == "truth"
     assert truth["labels"]["plant"]["precision"]["2"] == pytest.approx(plant["exact"]["precision"]["2"], abs=0.02)
+
+
+def test_the_recording_shows_the_sensor_depth_as_the_camera_depth(runs: dict[str, Path]) -> None:
+    """``depth`` is what the sensor measured (as a robot's depth topic), ``depth_truth`` the
+    exact depth: byte for byte the run's PNGs, in capture order."""
+    from rerun.chunk import RrdReader
+
+    run = runs["tof"]
+    logged: dict[str, list[np.ndarray]] = {"depth": [], "depth_truth": []}
+    for chunk in RrdReader(run / "recording.rrd").stream():
+        kind = chunk.entity_path.lstrip("/").removeprefix("world/r1/camera/")
+        if kind not in logged or chunk.is_static:
+            continue
+        batch = chunk.to_record_batch()
+        if "DepthImage:buffer" in batch.schema.names:
+            for row in batch.column("DepthImage:buffer").to_pylist():
+                logged[kind].append(np.asarray(row[0], np.uint8).view(np.uint16))
+    frames = sorted(f.stem for f in (run / "depth_sensor").glob("r1_*.png"))
+    for kind, folder in (("depth", "depth_sensor"), ("depth_truth", "depth")):
+        pngs = [np.asarray(Image.open(run / folder / f"{f}.png")).ravel() for f in frames]
+        assert len(logged[kind]) == len(pngs), kind
+        for got, want in zip(logged[kind], pngs, strict=True):
+            assert np.array_equal(got, want), kind

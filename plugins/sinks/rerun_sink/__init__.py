@@ -15,7 +15,9 @@ plugins logging into the same recording should reuse)::
     world/<robot>/<link>                Transform3D world_T_link over time
     world/<robot>/<link>/visual_<i>     Asset3D (GLB) or Boxes3D, static, link_T_visual
     world/<robot>/camera                Transform3D world_T_camera + Pinhole (OpenCV RDF)
-    world/<robot>/camera/{rgb,labels,depth}   Image (JPEG), SegmentationImage, DepthImage (uint16 mm)
+    world/<robot>/camera/{rgb,labels,depth}   Image (JPEG), SegmentationImage, DepthImage (uint16 mm;
+                                        a depth sensor's measurement where the run has one)
+    world/<robot>/camera/depth_truth    DepthImage of the exact depth, beside a depth sensor's
     world/<robot>/camera/instances      SegmentationImage of leaf instance ids (when the plant has them)
     world/<robot>/planned|executed      LineStrips3D of the camera position per move
     world/setpoints/<robot>             Points3D (colour = pending/reached/failed)

@@ -61,6 +61,8 @@ class paths:  # noqa: N801 - a namespace of path builders, used like a module
     RUN_SUMMARY = "run/summary"
     #: images under each camera: a Frame field -> child entity name
     IMAGE_KINDS = ("rgb", "labels", "depth", "instances")
+    #: beside a depth sensor's ``depth``: the exact depth
+    DEPTH_TRUTH = "depth_truth"
 
     @staticmethod
     def obstacle(name: str) -> str:
@@ -101,7 +103,8 @@ class paths:  # noqa: N801 - a namespace of path builders, used like a module
 
     @staticmethod
     def camera_image(robot: str, kind: str) -> str:
-        """``kind`` is ``rgb``, ``labels``, ``depth`` or ``instances``."""
+        """``kind`` is ``rgb``, ``labels``, ``depth`` (a depth sensor's measurement where the run
+        has one), ``instances`` or ``depth_truth`` (the exact depth, beside a sensor's)."""
         return f"world/{robot}/camera/{kind}"
 
     @staticmethod

@@ -15,6 +15,7 @@ from urllib.parse import urlparse
 import numpy as np
 
 from agrisim import hookimpl
+from agrisim.files.encoding import depth_to_mm
 from agrisim.robot import meshes as robot_meshes
 from agrisim.scene.colour import linear_to_srgb
 
@@ -147,7 +148,7 @@ class RerunSink:
         ]
         in_3d_hidden = {paths.VIEW_CLOUDS: hidden}
         for a in arms:
-            in_3d_hidden |= {paths.camera_image(a, kind): hidden for kind in ("depth", *overlays)}
+            in_3d_hidden |= {paths.camera_image(a, kind): hidden for kind in ("depth", paths.DEPTH_TRUTH, *overlays)}
         return rrb.Blueprint(
             rrb.Horizontal(
                 rrb.Spatial3DView(
@@ -547,8 +548,15 @@ class RerunSink:
             # leaf instance ids (uint16, 0 = none): no annotation context, Rerun colours each id
             self.rec.log(paths.camera_image(robot, "instances"), rr.SegmentationImage(images.instances))
         # Millimetres in uint16 (as the dataset's depth PNGs): half the size of float32 metres
-        # and far more compressible; 1 mm steps are invisible at the cell's scale.
-        self.rec.log(paths.camera_image(robot, "depth"), rr.DepthImage(images.depth_mm(), meter=1000.0))
+        # and far more compressible; 1 mm steps are invisible at the cell's scale. With a depth
+        # sensor, ``depth`` is what it measured (as a robot's camera would publish it) and the
+        # exact depth is ``depth_truth``.
+        if images.depth_sensor is None:
+            self.rec.log(paths.camera_image(robot, "depth"), rr.DepthImage(images.depth_mm(), meter=1000.0))
+        else:
+            sensed = depth_to_mm(images.depth_sensor)
+            self.rec.log(paths.camera_image(robot, "depth"), rr.DepthImage(sensed, meter=1000.0))
+            self.rec.log(paths.camera_image(robot, paths.DEPTH_TRUTH), rr.DepthImage(images.depth_mm(), meter=1000.0))
 
     def log_label_table(self, table: Mapping[int, tuple[str, Sequence[int]]]) -> None:
         """The label ids' names and colours (``id -> (name, rgb)``) for every camera's
