@@ -20,7 +20,8 @@ message's log time; play it with ``ros2 bag play --clock``). Topics, for each ar
 - ``/A/planned_trajectory`` (``trajectory_msgs/JointTrajectory``): each planned move, stamped
   at its start, points every 1/240 s with positions and velocities.
 - ``/A/camera/image_raw`` (``rgb8``), ``/A/camera/depth`` (``32FC1``, planar z in metres, REP
-  118; +Inf where nothing was hit, REP 117's "no return"), ``/A/camera/labels`` (``mono8`` label
+  118; +Inf where nothing was hit, REP 117's "no return"; a depth sensor's measurement where the
+  run has one, the exact depth then on ``/A/camera/depth_truth``), ``/A/camera/labels`` (``mono8`` label
   ids), ``/A/camera/instances`` (``mono16`` leaf ids, where the run numbers leaves) and
   ``/A/camera/camera_info`` (K, P, no distortion): one each per rendered frame, in
   ``A/camera_optical_frame`` (OpenCV axes, which are ROS's optical-frame axes).
@@ -393,7 +394,7 @@ def bag_messages(export: RosbagExport, msgs: BagMessages) -> Iterator[tuple[str,
         if any(layout.cloud(export.run_dir, row["name"]).is_file() for row in export.labels if int(row["id"]) != 0):
             events.append((int(export.stamps[-1]), 3, len(events), "cloud", None))
     events.sort(key=lambda e: e[:3])
-    from agrisim.evaluation.views import load_view
+    from agrisim.evaluation.views import load_frame
     from agrisim.files.rundir import camera_from_json
 
     intrinsics = export.cameras["intrinsics"]
@@ -420,7 +421,7 @@ def bag_messages(export: RosbagExport, msgs: BagMessages) -> Iterator[tuple[str,
             assert camera is not None  # frames are listed only for a rendered run
             arm = export.frames[what]["robot"]
             optical = f"{arm}/{export.kin[arm].arm.camera_frame}"
-            images = load_view(export.run_dir, what, camera, export.frames[what]["world_T_camera"]).images
+            images = load_frame(export.run_dir, what, camera)
             yield (
                 f"/{arm}/camera/camera_info",
                 "sensor_msgs/msg/CameraInfo",
@@ -433,12 +434,22 @@ def bag_messages(export: RosbagExport, msgs: BagMessages) -> Iterator[tuple[str,
                 stamp,
                 msgs.image(stamp, optical, images.rgb, "rgb8"),
             )
+            # a depth sensor's measurement is the camera's depth (as a robot's driver publishes
+            # it), the exact depth beside it
+            sensed = images.depth_sensor is not None
             yield (
                 f"/{arm}/camera/depth",
                 "sensor_msgs/msg/Image",
                 stamp,
-                msgs.image(stamp, optical, rep118(images.depth), "32FC1"),
+                msgs.image(stamp, optical, rep118(images.depth_sensor if sensed else images.depth), "32FC1"),
             )
+            if sensed:
+                yield (
+                    f"/{arm}/camera/depth_truth",
+                    "sensor_msgs/msg/Image",
+                    stamp,
+                    msgs.image(stamp, optical, rep118(images.depth), "32FC1"),
+                )
             yield (
                 f"/{arm}/camera/labels",
                 "sensor_msgs/msg/Image",

@@ -22,7 +22,7 @@ from agrisim.robot.tf_tree import ArmFrames, quaternions
 from . import BridgeOptions
 
 #: the camera topics of each arm, by the image they carry
-IMAGE_TOPICS = ("image_raw", "depth", "labels", "instances")
+IMAGE_TOPICS = ("image_raw", "depth", "labels", "instances", "depth_truth")
 
 
 class RosBridge(Bridge):
@@ -161,7 +161,13 @@ class RosBridge(Bridge):
         h, w = images.rgb.shape[:2]
         self.send(self.pub_info[capture.robot], self.camera_info(frame, stamp, h, w, K, P))
         pub = self.pub_images[capture.robot]
-        self.send(pub["depth"], self._image(frame, stamp, rep118(images.depth), "32FC1"))
+        # a depth sensor's measurement is the camera's depth, as a robot's driver publishes it;
+        # the exact depth then goes beside it
+        if images.depth_sensor is None:
+            self.send(pub["depth"], self._image(frame, stamp, rep118(images.depth), "32FC1"))
+        else:
+            self.send(pub["depth"], self._image(frame, stamp, rep118(images.depth_sensor), "32FC1"))
+            self.send(pub["depth_truth"], self._image(frame, stamp, rep118(images.depth), "32FC1"))
         self.send(pub["labels"], self._image(frame, stamp, images.labels.astype(np.uint8), "mono8"))
         if images.instances is not None:
             self.send(pub["instances"], self._image(frame, stamp, images.instances.astype(np.uint16), "mono16"))

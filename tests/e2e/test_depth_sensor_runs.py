@@ -96,3 +96,29 @@ def test_the_recording_shows_the_sensor_depth_as_the_camera_depth(runs: dict[str
         assert len(logged[kind]) == len(pngs), kind
         for got, want in zip(logged[kind], pngs, strict=True):
             assert np.array_equal(got, want), kind
+
+
+def test_the_bag_publishes_the_sensor_depth_as_the_camera_depth(runs: dict[str, Path], cli) -> None:  # noqa: ANN001
+    """``agrisim export rosbag``: ``/A/camera/depth`` is the sensor's measurement and
+    ``/A/camera/depth_truth`` the exact depth (REP 118 metres, +Inf for none), read back with
+    ``mcap-ros2-support``."""
+    from mcap_ros2.reader import read_ros2_messages
+
+    run = runs["tof"]
+    code, _, err = cli(["export", "rosbag", str(run)])
+    assert code == 0, err
+    frames = json.loads((run / "cameras.json").read_text())["frames"]
+    seen = {"depth": 0, "depth_truth": 0}
+    for m in read_ros2_messages(str(run / "rosbag" / "rosbag.mcap")):
+        arm, _, kind = m.channel.topic.strip("/").partition("/camera/")
+        if kind not in seen:
+            continue
+        msg = m.ros_msg
+        frame = next(f for f, e in frames.items() if e["robot"] == arm and round(e["sim_time"] * 1e9) == m.log_time_ns)
+        folder = "depth_sensor" if kind == "depth" else "depth"
+        mm = np.asarray(Image.open(run / folder / f"{frame}.png"))
+        depth = np.frombuffer(bytes(msg.data), "<f4").reshape(msg.height, msg.width)
+        assert np.array_equal(np.isinf(depth), mm == 0), (kind, frame)
+        assert np.array_equal(depth[mm > 0], mm[mm > 0].astype(np.float32) / np.float32(1000)), (kind, frame)
+        seen[kind] += 1
+    assert seen == {"depth": 6, "depth_truth": 6}
