@@ -1,8 +1,9 @@
 """Near-infrared reflectance of the scene's surfaces, at about 850 nm where the active depth
 cameras (Azure Kinect, RealSense D415/D435 projectors) illuminate.
 
-A material states its own (:attr:`agrisim.scene.model.Material.nir`); the plants' generators
-state their organs' from the values below. Any other material is estimated from its visible
+A material states its own (:attr:`agrisim.scene.model.Material.nir`): the procedural species'
+leaves from their own PROSPECT-D leaf at 850 nm (0.43-0.54), their stems and the Helios crops'
+organs from the values below. Any other material is estimated from its visible
 albedo: a fair guess for paint, plastic and wood, which reflect about as much in the near
 infrared as in the visible, and a poor one for living tissue, which is why plants set theirs.
 

@@ -27,7 +27,7 @@ from agrisim.scene.model import (
 )
 
 from .growing import LEAF, Look
-from .optics import translucency
+from .optics import leaf_nir, translucency
 from .species import LOOKS, SPECIES, Grown
 from .textures import Atlas, srgb_to_linear
 
@@ -96,7 +96,7 @@ def grow(species: str, seed: int, options: ProceduralPlantOptions | None = None)
         normal_map=grown.atlas.normals if grown.atlas.relief else None,
         back_color=look.back_color,
         back_roughness=look.back_roughness,
-        nir=nir.LEAF,  # (flowers share the leaves' cards: the leaves' value)
+        nir=leaf_nir(look.leaf),  # PROSPECT-D's, at 850 nm (flowers share the cards: the leaves')
     )
     stem_label = grown.labels.by_name("stem").id
     stems = Material(

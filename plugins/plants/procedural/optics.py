@@ -87,6 +87,31 @@ def leaf_rgb(leaf: Leaf) -> tuple[RGB, RGB]:
         return _memory[key]
 
 
+#: the near-infrared wavelength depth cameras illuminate at (Azure Kinect, RealSense), nm
+NIR_NM = 850
+
+
+def leaf_nir(leaf: Leaf) -> float:
+    """The leaf's hemispherical reflectance at :data:`NIR_NM` (what an active depth camera's
+    light sees: :attr:`agrisim.scene.model.Material.nir`), from PROSPECT-D."""
+    key = _key(leaf)
+    with _lock:
+        path = cache_dir("leaf-optics") / "prospect-d-nir.json"
+        try:
+            stored = json.loads(path.read_text())
+        except (OSError, ValueError):
+            stored = {}
+        if key not in stored:
+            import prosail
+
+            wavelengths, refl, _ = prosail.run_prospect(
+                leaf.n, leaf.cab, leaf.car, leaf.brown, leaf.cw, leaf.cm, ant=leaf.ant, prospect_version="D"
+            )
+            stored[key] = float(np.interp(NIR_NM, wavelengths, refl))
+            write_cached(path, json.dumps(stored).encode())
+        return float(stored[key])
+
+
 def _compute(leaf: Leaf) -> tuple[list[float], list[float]]:
     import prosail
 
