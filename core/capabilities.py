@@ -74,6 +74,8 @@ class SensorCapabilities:
 
     points: bool = False
     """Measures a point plant (``Scene.points``: spheres) as well as meshes."""
+    range_m: tuple[float, float] = (0.0, float("inf"))
+    """The depths it measures, m (its published operating range)."""
 
 
 #: kind -> its capabilities type (kinds without one declare nothing)

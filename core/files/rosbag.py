@@ -436,14 +436,14 @@ def bag_messages(export: RosbagExport, msgs: BagMessages) -> Iterator[tuple[str,
             )
             # a depth sensor's measurement is the camera's depth (as a robot's driver publishes
             # it), the exact depth beside it
-            sensed = images.depth_sensor is not None
+            measured = images.depth if images.depth_sensor is None else images.depth_sensor
             yield (
                 f"/{arm}/camera/depth",
                 "sensor_msgs/msg/Image",
                 stamp,
-                msgs.image(stamp, optical, rep118(images.depth_sensor if sensed else images.depth), "32FC1"),
+                msgs.image(stamp, optical, rep118(measured), "32FC1"),
             )
-            if sensed:
+            if images.depth_sensor is not None:
                 yield (
                     f"/{arm}/camera/depth_truth",
                     "sensor_msgs/msg/Image",

