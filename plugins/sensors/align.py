@@ -70,6 +70,11 @@ def align_to_colour(
             on = (x <= x1) & (y <= y1) & (x >= 0) & (y >= 0) & (x < colour.width) & (y < colour.height)
             index.append((y[on] * colour.width + x[on]).astype(np.int64))
             value.append(depth_c[on])
-    np.minimum.at(out, np.concatenate(index), np.concatenate(value))
+    index_all, value_all = np.concatenate(index), np.concatenate(value)
+    # the z-buffer: footprints overlap only across depth edges, so write them all (one of the
+    # overlapping ones wins), then let the nearer ones that lost take their pixels
+    out[index_all] = value_all
+    lost = out[index_all] > value_all
+    np.minimum.at(out, index_all[lost], value_all[lost])
     out[~np.isfinite(out)] = 0.0
     return out.reshape(colour.height, colour.width).astype(np.float32)

@@ -102,7 +102,7 @@ class StereoOptions(Options):
     and 2 electrons of read noise); 0: none."""
     speckle: float = Field(0.15, ge=0.0, le=1.0)
     """Contrast of the projector's laser speckle (independent on the two imagers); 0: none."""
-    supersample: int = Field(3, ge=1, le=6)
+    supersample: int = Field(2, ge=1, le=6)
     """Rays per pixel side of the infrared images (a pixel integrates the light on its area)."""
     block_size: int = Field(7, ge=3, le=15)
     """The matching window's side, pixels (odd)."""

@@ -217,6 +217,16 @@ CASES = [
     pytest.param(
         ["--set", "recon.depth=sensed"], ["recon.depth", "sensor", "truth"], id="recon-depth-neither-sensor-nor-truth"
     ),
+    pytest.param(
+        ["--depth-sensor", "d435", "--set", "sensor.d435.resolution=1920x1080"],
+        ["resolution", "848x480", "1920x1080"],
+        id="stereo-resolution-it-lacks",
+    ),
+    pytest.param(
+        ["--depth-sensor", "d405", "--set", "sensor.d405.max_depth_m=2"],
+        ["d405", "0.07-0.5 m", "max_depth_m"],
+        id="stereo-depth-range-it-lacks",
+    ),
 ]
 
 

@@ -111,3 +111,35 @@ def test_a_depth_edge_gives_flying_pixels_and_the_filter_removes_them():
             assert (native > 0).mean() > 0.99  # the filter takes little else
     assert counts[False] > 100, counts  # each pixel on the edge mixes both surfaces
     assert counts[True] == 0, counts
+
+
+def test_alignment_keeps_the_nearest_of_overlapping_footprints():
+    """Across depth edges, footprints of several sensor pixels cover one colour pixel: it takes
+    the nearest, as a z-buffer does (against a pixel-by-pixel reference)."""
+    from agrisim.plugins.sensors.align import align_to_colour
+    from agrisim.scene.camera import CameraModel
+
+    sensor = CameraModel(40, 30, 30.0, 30.0, 19.5, 14.5)
+    colour = CameraModel(64, 48, 40.0, 40.0, 31.5, 23.5)
+    T = np.eye(4)
+    T[:3, 3] = (0.05, -0.02, 0.01)
+    rng = np.random.default_rng(3)
+    depth = rng.choice([0.0, 0.4, 0.7, 1.3], size=(30, 40)).astype(np.float32)
+    got = align_to_colour(depth, sensor, colour, T)
+    want = np.full((48, 64), np.inf)
+    for v, u in zip(*np.nonzero(depth), strict=True):
+        z = float(depth[v, u])
+        corners = []
+        for du, dv in ((-0.5, -0.5), (0.5, -0.5), (-0.5, 0.5), (0.5, 0.5)):
+            p = np.array([(u + du - sensor.cx) / sensor.fx * z, (v + dv - sensor.cy) / sensor.fy * z, z])
+            q = T[:3, :3] @ p + T[:3, 3]
+            corners.append((q[0] / q[2] * colour.fx + colour.cx, q[1] / q[2] * colour.fy + colour.cy))
+        xs, ys = zip(*corners, strict=True)
+        centre = T[:3, :3] @ np.array([(u - sensor.cx) / sensor.fx * z, (v - sensor.cy) / sensor.fy * z, z]) + T[:3, 3]
+        for y in range(int(np.ceil(min(ys))), int(np.floor(max(ys))) + 1):
+            for x in range(int(np.ceil(min(xs))), int(np.floor(max(xs))) + 1):
+                if 0 <= x < 64 and 0 <= y < 48:
+                    want[y, x] = min(want[y, x], centre[2])
+    want[~np.isfinite(want)] = 0.0
+    np.testing.assert_allclose(got, want.astype(np.float32), rtol=1e-6)
+    assert (got > 0).mean() > 0.3  # (the colour camera sees wider than the sensor)
