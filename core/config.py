@@ -82,8 +82,8 @@ class RendererChoice(BackendChoice):
 
 class SensorChoice(BackendChoice):
     backend: str = "exact"
-    """Depth sensor (``--depth-sensor``): exact (the renderer's depth), azure-kinect-nfov, or a
-    plugin's; what it measures goes to ``depth_sensor/`` beside the exact ``depth/``."""
+    """Depth sensor (``--depth-sensor``): exact (the renderer's depth), azure-kinect-nfov, d435,
+    d415, d405, or a plugin's; what it measures goes to ``depth_sensor/`` beside ``depth/``."""
 
 
 class ReconChoice(BackendChoice):

@@ -335,7 +335,7 @@ def _episode_flags(parser: argparse.ArgumentParser) -> None:
         "--depth-sensor",
         metavar="NAME",
         help="the depth camera whose measurement goes to depth_sensor/ and to the reconstruction "
-        "(default: exact; azure-kinect-nfov; see agrisim plugins)",
+        "(default: exact; azure-kinect-nfov, d435, d415, d405; see agrisim plugins)",
     )
     run.add_argument("--supersample", type=int, metavar="S", help="S x S RGB rays per pixel, 1..4 (default: 1)")
     run.add_argument("--hide-robots", action="store_true", default=None, help="render without the arms")
