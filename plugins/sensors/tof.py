@@ -215,6 +215,46 @@ class AzureKinectSensor(DepthSensor):
         per_range = 1.0 / np.sqrt(((u - cam.cx) / cam.fx) ** 2 + ((v - cam.cy) / cam.fy) ** 2 + 1.0)
         return np.stack(ranges), np.stack(amplitudes), per_range.reshape(-1)
 
+    def mixed(self, world_T_sensor: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(range, amplitude, planar-per-range) each pixel measures, as :func:`mix` of
+        :meth:`returns`, summed on Dr.Jit in the kernels that trace the rays (on a GPU, the
+        returns never reach the host)."""
+        import drjit as dr
+
+        tracer, mi, s = self.tracer, self.tracer.mi, self.options.subsamples
+        cam, near = self.camera, tracer.options.near
+        e = tracer.engine
+        k = mi.Float(4.0 * np.pi * MODULATION_HZ / C)
+        n_px = cam.width * cam.height
+        re, im, total, weighted = (dr.zeros(mi.Float, n_px) for _ in range(4))
+        for i in range(s):
+            for j in range(s):
+                offset = ((j + 0.5) / s - 0.5, (i + 0.5) / s - 0.5)
+                o, d = tracer.camera_rays(cam, world_T_sensor, offset=offset)
+                hit = tracer.trace(o, d)
+                length = dr.norm(d)
+                r = (hit.t + near) * length  # d has unit camera z: t + near is planar depth
+                on = hit.face >= 0
+                n = e.normal(hit.face, on)
+                cosine = dr.abs(dr.dot(n, d / length))
+                rho = dr.gather(mi.Float, self._nir, e.material(hit.face, on), on)
+                a = dr.select(on, rho * cosine / dr.square(r), 0.0)
+                r = dr.select(on, r, 0.0)
+                sin, cos = dr.sincos(k * r)
+                re, im, total, weighted = re + a * cos, im + a * sin, total + a, weighted + a * r
+                dr.eval(re, im, total, weighted)  # (one sub-sample's rays at a time: bounded memory)
+        re, im = re / s**2, im / s**2
+        amplitude = dr.sqrt(dr.square(re) + dr.square(im))
+        mean = dr.select(total > 0, weighted / dr.maximum(total, 1e-30), 0.0)
+        wrap = 2.0 * np.pi / k
+        phase = dr.atan2(im, re)
+        phase_range = dr.select(phase < 0, phase + 2.0 * np.pi, phase) / k
+        measured = phase_range + wrap * dr.round((mean - phase_range) / wrap)
+        dr.eval(measured, amplitude)
+        u, v = np.meshgrid(np.arange(cam.width), np.arange(cam.height))
+        per_range = 1.0 / np.sqrt(((u - cam.cx) / cam.fx) ** 2 + ((v - cam.cy) / cam.fy) ** 2 + 1.0)
+        return np.asarray(measured, np.float64), np.asarray(amplitude, np.float64), per_range.reshape(-1)
+
     def measure_native(
         self, world_T_camera: np.ndarray, link_poses: Mapping[str, Mapping[str, np.ndarray]], seed: int
     ) -> np.ndarray:

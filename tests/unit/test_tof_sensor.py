@@ -143,3 +143,18 @@ def test_alignment_keeps_the_nearest_of_overlapping_footprints():
     want[~np.isfinite(want)] = 0.0
     np.testing.assert_allclose(got, want.astype(np.float32), rtol=1e-6)
     assert (got > 0).mean() > 0.3  # (the colour camera sees wider than the sensor)
+
+
+def test_the_kernels_mix_the_returns_as_the_reference_does():
+    """The returns summed on Dr.Jit (what a view measures) equal numpy's :func:`tof.mix` of the
+    same returns, across a depth edge where they mix."""
+    sensor = _sensor(_quad((-20, 0), 1.0, 0.5, "near"), _quad((-20, 20), 1.3, 0.5, "far"))
+    world_T_sensor = HOME @ sensor.camera_T_sensor
+    ranges, amplitudes, _ = sensor.returns(world_T_sensor)
+    want_range, want_amplitude = tof.mix(ranges, amplitudes)
+    got_range, got_amplitude, _ = sensor.mixed(world_T_sensor)
+    seen = want_amplitude > 0
+    np.testing.assert_allclose(got_range[seen], want_range[seen], atol=1e-5)
+    np.testing.assert_allclose(got_amplitude[seen], want_amplitude[seen], rtol=1e-4)
+    straddling = (ranges.max(axis=0) - ranges.min(axis=0) > 0.2) & (amplitudes > 0).all(axis=0)
+    assert straddling.sum() > 100  # the edge's mixed pixels are in the comparison
