@@ -263,8 +263,7 @@ class AzureKinectSensor(DepthSensor):
         world_T_sensor = np.asarray(world_T_camera, np.float64) @ self.camera_T_sensor
         if self.tracer.arms:
             self.tracer.place_arms(link_poses, (self.camera, world_T_sensor))
-        ranges, amplitudes, per_range = self.returns(world_T_sensor)
-        measured, amplitude = mix(ranges, amplitudes)
+        measured, amplitude, per_range = self.mixed(world_T_sensor)
         valid = (amplitude >= MIN_SIGNAL) & (amplitude <= MAX_SIGNAL)
         sigma = RANDOM_ERROR_M * np.sqrt(REFERENCE_SIGNAL / np.maximum(amplitude, 1e-30))
         rng = np.random.default_rng(seed)
