@@ -278,11 +278,12 @@ class StereoSensor(DepthSensor):
         return self._exposed(left, gain, rng), self._exposed(right, gain, rng)
 
     def disparity_range(self) -> tuple[int, int]:
-        """(minDisparity, numDisparities) covering the depth range at this resolution."""
+        """(minDisparity, numDisparities): from 0, so that surfaces beyond the range match
+        where they are (and are then dropped) instead of wherever the search ends, to the
+        nearest depth of the range."""
         fb = self.camera.fx * self.device.baseline_m
-        lo = max(0, int(np.floor(fb / self.far)) - 1)
-        span = int(np.ceil(fb / self.near)) + 1 - lo
-        return lo, max(16, int(np.ceil(span / 16)) * 16)
+        span = int(np.ceil(fb / self.near)) + 1
+        return 0, max(16, int(np.ceil(span / 16)) * 16)
 
     def match(self, left: np.ndarray, right: np.ndarray) -> np.ndarray:
         """Planar depth (float32 H x W, m; 0 = none) on the left imager from the pair."""
@@ -303,8 +304,7 @@ class StereoSensor(DepthSensor):
             mode=cv2.STEREO_SGBM_MODE_SGBM_3WAY,
         )
         disparity = sgbm.compute(left, right).astype(np.float32) / 16.0
-        valid = disparity > max(lo, 0) - 0.5
-        valid &= disparity > 0
+        valid = disparity > max(lo, 0)
         depth = np.where(valid, self.camera.fx * self.device.baseline_m / np.maximum(disparity, 1e-6), 0.0)
         depth[(depth < self.near) | (depth > self.far)] = 0.0
         return depth.astype(np.float32)
