@@ -116,6 +116,7 @@ def test_doctor_tells_the_truth_about_this_machine(tmp_path: Path) -> None:
     assert {
         ("physics", "pybullet"),
         ("renderer", "raycast"),
+        ("sensor", "exact"),
         ("planner", "ompl"),
         ("reconstructor", "pointcloud"),
         ("sink", "rerun"),
