@@ -45,12 +45,11 @@ from pydantic import Field
 
 from agrisim.config import RenderConfig
 from agrisim.errors import ConfigError
-from agrisim.interfaces import DepthSensor, Frame, SensorGeometry
 from agrisim.options import Options
-from agrisim.scene.camera import CameraModel, view_seed
+from agrisim.plugins.sensors.traced import TracedSensor
+from agrisim.scene.camera import CameraModel
 from agrisim.scene.cell import Cell
 from agrisim.scene.model import Scene
-from agrisim.scene.nir import nir_reflectance
 
 
 @dataclass(frozen=True)
@@ -150,36 +149,20 @@ def pattern(seed: int = 0) -> np.ndarray:
     return np.clip(img, 0.0, 1.0)
 
 
-class StereoSensor(DepthSensor):
+class StereoSensor(TracedSensor):
     """Stereo depth as a RealSense D4xx computes it, aligned to the colour camera (see the module)."""
 
     def __init__(
         self, scene: Scene, cell: Cell | None, settings: RenderConfig, options: StereoOptions, device: str
     ) -> None:
-        super().__init__(scene, cell, settings, options)
-        from agrisim.plugins.render.raycast import RaycastOptions
-        from agrisim.plugins.render.raycast.tracing import SceneTracer
-        from agrisim.plugins.sensors.variant import sensor_variant
-
         self.device = DEVICES[device]
         self.near, self.far = depth_range(self.device, options)
-        arms = None if settings.hide_robots or not scene.arms else scene.arms
-        self.tracer = SceneTracer(
-            scene,
-            None if settings.hide_robots else cell,
-            RaycastOptions(variant=sensor_variant(options.variant)),
-            arms=arms,
-        )
-        mi = self.tracer.mi
-        self._nir = mi.Float(np.array([nir_reflectance(m) for m in self.tracer.engine.mats.materials], np.float32))
-        self._pattern = mi.Float(pattern().ravel())
+        super().__init__(scene, cell, settings, options)
+        self._pattern = self.tracer.mi.Float(pattern().ravel())
         self.camera = imager(self.device, options.resolution)
         self.camera_T_sensor = np.eye(4)
         if self.device.projector:  # the colour camera beside the left imager; the D405's is the left imager
             self.camera_T_sensor[0, 3] = -COLOUR_OFFSET_M
-
-    def geometry(self, camera: CameraModel) -> SensorGeometry:
-        return SensorGeometry(self.camera, self.camera_T_sensor)
 
     def _left_T_right(self) -> np.ndarray:
         T = np.eye(4)
@@ -318,19 +301,3 @@ class StereoSensor(DepthSensor):
             self.tracer.place_arms(link_poses)
         left, right = self.pair(world_T_camera, seed)
         return self.match(left, right)
-
-    def measure(
-        self,
-        camera: CameraModel,
-        world_T_camera: np.ndarray,
-        link_poses: Mapping[str, Mapping[str, np.ndarray]],
-        frame: Frame,
-    ) -> np.ndarray:
-        from agrisim.plugins.sensors.align import align_to_colour
-
-        seed = view_seed(camera, np.asarray(world_T_camera, np.float64), self.options.seed)
-        native = self.measure_native(world_T_camera, link_poses, seed)
-        return align_to_colour(native, self.camera, camera, self.camera_T_sensor)
-
-    def close(self) -> None:
-        self.tracer.close()

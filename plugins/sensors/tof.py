@@ -29,19 +29,18 @@ the corners, and temporal effects.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
-from typing import Literal
+from collections.abc import Iterator, Mapping
+from typing import Any, Literal
 
 import numpy as np
 from pydantic import Field
 
 from agrisim.config import RenderConfig
-from agrisim.interfaces import DepthSensor, Frame, SensorGeometry
 from agrisim.options import Options
-from agrisim.scene.camera import CameraModel, view_seed
+from agrisim.plugins.sensors.traced import TracedSensor
+from agrisim.scene.camera import CameraModel
 from agrisim.scene.cell import Cell
 from agrisim.scene.model import Scene
-from agrisim.scene.nir import nir_reflectance
 
 #: speed of light, m/s
 C = 299_792_458.0
@@ -160,30 +159,40 @@ def flying_pixels(depth: np.ndarray, edge_per_m: float, margin: np.ndarray) -> n
     return out
 
 
-class AzureKinectSensor(DepthSensor):
+class AzureKinectSensor(TracedSensor):
     """Time-of-flight depth as the Azure Kinect's NFOV-unbinned mode measures it, aligned to the
     colour camera (see the module)."""
 
     def __init__(self, scene: Scene, cell: Cell | None, settings: RenderConfig, options: AzureKinectOptions) -> None:
         super().__init__(scene, cell, settings, options)
-        from agrisim.plugins.render.raycast import RaycastOptions
-        from agrisim.plugins.render.raycast.tracing import SceneTracer
-        from agrisim.plugins.sensors.variant import sensor_variant
-
-        arms = None if settings.hide_robots or not scene.arms else scene.arms
-        self.tracer = SceneTracer(
-            scene,
-            None if settings.hide_robots else cell,
-            RaycastOptions(variant=sensor_variant(options.variant)),
-            arms=arms,
-        )
-        mi = self.tracer.mi
-        self._nir = mi.Float(np.array([nir_reflectance(m) for m in self.tracer.engine.mats.materials], np.float32))
         self.camera = sensor_camera()
         self.camera_T_sensor = camera_T_sensor()
 
-    def geometry(self, camera: CameraModel) -> SensorGeometry:
-        return SensorGeometry(self.camera, self.camera_T_sensor)
+    def _returns(self, world_T_sensor: np.ndarray) -> Iterator[tuple[Any, Any]]:
+        """Each sub-sample's (range, amplitude) of every pixel, as Dr.Jit arrays (amplitude 0
+        and range 0 where a ray hits nothing)."""
+        import drjit as dr
+
+        tracer, mi, s = self.tracer, self.tracer.mi, self.options.subsamples
+        cam, near, e = self.camera, tracer.options.near, tracer.engine
+        for i in range(s):
+            for j in range(s):
+                offset = ((j + 0.5) / s - 0.5, (i + 0.5) / s - 0.5)
+                o, d = tracer.camera_rays(cam, world_T_sensor, offset=offset)
+                hit = tracer.trace(o, d)
+                length = dr.norm(d)
+                r = (hit.t + near) * length  # d has unit camera z: t + near is planar depth
+                on = hit.face >= 0
+                n = e.normal(hit.face, on)
+                cosine = dr.abs(dr.dot(n, d / length))
+                rho = dr.gather(mi.Float, self._nir, e.material(hit.face, on), on)
+                yield dr.select(on, r, 0.0), dr.select(on, rho * cosine / dr.square(r), 0.0)
+
+    def _per_range(self) -> np.ndarray:
+        """Each pixel centre's planar depth per metre of range (row-major)."""
+        cam = self.camera
+        u, v = np.meshgrid(np.arange(cam.width), np.arange(cam.height))
+        return (1.0 / np.sqrt(((u - cam.cx) / cam.fx) ** 2 + ((v - cam.cy) / cam.fy) ** 2 + 1.0)).reshape(-1)
 
     def returns(self, world_T_sensor: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(ranges, amplitudes, planar-per-range) of the sensor's rays: ``ranges`` and
@@ -191,29 +200,12 @@ class AzureKinectSensor(DepthSensor):
         where a ray hits nothing), and each pixel centre's planar depth per metre of range."""
         import drjit as dr
 
-        tracer, mi, s = self.tracer, self.tracer.mi, self.options.subsamples
-        cam, near = self.camera, tracer.options.near
-        e = tracer.engine
         ranges, amplitudes = [], []
-        for i in range(s):
-            for j in range(s):
-                offset = ((j + 0.5) / s - 0.5, (i + 0.5) / s - 0.5)
-                o, d = tracer.camera_rays(cam, world_T_sensor, offset=offset)
-                hit = tracer.trace(o, d)
-                length = dr.norm(d)
-                r = (hit.t + near) * length  # d has unit camera z: t + near is planar depth
-                on = hit.face >= 0
-                n = e.normal(hit.face, on)
-                cosine = dr.abs(dr.dot(n, d / length))
-                rho = dr.gather(mi.Float, self._nir, e.material(hit.face, on), on)
-                a = dr.select(on, rho * cosine / dr.square(r), 0.0)
-                r = dr.select(on, r, 0.0)
-                dr.eval(r, a)
-                ranges.append(np.asarray(r, np.float64))
-                amplitudes.append(np.asarray(a, np.float64))
-        u, v = np.meshgrid(np.arange(cam.width), np.arange(cam.height))
-        per_range = 1.0 / np.sqrt(((u - cam.cx) / cam.fx) ** 2 + ((v - cam.cy) / cam.fy) ** 2 + 1.0)
-        return np.stack(ranges), np.stack(amplitudes), per_range.reshape(-1)
+        for r, a in self._returns(world_T_sensor):
+            dr.eval(r, a)
+            ranges.append(np.asarray(r, np.float64))
+            amplitudes.append(np.asarray(a, np.float64))
+        return np.stack(ranges), np.stack(amplitudes), self._per_range()
 
     def mixed(self, world_T_sensor: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(range, amplitude, planar-per-range) each pixel measures, as :func:`mix` of
@@ -221,28 +213,13 @@ class AzureKinectSensor(DepthSensor):
         returns never reach the host)."""
         import drjit as dr
 
-        tracer, mi, s = self.tracer, self.tracer.mi, self.options.subsamples
-        cam, near = self.camera, tracer.options.near
-        e = tracer.engine
+        mi, s = self.tracer.mi, self.options.subsamples
         k = mi.Float(4.0 * np.pi * MODULATION_HZ / C)
-        n_px = cam.width * cam.height
-        re, im, total, weighted = (dr.zeros(mi.Float, n_px) for _ in range(4))
-        for i in range(s):
-            for j in range(s):
-                offset = ((j + 0.5) / s - 0.5, (i + 0.5) / s - 0.5)
-                o, d = tracer.camera_rays(cam, world_T_sensor, offset=offset)
-                hit = tracer.trace(o, d)
-                length = dr.norm(d)
-                r = (hit.t + near) * length  # d has unit camera z: t + near is planar depth
-                on = hit.face >= 0
-                n = e.normal(hit.face, on)
-                cosine = dr.abs(dr.dot(n, d / length))
-                rho = dr.gather(mi.Float, self._nir, e.material(hit.face, on), on)
-                a = dr.select(on, rho * cosine / dr.square(r), 0.0)
-                r = dr.select(on, r, 0.0)
-                sin, cos = dr.sincos(k * r)
-                re, im, total, weighted = re + a * cos, im + a * sin, total + a, weighted + a * r
-                dr.eval(re, im, total, weighted)  # (one sub-sample's rays at a time: bounded memory)
+        re, im, total, weighted = (dr.zeros(mi.Float, self.camera.width * self.camera.height) for _ in range(4))
+        for r, a in self._returns(world_T_sensor):
+            sin, cos = dr.sincos(k * r)
+            re, im, total, weighted = re + a * cos, im + a * sin, total + a, weighted + a * r
+            dr.eval(re, im, total, weighted)  # (one sub-sample's rays at a time: bounded memory)
         re, im = re / s**2, im / s**2
         amplitude = dr.sqrt(dr.square(re) + dr.square(im))
         mean = dr.select(total > 0, weighted / dr.maximum(total, 1e-30), 0.0)
@@ -251,9 +228,7 @@ class AzureKinectSensor(DepthSensor):
         phase_range = dr.select(phase < 0, phase + 2.0 * np.pi, phase) / k
         measured = phase_range + wrap * dr.round((mean - phase_range) / wrap)
         dr.eval(measured, amplitude)
-        u, v = np.meshgrid(np.arange(cam.width), np.arange(cam.height))
-        per_range = 1.0 / np.sqrt(((u - cam.cx) / cam.fx) ** 2 + ((v - cam.cy) / cam.fy) ** 2 + 1.0)
-        return np.asarray(measured, np.float64), np.asarray(amplitude, np.float64), per_range.reshape(-1)
+        return np.asarray(measured, np.float64), np.asarray(amplitude, np.float64), self._per_range()
 
     def measure_native(
         self, world_T_camera: np.ndarray, link_poses: Mapping[str, Mapping[str, np.ndarray]], seed: int
@@ -275,19 +250,3 @@ class AzureKinectSensor(DepthSensor):
             margin = 3.0 * opts.noise * sigma.reshape(depth.shape) + 1e-3
             depth[flying_pixels(depth, opts.edge_m, margin)] = 0.0
         return depth.astype(np.float32)
-
-    def measure(
-        self,
-        camera: CameraModel,
-        world_T_camera: np.ndarray,
-        link_poses: Mapping[str, Mapping[str, np.ndarray]],
-        frame: Frame,
-    ) -> np.ndarray:
-        from agrisim.plugins.sensors.align import align_to_colour
-
-        seed = view_seed(camera, np.asarray(world_T_camera, np.float64), self.options.seed)
-        native = self.measure_native(world_T_camera, link_poses, seed)
-        return align_to_colour(native, self.camera, camera, self.camera_T_sensor)
-
-    def close(self) -> None:
-        self.tracer.close()
