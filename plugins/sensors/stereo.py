@@ -29,9 +29,12 @@ light through). Then shot noise and read noise, and 8 bits, as the imagers' Y8 o
 The pair is matched by OpenCV's ``StereoSGBM``, the field's semi-global matching, over the
 disparities of the device's range, in 1/16 pixel. Depth is ``f b / d``. Pixels are invalidated
 where matching fails: the left-right check (``disp12MaxDiff``), the uniqueness ratio, speckle
-filtering, and no match at all. Depths outside the device's range are dropped too. The depth
-is then moved onto the colour camera's pixels (:mod:`.align`). Left out: the imagers' lens
-distortion and rolling shutter (the D415's), laser speckle, and the ASIC's own post-filters.
+filtering, and no match at all; and where the left image has too little texture to match on
+(the ASIC's texture filter: too few neighbours in a 7x7 window differ from the pixel by more
+than a step; its thresholds are agrisim's, set above the imagers' noise). Depths outside the
+device's range are dropped too. The depth is then moved onto the colour camera's pixels
+(:mod:`.align`). Left out: the imagers' lens distortion and rolling shutter (the D415's), and
+the ASIC's own post-filters.
 """
 
 from __future__ import annotations
@@ -105,6 +108,13 @@ class StereoOptions(Options):
     """Rays per pixel side of the infrared images (a pixel integrates the light on its area)."""
     block_size: int = Field(7, ge=3, le=15)
     """The matching window's side, pixels (odd)."""
+    texture_difference: int = Field(6, ge=0, le=255)
+    """The texture filter's step: a neighbour in the 7x7 window around a pixel counts as texture
+    when it differs from the pixel by more than this, in 8-bit levels (the ASIC's texture
+    difference threshold; 0 with ``texture_count`` 0: no filter)."""
+    texture_count: int = Field(10, ge=0, le=48)
+    """The texture filter's count: a pixel with fewer textured neighbours than this in its 7x7
+    window is dropped (the ASIC's texture count threshold; 0: no filter)."""
     seed: int = Field(0, ge=0, le=2**32 - 1)
     """Seed of the imagers' noise (mixed with the view)."""
     variant: Literal["auto", "cuda", "llvm"] = "auto"
@@ -123,6 +133,22 @@ def depth_range(device: Device, options: StereoOptions) -> tuple[float, float]:
             f"{device.min_z_m:g}-{device.max_z_m:g} m (min_depth_m, max_depth_m)"
         )
     return lo, hi
+
+
+def texture(image: np.ndarray, step: int, radius: int = 3) -> np.ndarray:
+    """Per pixel of an 8-bit image, how many of the neighbours in its (2 radius + 1)^2 window
+    differ from it by more than ``step`` levels: the ASIC's texture measure. Where the image
+    holds only noise (a far wall the dots barely reach), few neighbours pass a step above the
+    noise, and a match there would be a guess."""
+    img = image.astype(np.int16)
+    pad = np.pad(img, radius, mode="edge")
+    H, W = img.shape
+    count = np.zeros((H, W), np.uint8)
+    for dy in range(2 * radius + 1):
+        for dx in range(2 * radius + 1):
+            if dy != radius or dx != radius:
+                count += np.abs(pad[dy : dy + H, dx : dx + W] - img) > step
+    return count
 
 
 def imager(device: Device, resolution: str) -> CameraModel:
@@ -287,7 +313,7 @@ class StereoSensor(TracedSensor):
             mode=cv2.STEREO_SGBM_MODE_SGBM_3WAY,
         )
         disparity = sgbm.compute(left, right).astype(np.float32) / 16.0
-        valid = disparity > max(lo, 0)
+        valid = (disparity > max(lo, 0)) & (texture(left, self.options.texture_difference) >= self.options.texture_count)
         depth = np.where(valid, self.camera.fx * self.device.baseline_m / np.maximum(disparity, 1e-6), 0.0)
         depth[(depth < self.near) | (depth > self.far)] = 0.0
         return depth.astype(np.float32)
