@@ -41,6 +41,9 @@ class RendererCapabilities:
     points: bool = False
     """Draws a point plant (``Scene.points``): every point a sphere of its size, with exact
     labels, depth and instances on the spheres."""
+    lenses: bool = False
+    """Draws through a lens's distortion (``CameraModel.distortion``): each pixel's own ray,
+    labels and depth exact at the distorted positions."""
 
 
 @dataclass(frozen=True)
@@ -66,6 +69,8 @@ class ReconstructorCapabilities:
     which a static scene model cannot explain."""
     folder: str | None = None
     """Writes files of its own into ``RUN/<folder>/`` (beside ``clouds/``)."""
+    lenses: bool = False
+    """Reads views through a lens's distortion (back-projects each pixel along its own ray)."""
 
 
 @dataclass(frozen=True)
@@ -99,10 +104,15 @@ def describe(capabilities: object) -> str:
 
 
 def check_renderer(
-    spec: BackendSpec, renderers: Mapping[str, BackendSpec], seg_modes: Iterable[str], labels: str, points: bool = False
+    spec: BackendSpec,
+    renderers: Mapping[str, BackendSpec],
+    seg_modes: Iterable[str],
+    labels: str,
+    points: bool = False,
+    lens: bool = False,
 ) -> None:
     """Refuse rendering with ``spec`` in ``seg_modes`` with ``labels`` (and a point plant, with
-    ``points``) if it cannot do them.
+    ``points``; through a distorting lens, with ``lens``) if it cannot do them.
 
     ``renderers`` are all installed renderers, to name those that could.
     """
@@ -113,6 +123,8 @@ def check_renderer(
             out.append("organ labels")
         if points and not getattr(caps, "points", False):
             out.append("point plants")
+        if lens and not getattr(caps, "lenses", False):
+            out.append("through a lens's distortion")
         return out
 
     lacking = missing(spec.capabilities)
@@ -150,10 +162,16 @@ def cuda_usable() -> str | None:
     return None
 
 
-def check_reconstructor(spec: BackendSpec, hide_robots: bool) -> None:
+def check_reconstructor(spec: BackendSpec, hide_robots: bool, lens: bool = False) -> None:
     """Refuse reconstructing with ``spec`` where it cannot run: without a CUDA GPU when it needs
-    one, or on views with the arms in them when it needs them hidden."""
+    one, on views with the arms in them when it needs them hidden, or on views through a
+    distorting lens (``lens``) when it reads pinholes only."""
     caps = spec.capabilities
+    if lens and not getattr(caps, "lenses", False):
+        raise UserError(
+            f"reconstructor {spec.name!r} reads pinhole views only and this camera has a distorting lens; "
+            "use the pointcloud reconstructor, or a camera without distortion"
+        )
     if getattr(caps, "needs_hidden_robots", False) and not hide_robots:
         raise UserError(
             f"reconstructor {spec.name!r} needs views without the arms in them (they move between views): "

@@ -227,9 +227,19 @@ class CameraConfig(_Model):
     """The camera on each arm's flange."""
 
     preset: str = "rpi3-wide-1080p"
-    """Camera preset (the paper's Raspberry Pi v3 Wide: 6.45 x 3.63 mm sensor, 2.75 mm)."""
+    """Camera preset (the paper's Raspberry Pi v3 Wide, a pinhole: 6.45 x 3.63 mm sensor,
+    2.75 mm; ``rpi-camera-3-wide`` with its barrel lens; ``agrisim.scene.camera.PRESETS``)."""
     resolution: str | None = None
     """``WxH`` overriding the preset's 1920x1080 (the field of view stays)."""
+    calibration: Path | None = None
+    """A calibration file (OpenCV's YAML/JSON, or ROS's camera_info YAML) giving the camera
+    instead of the preset: its size, ``K`` and lens."""
+
+    @model_validator(mode="after")
+    def _one_camera(self) -> CameraConfig:
+        if self.calibration is not None and self.resolution is not None:
+            raise ValueError("camera.calibration fixes the image size; leave camera.resolution unset")
+        return self
 
     @field_validator("resolution")
     @classmethod

@@ -47,7 +47,7 @@ from agrisim.robot.kinematics import ArmKinematics
 from agrisim.robot.segments import segment_is_valid
 from agrisim.robot.setpoints import Setpoint, routine
 from agrisim.robot.trajectory import Limits, TimedPath, time_parametrize
-from agrisim.scene.camera import preset
+from agrisim.scene.camera import camera_of
 from agrisim.scene.cell import build_cell
 from agrisim.scene.model import Scene
 from agrisim.scene.plant_choice import check_plant_name, draws_points, resolve_plant
@@ -76,7 +76,7 @@ class Episode:
             self.done_frames = set(saved_run(self.out_dir).get("frames_complete") or [])
         self.cell = build_cell(config.cell)
         self.setpoints = routine(self.cell, config.routine)
-        self.camera = preset(config.camera.preset, config.camera.resolution)
+        self.camera = camera_of(config.camera)
         self.kinematics = {arm.name: ArmKinematics(arm) for arm in self.cell.arms}
         m = config.motion
         self.limits = {
@@ -112,6 +112,7 @@ class Episode:
                 [config.render.seg_mode],
                 config.render.labels,
                 points=draws_points(config),
+                lens=not self.camera.pinhole,
             )
             self.sensor_spec, self.sensor_options = self._backend("sensor", config.sensor)
             check_sensor(self.sensor_spec, self.registry.specs("sensor"), points=draws_points(config))
@@ -121,7 +122,11 @@ class Episode:
                 self.scene = build_scene(self.cell, self.plant, pcg_seed=config.pcg_seed, labels=config.render.labels)
             # Reconstruction fuses rendered views; without a renderer there is nothing to fuse.
             if config.recon.backend != "none":
-                check_reconstructor(self.registry.get("reconstructor", config.recon.backend), config.render.hide_robots)
+                check_reconstructor(
+                    self.registry.get("reconstructor", config.recon.backend),
+                    config.render.hide_robots,
+                    lens=not self.camera.pinhole,
+                )
                 self.recon_spec, self.recon_options = self._backend("reconstructor", config.recon)
             else:
                 config.recon.check_tables("recon", self.registry.specs("reconstructor"))

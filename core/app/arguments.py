@@ -295,6 +295,7 @@ COMPARE_EPISODE_FLAGS: list[tuple[str, str, Any, str]] = [
     ("--planner", "NAME", str, "motion planner (default: ompl)"),
     ("--recon", "NAME", str, "reconstructor (default: pointcloud)"),
     ("--camera", "PRESET", str, "camera preset (default: rpi3-wide-1080p)"),
+    ("--camera-calibration", "FILE", Path, "the camera from OpenCV's YAML/JSON or ROS camera_info (not a preset)"),
     ("--resolution", "WxH", str, "image size (default: the preset's 1920x1080)"),
     ("--setpoints", "LxC", str, "L levels x C columns per arm (default: 5x10)"),
     ("--seed", "N", int, "seed for IK restarts and planners (default: 0)"),
@@ -349,6 +350,12 @@ def _episode_flags(parser: argparse.ArgumentParser) -> None:
     run.add_argument("--planner", metavar="NAME", help="motion planner (default: ompl)")
     run.add_argument("--recon", metavar="NAME", help="reconstructor (default: pointcloud; none: no reconstruction)")
     run.add_argument("--camera", metavar="PRESET", help="camera preset (default: rpi3-wide-1080p)")
+    run.add_argument(
+        "--camera-calibration",
+        type=Path,
+        metavar="FILE",
+        help="the camera from a calibration: OpenCV's YAML/JSON or ROS's camera_info YAML (size, K, lens)",
+    )
     run.add_argument("--resolution", metavar="WxH", help="image size (default: the preset's 1920x1080)")
     run.add_argument("--setpoints", metavar="LxC", help="L levels x C columns per arm (default: 5x10)")
     run.add_argument("--setpoints-csv", type=Path, metavar="CSV", help="camera poses from a CSV instead")
@@ -441,6 +448,7 @@ def overrides_from_args(args: argparse.Namespace) -> dict[str, Any]:
         "planner.backend": args.planner,
         "recon.backend": args.recon,
         "camera.preset": args.camera,
+        "camera.calibration": str(args.camera_calibration) if args.camera_calibration else None,
         "camera.resolution": args.resolution,
         "routine.setpoints": args.setpoints,
         "routine.csv": str(args.setpoints_csv) if args.setpoints_csv else None,

@@ -131,6 +131,18 @@ class RenderPlan:
                 f"the run in {self.run_dir} draws its plant as points, which renderer {renderer!r} cannot draw; "
                 f"renderers that can re-render point plants: {', '.join(able) or 'none installed'}"
             )
+        if self.cameras["intrinsics"].get("distortion") is not None and not getattr(
+            self.spec.capabilities, "lenses", False
+        ):
+            able = [
+                n
+                for n, sp in registry.specs("renderer").items()
+                if getattr(sp.capabilities, "rerender", False) and getattr(sp.capabilities, "lenses", False)
+            ]
+            raise UserError(
+                f"the run in {self.run_dir} has a distorting lens, which renderer {renderer!r} cannot draw through; "
+                f"renderers that can re-render through a lens: {', '.join(able) or 'none installed'}"
+            )
         self.frames = [f for f in run.get("frames_complete") or [] if f in self.cameras["frames"]]
         if not self.frames:
             raise UserError(f"the run in {self.run_dir} has no rendered frames")

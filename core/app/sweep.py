@@ -249,7 +249,7 @@ def _check_cell(registry: Any, config: RunConfig) -> None:
     the scene or any backend: names, every backend's and the species' options, the camera, what
     the renderer can draw."""
     from agrisim.capabilities import check_renderer
-    from agrisim.scene.camera import preset
+    from agrisim.scene.camera import camera_of
     from agrisim.scene.plant_choice import check_plant_name, draws_points, plant_seed
 
     _check_backends(registry, config)
@@ -263,7 +263,7 @@ def _check_cell(registry: Any, config: RunConfig) -> None:
             plant_seed(name, table.get("seed", config.seed))
             options = {k: v for k, v in table.items() if k != "seed"}
             backend_options(species[name].options_model, options, f"plant {name!r}")
-    preset(config.camera.preset, config.camera.resolution)
+    camera = camera_of(config.camera)
     if config.recon.poses != "truth":
         raise ConfigError(f"recon.poses = {config.recon.poses!r}: a run reconstructs on the true poses")
     if config.renderer.backend != "none":
@@ -273,6 +273,7 @@ def _check_cell(registry: Any, config: RunConfig) -> None:
             [config.render.seg_mode],
             config.render.labels,
             points=draws_points(config),
+            lens=not camera.pinhole,
         )
 
 

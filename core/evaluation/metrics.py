@@ -96,8 +96,11 @@ def visible_samples(truth: GroundTruth, view: View, among: np.ndarray | None = N
     seen = np.zeros(len(idx), bool)
     front = np.flatnonzero(z > 1e-6)
     zf = z[front]
-    col = np.rint(cam.fx * p[front, 0] / zf + cam.cx)
-    row = np.rint(cam.fy * p[front, 1] / zf + cam.cy)
+    if cam.pinhole:
+        col = np.rint(cam.fx * p[front, 0] / zf + cam.cx)
+        row = np.rint(cam.fy * p[front, 1] / zf + cam.cy)
+    else:
+        col, row = (np.rint(c) for c in cam.project(p[front, 0] / zf, p[front, 1] / zf))
     inside = (col >= 0) & (col < cam.width) & (row >= 0) & (row < cam.height)
     k = front[inside]
     r, c = row[inside].astype(np.int64), col[inside].astype(np.int64)

@@ -237,7 +237,7 @@ def run_colmap(
         tell("features", 0, len(frames))
         extract_features(
             database, rgb, names, np.asarray(cameras["intrinsics"]["K"], float), intrinsics, max_features,
-            peak_threshold, feature_threads,
+            peak_threshold, feature_threads, cameras["intrinsics"].get("distortion"),
         )  # fmt: skip
         if priors == "robot":
             write_position_priors(
@@ -262,6 +262,19 @@ def run_colmap(
     return result
 
 
+def colmap_camera(K: np.ndarray, lens: dict[str, Any] | None) -> tuple[str, list[float]]:
+    """COLMAP's camera model and parameters for ``K`` and a lens (cameras.json's form):
+    ``PINHOLE``; ``OPENCV`` (k1, k2, p1, p2) or ``FULL_OPENCV`` when k3 is set; ``OPENCV_FISHEYE``.
+    COLMAP's first pixel centre is (0.5, 0.5), agrisim's (0, 0)."""
+    pinhole = [K[0, 0], K[1, 1], K[0, 2] + 0.5, K[1, 2] + 0.5]
+    if lens is None:
+        return "PINHOLE", pinhole
+    if lens["model"] == "fisheye":
+        return "OPENCV_FISHEYE", pinhole + [lens[k] for k in ("k1", "k2", "k3", "k4")]
+    radial = pinhole + [lens[k] for k in ("k1", "k2", "p1", "p2")]
+    return ("OPENCV", radial) if lens["k3"] == 0 else ("FULL_OPENCV", radial + [lens["k3"], 0.0, 0.0, 0.0])
+
+
 def extract_features(
     database: Path,
     rgb: Path,
@@ -271,16 +284,18 @@ def extract_features(
     max_features: int,
     peak_threshold: float,
     threads: int = -1,
+    lens: dict[str, Any] | None = None,
 ) -> None:
     """SIFT features of ``rgb/names`` into a new COLMAP ``database``: one camera for all views,
-    the run's own (``known``, a pinhole) or COLMAP's to estimate (``estimated``)."""
+    the run's own (``known``: ``K`` and ``lens``, cameras.json's distortion) or COLMAP's to
+    estimate (``estimated``)."""
     import pycolmap
 
     reader = pycolmap.ImageReaderOptions()
     if intrinsics == "known":
-        reader.camera_model = "PINHOLE"
-        # COLMAP's first pixel centre is (0.5, 0.5); agrisim's is (0, 0)
-        reader.camera_params = ",".join(repr(float(x)) for x in (K[0, 0], K[1, 1], K[0, 2] + 0.5, K[1, 2] + 0.5))
+        model, params = colmap_camera(K, lens)
+        reader.camera_model = model
+        reader.camera_params = ",".join(repr(float(x)) for x in params)
     else:
         reader.camera_model = "SIMPLE_RADIAL"
     extraction = pycolmap.FeatureExtractionOptions()

@@ -286,7 +286,8 @@ def reconstruct_saved_run(
     spec = registry.get("reconstructor", config.recon.backend)
     config.recon.check_tables("recon", registry.specs("reconstructor"))
     options = backend_options(spec.options_model, config.recon.options_for(spec.name), f"reconstructor {spec.name!r}")
-    check_reconstructor(spec, config.render.hide_robots)
+    lens = cameras["intrinsics"].get("distortion") is not None
+    check_reconstructor(spec, config.render.hide_robots, lens=lens)
     if spec.preflight is not None:
         spec.preflight(config, options)
     labels = LabelTable.from_json(run["labels"])

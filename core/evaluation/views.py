@@ -106,8 +106,12 @@ def backproject(view: View, mask: np.ndarray, max_depth: float) -> tuple[np.ndar
     near = z32 <= np.float32(max_depth)
     v, u, z = v[near], u[near], z32[near].astype(np.float64)
     cam = view.camera
-    x = (u - cam.cx) * z / cam.fx
-    y = (v - cam.cy) * z / cam.fy
+    if cam.pinhole:
+        x = (u - cam.cx) * z / cam.fx
+        y = (v - cam.cy) * z / cam.fy
+    else:  # each pixel along its own ray through the lens; z is still the depth along the axis
+        sx, sy = cam.rays(u.astype(np.float64), v.astype(np.float64))
+        x, y = sx * z, sy * z
     T = view.world_T_camera
     points = np.column_stack([x, y, z]) @ T[:3, :3].T + T[:3, 3]
     return points, view.images.rgb[v, u]

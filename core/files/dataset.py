@@ -39,6 +39,7 @@ from agrisim.files.glb import export_glb
 from agrisim.files.nerfstudio import write_nerfstudio
 from agrisim.files.png import encode_png
 from agrisim.files.point_cloud import write_points_ply
+from agrisim.files.rundir import camera_to_json
 from agrisim.files.scene_glb import write_scene
 from agrisim.interfaces import CameraModel, Capture, Frame, JointTrajectory, Trajectory
 from agrisim.records import Run, RunSummary, SetpointResult
@@ -167,7 +168,7 @@ class DatasetWriter:
             self.out / layout.CAMERAS_JSON,
             {
                 "convention": "OpenCV (x right, y down, z forward); pixel centres at integer coordinates",
-                "intrinsics": {"width": cam.width, "height": cam.height, "K": cam.K.tolist(), "hfov_deg": cam.hfov_deg},
+                "intrinsics": camera_to_json(cam),
                 **({"sensor": self._sensor_doc()} if self.sensor is not None else {}),
                 "frames": self._frame_texts.object(dict(sorted(self.frames.items()))),
             },
@@ -181,7 +182,7 @@ class DatasetWriter:
         sc = geometry.camera
         return {
             "name": name,
-            "intrinsics": {"width": sc.width, "height": sc.height, "K": sc.K.tolist(), "hfov_deg": sc.hfov_deg},
+            "intrinsics": camera_to_json(sc),
             "camera_T_sensor": np.asarray(geometry.camera_T_sensor, np.float64).tolist(),
             "depth": f"{layout.DEPTH_SENSOR}/: uint16 mm, planar, on the camera's pixels (aligned), 0 = no measurement",
         }

@@ -6,7 +6,8 @@
 - Poses: ``transform_matrix`` is camera-to-world in the OpenGL/Blender convention nerfstudio uses
   (x right, y up, z back: the camera looks along -z), i.e. our OpenCV ``world_T_camera`` with
   its y and z axes negated. The world frame is agrisim's (metres, z up), as nerfstudio expects.
-- Intrinsics: one shared pinhole, ``camera_model`` ``OPENCV`` with zero distortion. nerfstudio
+- Intrinsics: one shared camera, ``camera_model`` ``OPENCV`` with the lens's k1, k2, k3, p1, p2
+  (0 for a pinhole), or ``OPENCV_FISHEYE`` with k1..k4 for a fisheye lens. nerfstudio
   puts pixel centres at +0.5 (pixel (i, j) spans [i, i+1)), agrisim at integer coordinates, so
   ``cx`` and ``cy`` are ours + 0.5; ``fl_x``, ``fl_y``, ``w``, ``h`` are unchanged.
 - ``file_path`` is ``rgb/<frame>.png``, ``depth_file_path`` ``depth/<frame>.png`` (uint16
@@ -60,18 +61,20 @@ def nerfstudio_transforms(
     frames have millimetre depth PNGs to name (not an EXR-only run).
     """
     K = np.asarray(intrinsics["K"], np.float64)
+    lens = intrinsics.get("distortion") or {"model": "brown-conrady"}
+    if lens["model"] == "fisheye":
+        distortion = {"camera_model": "OPENCV_FISHEYE", **{k: float(lens[k]) for k in ("k1", "k2", "k3", "k4")}}
+    else:  # OPENCV: nerfstudio's k3 multiplies r^6 as OpenCV's does
+        distortion = {"camera_model": "OPENCV", **{k: float(lens.get(k, 0.0)) for k in ("k1", "k2", "k3", "p1", "p2")}}
     return {
-        "camera_model": "OPENCV",
+        "camera_model": distortion.pop("camera_model"),
         "fl_x": float(K[0, 0]),
         "fl_y": float(K[1, 1]),
         "cx": float(K[0, 2]) + 0.5,  # nerfstudio: pixel centres at +0.5
         "cy": float(K[1, 2]) + 0.5,
         "w": int(intrinsics["width"]),
         "h": int(intrinsics["height"]),
-        "k1": 0.0,
-        "k2": 0.0,
-        "p1": 0.0,
-        "p2": 0.0,
+        **distortion,
         "depth_unit_scale_factor": 0.001,
         "frames": [
             {

@@ -23,7 +23,7 @@ message's log time; play it with ``ros2 bag play --clock``). Topics, for each ar
   118; +Inf where nothing was hit, REP 117's "no return"; a depth sensor's measurement where the
   run has one, the exact depth then on ``/A/camera/depth_truth``), ``/A/camera/labels`` (``mono8`` label
   ids), ``/A/camera/instances`` (``mono16`` leaf ids, where the run numbers leaves) and
-  ``/A/camera/camera_info`` (K, P, no distortion): one each per rendered frame, in
+  ``/A/camera/camera_info`` (K, P, the lens's distortion): one each per rendered frame, in
   ``A/camera_optical_frame`` (OpenCV axes, which are ROS's optical-frame axes).
 - ``/reconstruction/cloud`` (``sensor_msgs/PointCloud2`` in ``world``): the merged clouds of
   every label, fields ``x y z`` (float32), ``rgb`` (PCL's packed float) and ``label`` (uint8), at
@@ -50,6 +50,7 @@ from numpy.typing import ArrayLike
 from agrisim.errors import OutputError, UserError
 from agrisim.files import layout
 from agrisim.files.atomic import staged_dir
+from agrisim.files.calibration import ros_distortion
 from agrisim.files.rundir import read_json, read_run
 from agrisim.robot.tf_tree import WORLD, ArmFrames, quaternions
 
@@ -193,12 +194,13 @@ class BagMessages:
         K = np.asarray(intrinsics["K"], float)
         P = np.zeros((3, 4))
         P[:, :3] = K
+        model, D = ros_distortion(intrinsics.get("distortion"))
         return self.CameraInfo(
             header=self.header(stamp_ns, frame),
             height=int(intrinsics["height"]),
             width=int(intrinsics["width"]),
-            distortion_model="plumb_bob",
-            d=np.zeros(5),
+            distortion_model=model,
+            d=np.asarray(D, float),
             k=K.reshape(-1),
             r=np.eye(3).reshape(-1),
             p=P.reshape(-1),

@@ -21,6 +21,7 @@ import numpy as np
 from agrisim.errors import OutputError, UserError
 from agrisim.files import layout
 from agrisim.interfaces import CameraModel
+from agrisim.scene.lens import Distortion
 
 if TYPE_CHECKING:
     from agrisim.config import RunConfig
@@ -76,9 +77,28 @@ def read_run(run_dir: Path, rendered: bool = True) -> tuple[dict[str, Any], dict
 
 
 def camera_from_json(intrinsics: dict[str, Any]) -> CameraModel:
-    """The pinhole of ``cameras.json``'s intrinsics."""
+    """The camera of ``cameras.json``'s intrinsics: its pinhole and, when it has one, its lens."""
     K = np.asarray(intrinsics["K"], float)
-    return CameraModel(int(intrinsics["width"]), int(intrinsics["height"]), K[0, 0], K[1, 1], K[0, 2], K[1, 2])
+    lens = intrinsics.get("distortion")
+    return CameraModel(
+        int(intrinsics["width"]),
+        int(intrinsics["height"]),
+        K[0, 0],
+        K[1, 1],
+        K[0, 2],
+        K[1, 2],
+        None if lens is None else Distortion.from_dict(lens),
+    )
+
+
+def camera_to_json(camera: CameraModel) -> dict[str, Any]:
+    """``cameras.json``'s intrinsics of ``camera``: size, ``K``, the horizontal field of view
+    and, through a lens, ``distortion`` (OpenCV's model and coefficients by name)."""
+    doc: dict[str, Any] = {"width": camera.width, "height": camera.height, "K": camera.K.tolist()}
+    doc["hfov_deg"] = camera.hfov_deg
+    if camera.distortion is not None:
+        doc["distortion"] = camera.distortion.as_dict()
+    return doc
 
 
 # ---------------------------------------------------------------- the output directory of a run

@@ -1,19 +1,23 @@
-"""Camera models and presets (the paper's RobotCam and CineCamera)."""
+"""Camera models and presets (the paper's RobotCam and CineCamera, and lenses as they are)."""
 
 from __future__ import annotations
 
 import hashlib
 import math
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
 from agrisim.errors import UserError
+from agrisim.scene.lens import Distortion, check_unfolded
 
 
 @dataclass
 class CameraModel:
-    """A pinhole camera (OpenCV conventions; pixel centres at integer coordinates)."""
+    """A camera in OpenCV's conventions (pixel centres at integer coordinates): the pinhole
+    ``K`` and, optionally, its lens's ``distortion``. Depth is always z along the optical
+    axis, through a lens as through a pinhole."""
 
     width: int
     height: int
@@ -21,14 +25,44 @@ class CameraModel:
     fy: float
     cx: float
     cy: float
+    distortion: Distortion | None = None
+
+    def __post_init__(self) -> None:
+        if self.distortion is not None:
+            corners = np.array([[-0.5, -0.5], [self.width - 0.5, -0.5], [-0.5, self.height - 0.5]])
+            corners = np.vstack([corners, [[self.width - 0.5, self.height - 0.5]]])
+            reach = float(np.max(np.hypot((corners[:, 0] - self.cx) / self.fx, (corners[:, 1] - self.cy) / self.fy)))
+            check_unfolded(self.distortion, reach)
 
     @property
     def K(self) -> np.ndarray:  # noqa: N802 - the field's name for it
         return np.array([[self.fx, 0.0, self.cx], [0.0, self.fy, self.cy], [0.0, 0.0, 1.0]])
 
     @property
+    def pinhole(self) -> bool:
+        return self.distortion is None
+
+    @property
     def hfov_deg(self) -> float:
-        return float(np.degrees(2.0 * np.arctan(self.width / (2.0 * self.fx))))
+        """The angle between the rays of the left and right image edges through the principal
+        point's row (half the width each side of it)."""
+        half = self.width / (2.0 * self.fx)
+        if self.distortion is None:
+            return float(np.degrees(2.0 * np.arctan(half)))
+        x, _ = self.distortion.undistort(np.array([-half, half]), np.zeros(2))
+        return float(np.degrees(np.arctan(-x[0]) + np.arctan(x[1])))
+
+    def rays(self, u: Any, v: Any) -> tuple[Any, Any]:
+        """Slopes (X / Z, Y / Z) of the rays that land on pixel coordinates (u, v) (NumPy or
+        Dr.Jit arrays): ``K^-1`` then the lens's inverse."""
+        x, y = (u - self.cx) * (1.0 / self.fx), (v - self.cy) * (1.0 / self.fy)
+        return (x, y) if self.distortion is None else self.distortion.undistort(x, y)
+
+    def project(self, x: Any, y: Any) -> tuple[Any, Any]:
+        """Pixel coordinates (u, v) where the rays of slopes (x, y) land: the lens, then ``K``."""
+        if self.distortion is not None:
+            x, y = self.distortion.distort(x, y)
+        return x * self.fx + self.cx, y * self.fy + self.cy
 
 
 def from_fov(hfov_deg: float, width: int, height: int) -> CameraModel:
@@ -54,9 +88,65 @@ def from_sensor(
     return from_fov(hfov, width, height)
 
 
-PRESETS: dict[str, tuple[float, float, float]] = {
-    # name: sensor width mm, sensor height mm, focal mm (the paper's RaspPi3Wide)
-    "rpi3-wide-1080p": (6.45, 3.63, 2.75),
+@dataclass(frozen=True)
+class Preset:
+    """A camera as its maker publishes it: the pinhole its sensor and lens give (square pixels,
+    the principal point at the centre) and, where its field of view says it, the lens's
+    distortion; ``source`` names where the figures come from."""
+
+    sensor_w_mm: float
+    sensor_h_mm: float
+    focal_mm: float
+    distortion: Distortion | None
+    source: str
+
+    def camera(self, width: int, height: int) -> CameraModel:
+        pinhole = from_sensor(self.sensor_w_mm, self.sensor_h_mm, self.focal_mm, width, height)
+        return CameraModel(
+            pinhole.width, pinhole.height, pinhole.fx, pinhole.fy, pinhole.cx, pinhole.cy, self.distortion
+        )
+
+
+def barrel_for_fov(half_width: float, hfov_deg: float) -> Distortion:
+    """The one-coefficient barrel lens (Brown-Conrady k1) under which the image's half width
+    ``half_width`` (normalised: sensor half width over focal length) sees ``hfov_deg``: the ray
+    at tan(hfov / 2) lands on the edge, x (1 + k1 x^2) = half_width."""
+    x = math.tan(math.radians(hfov_deg) / 2.0)
+    return Distortion("brown-conrady", ((half_width / x - 1.0) / (x * x), 0.0, 0.0, 0.0, 0.0))
+
+
+#: the Camera Module 3's IMX708 (4608 x 2592 pixels of 1.4 um) behind its 2.75 mm wide lens
+_IMX708_W_MM, _IMX708_H_MM, _WIDE_FOCAL_MM = 4608 * 1.4e-3, 2592 * 1.4e-3, 2.75
+
+PRESETS: dict[str, Preset] = {
+    "rpi3-wide-1080p": Preset(
+        6.45, 3.63, 2.75, None, "the paper's RaspPi3Wide (UE5 CineCamera): 6.45 x 3.63 mm sensor, 2.75 mm; a pinhole"
+    ),
+    "rpi-camera-3-wide": Preset(
+        _IMX708_W_MM,
+        _IMX708_H_MM,
+        _WIDE_FOCAL_MM,
+        barrel_for_fov(_IMX708_W_MM / 2 / _WIDE_FOCAL_MM, 102.0),
+        "Raspberry Pi Camera Module 3 Wide product brief: IMX708 4608 x 2592 at 1.4 um, 2.75 mm, 102 degrees "
+        "horizontal (the pinhole of sensor and focal length has 99.1); k1 fitted to the 102 degrees (it gives 67.6 "
+        "vertical against the published 67; the brief's 120 diagonal no unfolded k1 reaches)",
+    ),
+    "realsense-d435-colour": Preset(
+        2 * math.tan(math.radians(69.0) / 2),
+        2 * math.tan(math.radians(69.0) / 2) * 9 / 16,
+        1.0,
+        None,
+        "Intel RealSense D400 datasheet: OV2740 colour camera, 69 x 42 degrees at 16:9 (42.2 with square pixels); "
+        "Intel publishes no distortion (each unit's is in its calibration: pass it with --camera-calibration)",
+    ),
+    "azure-kinect-colour": Preset(
+        2 * math.tan(math.radians(90.0) / 2),
+        2 * math.tan(math.radians(90.0) / 2) * 9 / 16,
+        1.0,
+        None,
+        "Azure Kinect DK hardware specification: colour camera 90 x 59 degrees at 16:9 (58.7 with square pixels); "
+        "distortion per unit (the SDK's calibration: pass it with --camera-calibration)",
+    ),
 }
 
 
@@ -76,7 +166,17 @@ def preset(name: str, resolution: str | None = None) -> CameraModel:
     if name not in PRESETS:
         raise UserError(f"unknown camera preset {name!r}; available: {', '.join(PRESETS)}")
     w, h = parse_resolution(resolution) if resolution else (1920, 1080)
-    return from_sensor(*PRESETS[name], w, h)
+    return PRESETS[name].camera(w, h)
+
+
+def camera_of(settings: Any) -> CameraModel:
+    """The run's camera from its ``camera`` settings (:class:`agrisim.config.CameraConfig`): the
+    calibration file when one is given, else the preset at the resolution."""
+    if settings.calibration is not None:
+        from agrisim.files.calibration import read_calibration
+
+        return read_calibration(settings.calibration)
+    return preset(settings.preset, settings.resolution)
 
 
 def view_seed(camera: CameraModel, world_T_camera: np.ndarray, seed: int) -> int:

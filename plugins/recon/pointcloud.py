@@ -64,6 +64,6 @@ def agrisim_reconstructors() -> list[BackendSpec]:
             factory=PointCloudReconstructor,
             options_model=PointCloudOptions,
             description="the paper's method: back-projected labelled pixels merged on a 1 mm voxel grid, per label",
-            capabilities=ReconstructorCapabilities(clouds=True, meshes=False),
+            capabilities=ReconstructorCapabilities(clouds=True, meshes=False, lenses=True),
         )
     ]

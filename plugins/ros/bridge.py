@@ -13,6 +13,7 @@ from typing import Any
 import numpy as np
 
 from agrisim import hookimpl
+from agrisim.files.calibration import ros_distortion
 from agrisim.files.rosbag import rep118
 from agrisim.interfaces import Bridge, Capture
 from agrisim.live import LiveSession, Refused
@@ -65,7 +66,17 @@ class RosBridge(Bridge):
     def image(self, frame: str, stamp: Any, height: int, width: int, encoding: str, step: int, data: bytes) -> Any: ...
 
     @abstractmethod
-    def camera_info(self, frame: str, stamp: Any, height: int, width: int, K: np.ndarray, P: np.ndarray) -> Any: ...
+    def camera_info(
+        self,
+        frame: str,
+        stamp: Any,
+        height: int,
+        width: int,
+        K: np.ndarray,
+        P: np.ndarray,
+        lens: tuple[str, list[float]],
+    ) -> Any:
+        """``sensor_msgs/CameraInfo``; ``lens`` is its (``distortion_model``, ``D``)."""
 
     @abstractmethod
     def say(self, line: str, level: str) -> None:
@@ -159,7 +170,8 @@ class RosBridge(Bridge):
         P = np.zeros((3, 4))
         P[:, :3] = K
         h, w = images.rgb.shape[:2]
-        self.send(self.pub_info[capture.robot], self.camera_info(frame, stamp, h, w, K, P))
+        lens = ros_distortion(capture.camera.distortion)
+        self.send(self.pub_info[capture.robot], self.camera_info(frame, stamp, h, w, K, P, lens))
         pub = self.pub_images[capture.robot]
         # a depth sensor's measurement is the camera's depth, as a robot's driver publishes it;
         # the exact depth then goes beside it

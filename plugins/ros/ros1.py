@@ -178,15 +178,24 @@ class Ros1Bridge(RosBridge):
             data=data,
         )
 
-    def camera_info(self, frame: str, stamp: Any, height: int, width: int, K: np.ndarray, P: np.ndarray) -> Any:
+    def camera_info(
+        self,
+        frame: str,
+        stamp: Any,
+        height: int,
+        width: int,
+        K: np.ndarray,
+        P: np.ndarray,
+        lens: tuple[str, list[float]],
+    ) -> Any:
         from sensor_msgs.msg import CameraInfo
 
         return CameraInfo(
             header=self._header(frame, stamp),
             height=height,
             width=width,
-            distortion_model="plumb_bob",
-            D=[0.0] * 5,
+            distortion_model=lens[0],
+            D=list(lens[1]),
             K=K.reshape(-1).tolist(),
             R=np.eye(3).reshape(-1).tolist(),
             P=P.reshape(-1).tolist(),

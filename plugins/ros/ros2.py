@@ -205,14 +205,23 @@ class Ros2Bridge(RosBridge):
             data=data,
         )
 
-    def camera_info(self, frame: str, stamp: Any, height: int, width: int, K: np.ndarray, P: np.ndarray) -> Any:
+    def camera_info(
+        self,
+        frame: str,
+        stamp: Any,
+        height: int,
+        width: int,
+        K: np.ndarray,
+        P: np.ndarray,
+        lens: tuple[str, list[float]],
+    ) -> Any:
         m = self.m
         return m["sensor_msgs/msg/CameraInfo"](
             header=self._header(frame, stamp),
             height=height,
             width=width,
-            distortion_model="plumb_bob",
-            d=[0.0] * 5,
+            distortion_model=lens[0],
+            d=list(lens[1]),
             k=K.reshape(-1).tolist(),
             r=np.eye(3).reshape(-1).tolist(),
             p=P.reshape(-1).tolist(),

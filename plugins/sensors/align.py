@@ -39,8 +39,9 @@ def align_to_colour(
         q = p @ T[:3, :3].T + T[:3, 3]
         ok = q[:, 2] > 1e-6
         zq = np.where(ok, q[:, 2], np.nan)
-        xs.append(q[:, 0] / zq * colour.fx + colour.cx)
-        ys.append(q[:, 1] / zq * colour.fy + colour.cy)
+        x, y = colour.project(q[:, 0] / zq, q[:, 1] / zq)  # (through the colour camera's lens, if it has one)
+        xs.append(x)
+        ys.append(y)
         zc.append(zq)
     with np.errstate(invalid="ignore"):
         x0, x1 = np.ceil(np.min(xs, axis=0)), np.floor(np.max(xs, axis=0))

@@ -313,7 +313,9 @@ class StereoSensor(TracedSensor):
             mode=cv2.STEREO_SGBM_MODE_SGBM_3WAY,
         )
         disparity = sgbm.compute(left, right).astype(np.float32) / 16.0
-        valid = (disparity > max(lo, 0)) & (texture(left, self.options.texture_difference) >= self.options.texture_count)
+        valid = (disparity > max(lo, 0)) & (
+            texture(left, self.options.texture_difference) >= self.options.texture_count
+        )
         depth = np.where(valid, self.camera.fx * self.device.baseline_m / np.maximum(disparity, 1e-6), 0.0)
         depth[(depth < self.near) | (depth > self.far)] = 0.0
         return depth.astype(np.float32)

@@ -46,6 +46,14 @@ def workdir(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
     (tmp_path / "label300.ply").write_text(head.format(n=2) + "property int label\nend_header\n0 0 0 1\n0 0 0.1 300\n")
     (tmp_path / "label250.ply").write_text(head.format(n=2) + "property int label\nend_header\n0 0 0 1\n0 0 0.1 250\n")
     (tmp_path / "names.toml").write_text('[plant_file]\nlabel_names = {"1" = "leaf", "2" = "stem"}\n')
+    calibration = "image_width: 320\nimage_height: 180\ncamera_matrix:\n  rows: 3\n  cols: 3\n  data: [{K}]\n"
+    calibration += "distortion_model: plumb_bob\ndistortion_coefficients:\n  rows: 1\n  cols: 5\n  data: [{D}]\n"
+    K = "150, 0, 159.5, 0, 150, 89.5, 0, 0, 1"
+    (tmp_path / "lens.yaml").write_text(calibration.format(K=K, D="-0.25, 0.06, 0.001, -0.001, -0.005"))
+    (tmp_path / "folding.yaml").write_text(calibration.format(K=K, D="-0.6, 0.1, 0, 0, 0"))
+    (tmp_path / "rational.yaml").write_text(calibration.format(K=K, D="-0.2, 0.05, 0, 0, 0, 0.1, 0, 0"))
+    (tmp_path / "no_k.yaml").write_text("image_width: 320\nimage_height: 180\n")
+    (tmp_path / "unparsable.yaml").write_text("image_width: [320, 180\ncamera_matrix: {")
     (tmp_path / "existing").mkdir()
     (tmp_path / "existing" / "keep.txt").write_text("precious results\n")
     (tmp_path / "cwd").mkdir()
@@ -226,6 +234,38 @@ CASES = [
         ["--depth-sensor", "d405", "--set", "sensor.d405.max_depth_m=2"],
         ["d405", "0.07-0.5 m", "max_depth_m"],
         id="stereo-depth-range-it-lacks",
+    ),
+    pytest.param(["--camera", "rpi4-wide"], ["rpi4-wide", "rpi-camera-3-wide"], id="unknown-camera-preset"),
+    pytest.param(
+        ["--camera-calibration", "{tmp}/unparsable.yaml"],
+        ["unparsable.yaml", "does not parse"],
+        id="calibration-unparsable",
+    ),
+    pytest.param(
+        ["--camera-calibration", "{tmp}/no_k.yaml"], ["no_k.yaml", "no camera_matrix"], id="calibration-without-k"
+    ),
+    pytest.param(
+        ["--camera-calibration", "{tmp}/folding.yaml"], ["folds the image", "peaks at"], id="calibration-lens-folds"
+    ),
+    pytest.param(
+        ["--camera-calibration", "{tmp}/rational.yaml"],
+        ["rational", "allowed: 4 or 5"],
+        id="calibration-rational-model",
+    ),
+    pytest.param(
+        ["--camera-calibration", "{tmp}/lens.yaml", "--resolution", "640x360"],
+        ["camera.calibration fixes the image size"],
+        id="calibration-and-resolution",
+    ),
+    pytest.param(
+        ["--camera-calibration", "{tmp}/lens.yaml", "--renderer", "pybullet"],
+        ["pybullet", "through a lens's distortion", "raycast"],
+        id="lens-with-a-pinhole-renderer",
+    ),
+    pytest.param(
+        ["--camera-calibration", "{tmp}/lens.yaml", "--recon", "tsdf"],
+        ["tsdf", "pinhole views only", "pointcloud"],
+        id="lens-with-a-pinhole-reconstructor",
     ),
 ]
 

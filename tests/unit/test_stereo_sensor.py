@@ -35,9 +35,7 @@ def _quad(x: tuple[float, float], z: float, name: str) -> Mesh:
 
 def _native(*meshes: Mesh, seed: int = 1, **options: int) -> tuple[np.ndarray, StereoSensor]:
     scene = Scene(list(meshes), [], LabelTable())
-    sensor = StereoSensor(
-        scene, None, RenderConfig(hide_robots=True), StereoOptions(variant="llvm", **options), "d435"
-    )
+    sensor = StereoSensor(scene, None, RenderConfig(hide_robots=True), StereoOptions(variant="llvm", **options), "d435")
     return sensor.measure_native(HOME, {}, seed), sensor
 
 

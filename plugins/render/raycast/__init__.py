@@ -127,6 +127,7 @@ def agrisim_renderers() -> list[BackendSpec]:
                 supersampling=True,
                 points=True,
                 rerender=True,
+                lenses=True,
             ),
         )
     ]

@@ -33,7 +33,20 @@ def frustum_corners(
     depth), the image widened by ``margin_px`` on every side (sub-pixel offsets stay inside)."""
     us = np.array([-margin_px, camera.width + margin_px]) - 0.5
     vs = np.array([-margin_px, camera.height + margin_px]) - 0.5
-    x, y = (us - camera.cx) / camera.fx, (vs - camera.cy) / camera.fy
+    if camera.pinhole:
+        x, y = (us - camera.cx) / camera.fx, (vs - camera.cy) / camera.fy
+    else:
+        # through a lens the border's rays bound every pixel's (the lens does not fold): their
+        # slopes' box, from points along the widened image's four sides
+        t = np.linspace(0.0, 1.0, 257)
+        u = np.concatenate(
+            [us[0] + t * (us[1] - us[0]), np.full_like(t, us[1]), us[0] + t * (us[1] - us[0]), np.full_like(t, us[0])]
+        )
+        v = np.concatenate(
+            [np.full_like(t, vs[0]), vs[0] + t * (vs[1] - vs[0]), np.full_like(t, vs[1]), vs[0] + t * (vs[1] - vs[0])]
+        )
+        sx, sy = camera.rays(u, v)
+        x, y = np.array([sx.min(), sx.max()]), np.array([sy.min(), sy.max()])
     local = np.array([[xi * z, yi * z, z] for z in (near, far) for xi in x for yi in y])
     T = np.asarray(world_T_camera, np.float64)
     return local @ T[:3, :3].T + T[:3, 3]

@@ -40,8 +40,10 @@ def _slopes(width: int, height: int, fx: float, fy: float, cx: float, cy: float)
 
 
 def pixel_slopes(camera: CameraModel) -> tuple[np.ndarray, np.ndarray]:
-    """Camera-frame ray slopes of the pixel centres: x of each column, y of each row
+    """Camera-frame ray slopes of a pinhole's pixel centres: x of each column, y of each row
     (``K^-1 [u, v, 1] = (x[u], y[v], 1)``)."""
+    if not camera.pinhole:
+        raise ValueError("pixel_slopes: a lens's rays are not separable (CameraModel.rays gives them)")
     return _slopes(camera.width, camera.height, camera.fx, camera.fy, camera.cx, camera.cy)
 
 
@@ -138,6 +140,8 @@ class SceneTracer:
         pixels) of ``rows`` (first, end; all by default), row-major: from the near plane, with
         directions of unit camera z, so a hit's t is its planar depth less ``near``."""
         mi = self.mi
+        if not camera.pinhole:
+            return self._lens_rays(camera, world_T_camera, rows or (0, camera.height), offset)
         x, y = pixel_slopes(camera)
         r0, r1 = rows or (0, camera.height)
         y = y[r0:r1]
@@ -157,6 +161,27 @@ class SceneTracer:
         d = mi.Vector3f(
             *(dr.gather(mi.Float, Xd, u + j * wide) + dr.gather(mi.Float, Yd, v + j * high) for j in range(3))
         )
+        near = dr.opaque(mi.Float, self.options.near)
+        o = mi.Point3f(*(d[j] * near + dr.opaque(mi.Float, c[j]) for j in range(3)))
+        return o, d
+
+    def _lens_rays(
+        self, camera: CameraModel, world_T_camera: np.ndarray, rows: tuple[int, int], offset: tuple[float, float]
+    ) -> tuple[Any, Any]:
+        """:meth:`camera_rays` through a lens: each pixel's slopes from the lens's inverse, solved
+        in the kernel in double precision (any sub-pixel offset costs nothing on the host)."""
+        mi = self.mi
+        F64 = dr.float64_array_t(mi.Float)
+        k = dr.arange(mi.UInt32, camera.width * (rows[1] - rows[0]))
+        wide = dr.opaque(mi.UInt32, camera.width)
+        v = k // wide
+        u = k - v * wide
+        x, y = camera.rays(
+            F64(u) + dr.opaque(F64, offset[0]), F64(v) + dr.opaque(F64, rows[0] + offset[1])
+        )  # opaque: one kernel for every batch and offset
+        T = np.asarray(world_T_camera, np.float64)
+        R, c = T[:3, :3], T[:3, 3]
+        d = mi.Vector3f(*(mi.Float(x * float(R[j, 0]) + y * float(R[j, 1]) + float(R[j, 2])) for j in range(3)))
         near = dr.opaque(mi.Float, self.options.near)
         o = mi.Point3f(*(d[j] * near + dr.opaque(mi.Float, c[j]) for j in range(3)))
         return o, d
