@@ -47,7 +47,7 @@ from agrisim.robot.kinematics import ArmKinematics
 from agrisim.robot.segments import segment_is_valid
 from agrisim.robot.setpoints import Setpoint, routine
 from agrisim.robot.trajectory import Limits, TimedPath, time_parametrize
-from agrisim.scene.camera import camera_of
+from agrisim.scene.camera_choice import camera_of
 from agrisim.scene.cell import build_cell
 from agrisim.scene.model import Scene
 from agrisim.scene.plant_choice import check_plant_name, draws_points, resolve_plant

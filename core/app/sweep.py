@@ -249,7 +249,7 @@ def _check_cell(registry: Any, config: RunConfig) -> None:
     the scene or any backend: names, every backend's and the species' options, the camera, what
     the renderer can draw."""
     from agrisim.capabilities import check_renderer
-    from agrisim.scene.camera import camera_of
+    from agrisim.scene.camera_choice import camera_of
     from agrisim.scene.plant_choice import check_plant_name, draws_points, plant_seed
 
     _check_backends(registry, config)

@@ -169,16 +169,6 @@ def preset(name: str, resolution: str | None = None) -> CameraModel:
     return PRESETS[name].camera(w, h)
 
 
-def camera_of(settings: Any) -> CameraModel:
-    """The run's camera from its ``camera`` settings (:class:`agrisim.config.CameraConfig`): the
-    calibration file when one is given, else the preset at the resolution."""
-    if settings.calibration is not None:
-        from agrisim.files.calibration import read_calibration
-
-        return read_calibration(settings.calibration)
-    return preset(settings.preset, settings.resolution)
-
-
 def view_seed(camera: CameraModel, world_T_camera: np.ndarray, seed: int) -> int:
     """A 64-bit seed of one view: the run's ``seed`` mixed with the camera and its pose, so every
     view samples its own noise and the same view always the same."""
