@@ -102,10 +102,3 @@ def test_nerfstudios_rays_through_the_lens_meet_the_plant(run_dir: Path) -> None
         agree = plant & (np.abs(t - depth) <= 0.0005 + 1e-6)  # the PNG rounds to whole millimetres
         assert plant.sum() > 1000
         assert agree.sum() >= 0.99 * plant.sum(), f"{frame['file_path']}: {agree.sum()}/{plant.sum()}"
-
-
-def test_a_renderer_without_lenses_will_not_re_render_it(run_dir: Path, tmp_path: Path, cli) -> None:  # noqa: ANN001
-    out = tmp_path / "re"
-    code, stdout, err = cli(["render", str(run_dir), "--renderer", "mitsuba", "--out", str(out)])
-    assert code == 2 and err.count("\n") == 1 and "cannot draw through" in err and "raycast" in err, err
-    assert not out.exists()

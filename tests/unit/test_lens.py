@@ -193,3 +193,38 @@ def test_pycolmap_projects_through_the_camera_agrisim_gives_it(lens: Distortion)
     xy = np.random.default_rng(1).uniform(-0.7, 0.7, (500, 2))
     u, v = camera.project(xy[:, 0], xy[:, 1])
     np.testing.assert_allclose(theirs.img_from_cam(np.c_[xy, np.ones(len(xy))]), np.c_[u, v] + 0.5, atol=1e-9)
+
+
+@pytest.mark.parametrize("lens", [BARREL, FISHEYE], ids=lambda lens: lens.model)
+def test_the_path_tracer_sees_through_the_lens(lens: Distortion) -> None:
+    """``mitsuba`` through a lens (its ``agrisim_lens`` sensor): every pixel well inside a square
+    of the board, by OpenCV's ``undistortPoints``, is bright on a light square and dark on a dark
+    one; labels and depth are raycast's, which the test above holds to OpenCV."""
+    from agrisim.plugins.render.mitsuba import MitsubaOptions
+    from agrisim.plugins.render.mitsuba.renderer import MitsubaRenderer
+    from agrisim.scene.model import Light
+
+    z, size = 0.5, 0.08
+    camera = CameraModel(160, 120, 100.0, 100.0, 79.5, 59.5, lens)
+    light = Light("lamp", "point", np.array([0.3, 0.3, -0.5]), np.array([0.0, 0.0, 1.0]), intensity=1.0)
+    # the camera's own housing, 0.5 mm before its centre: rays start at the near plane (1 mm), as
+    # Mitsuba's perspective sensor's and raycast's do
+    v = np.array([[-2, -2, 0.5], [2, -2, 0.5], [2, 2, 0.5], [-2, 2, 0.5]]) * 1e-3  # (its shadow falls off the board)
+    housing = Mesh("housing", v, np.array([[0, 1, 2], [0, 2, 3]]), [Material("housing")], np.zeros(2, int))
+    labels = LabelTable([Label(0, "background", (0, 0, 0)), Label(1, "a", (1, 1, 1))])
+    scene = Scene([_board(z), housing], [light], labels)
+    options = MitsubaOptions(variant="llvm", spp=8, denoise="off")
+    radiance = MitsubaRenderer(scene, None, RenderConfig(hide_robots=True), options).radiance(camera, np.eye(4))
+    grey = radiance.mean(axis=2)
+    u, v = np.meshgrid(np.arange(camera.width, dtype=float), np.arange(camera.height, dtype=float))
+    undistort = cv2.fisheye.undistortPoints if lens.model == "fisheye" else cv2.undistortPoints
+    pixels = np.c_[u.ravel(), v.ravel()][:, None, :]
+    slopes = undistort(pixels, camera.K, lens.opencv, criteria=CONVERGED)[:, 0, :].reshape(
+        camera.height, camera.width, 2
+    )
+    grid = slopes * z / size + 4
+    inside = ((grid > 0) & (grid < 8)).all(axis=2)
+    well_inside = inside & (np.abs(grid - np.round(grid)) > 0.15).all(axis=2)  # a pixel's samples off the edges
+    light_square = np.floor(grid).sum(axis=2) % 2 == 0
+    threshold = 0.5 * (np.median(grey[well_inside & light_square]) + np.median(grey[well_inside & ~light_square]))
+    assert ((grey > threshold) == light_square)[well_inside].mean() > 0.999

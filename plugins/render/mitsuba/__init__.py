@@ -82,6 +82,7 @@ def agrisim_renderers() -> list[BackendSpec]:
                 soft_shadows=True,
                 supersampling=True,
                 rerender=True,
+                lenses=True,
             ),
             preflight=preflight,
         )

@@ -1,4 +1,5 @@
-"""OpenCV's pinhole (K, world_T_camera) as Mitsuba's ``perspective`` sensor, exactly.
+"""OpenCV's pinhole (K, world_T_camera) as Mitsuba's ``perspective`` sensor, exactly; a camera
+with a lens as agrisim's ``agrisim_lens`` sensor (:mod:`.lens_sensor`).
 
 Mitsuba's camera looks along +z with +x to the left and +y up; OpenCV's along +z with +x right
 and +y down: the same optical axis with x and y flipped, so ``to_world = world_T_camera @
@@ -36,16 +37,24 @@ def sensor_dict(camera: CameraModel, world_T_camera: np.ndarray, spp: int, sampl
     frame) as a dict for ``mitsuba.load_dict``, with an ``hdrfilm`` of the camera's size and a
     box filter (each pixel averages its own area, nothing of its neighbours') and ``sampler``
     placing the ``spp`` samples. The transform is a 4 x 4 array: Mitsuba takes it as such."""
-    check_square_pixels(camera)
     W, H = camera.width, camera.height
+    if camera.distortion is not None:  # through a lens: agrisim's own sensor (any fx, fy)
+        from .lens_sensor import sensor_fields
+
+        optics = sensor_fields(camera)
+    else:
+        check_square_pixels(camera)
+        optics = {
+            "type": "perspective",
+            "fov_axis": "x",
+            "fov": math.degrees(2.0 * math.atan(W / (2.0 * camera.fx))),
+            "principal_point_offset_x": (W / 2.0 - (camera.cx + 0.5)) / W,
+            "principal_point_offset_y": (H / 2.0 - (camera.cy + 0.5)) / H,
+            "near_clip": 1e-3,
+            "far_clip": 1e4,
+        }
     return {
-        "type": "perspective",
-        "fov_axis": "x",
-        "fov": math.degrees(2.0 * math.atan(W / (2.0 * camera.fx))),
-        "principal_point_offset_x": (W / 2.0 - (camera.cx + 0.5)) / W,
-        "principal_point_offset_y": (H / 2.0 - (camera.cy + 0.5)) / H,
-        "near_clip": 1e-3,
-        "far_clip": 1e4,
+        **optics,
         "to_world": np.asarray(world_T_camera, np.float64) @ CV_TO_MITSUBA,
         "film": {
             "type": "hdrfilm",
@@ -63,4 +72,8 @@ def load_sensor(mi, camera: CameraModel, world_T_camera: np.ndarray, spp: int, s
     """:func:`sensor_dict` loaded; ``mi`` is the mitsuba module, its variant set."""
     d = sensor_dict(camera, world_T_camera, spp, sampler)
     d["to_world"] = mi.ScalarTransform4f(d["to_world"])
+    if camera.distortion is not None:
+        from .lens_sensor import register
+
+        register(mi)
     return mi.load_dict(d)

@@ -129,7 +129,7 @@ class MitsubaRenderer(Renderer):
 
     def _placed_sensor(self, camera: CameraModel, world_T_camera: np.ndarray):  # noqa: ANN202 - Mitsuba's Sensor
         """The camera's sensor at ``world_T_camera``: built for a new camera, else moved."""
-        key = (camera.width, camera.height, camera.fx, camera.fy, camera.cx, camera.cy)
+        key = (camera.width, camera.height, camera.fx, camera.fy, camera.cx, camera.cy, camera.distortion)
         if self._sensor is None or self._sensor[0] != key:
             sensor = load_sensor(self.mi, camera, world_T_camera, self.options.spp, self.options.sampler)
             self._sensor = (key, sensor, self.mi.traverse(sensor))
