@@ -115,3 +115,46 @@ def backproject(view: View, mask: np.ndarray, max_depth: float) -> tuple[np.ndar
     T = view.world_T_camera
     points = np.column_stack([x, y, z]) @ T[:3, :3].T + T[:3, 3]
     return points, view.images.rgb[v, u]
+
+
+def as_pinhole(view: View) -> View:
+    """``view`` through a lens resampled onto the pinhole of its ``K`` (OpenCV's undistortion
+    maps): each pinhole pixel takes the lens pixel nearest where its ray lands, so labels,
+    depth (still z along the axis: the same surface point) and instances keep their values;
+    RGB is interpolated bilinearly. Pixels whose ray falls outside the lens image are empty. For
+    reconstructors that read pinholes (Open3D's TSDF). A pinhole view is returned as it is."""
+    cam = view.camera
+    if cam.pinhole:
+        return view
+    import cv2
+
+    map_x, map_y = _undistortion_maps(cam)
+    images = view.images
+
+    def nearest(image: np.ndarray | None) -> np.ndarray | None:
+        if image is None:
+            return None
+        return cv2.remap(image, map_x, map_y, cv2.INTER_NEAREST, borderMode=cv2.BORDER_CONSTANT, borderValue=0)
+
+    rgb = cv2.remap(images.rgb, map_x, map_y, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=0)
+    pinhole = CameraModel(cam.width, cam.height, cam.fx, cam.fy, cam.cx, cam.cy)
+    frame = Frame(
+        rgb,
+        nearest(images.labels),  # type: ignore[arg-type]
+        nearest(images.depth),  # type: ignore[arg-type]
+        nearest(images.instances),
+        None,
+        nearest(images.depth_sensor),
+    )
+    return View(view.frame, pinhole, view.world_T_camera, frame)
+
+
+def _undistortion_maps(camera: CameraModel) -> tuple[np.ndarray, np.ndarray]:
+    """Where each pixel of ``camera``'s pinhole lands in its lens image (float32 maps)."""
+    import cv2
+
+    assert camera.distortion is not None
+    K, D, size = camera.K, camera.distortion.opencv, (camera.width, camera.height)
+    if camera.distortion.model == "fisheye":
+        return cv2.fisheye.initUndistortRectifyMap(K, D, np.eye(3), K, size, cv2.CV_32FC1)
+    return cv2.initUndistortRectifyMap(K, D, np.eye(3), K, size, cv2.CV_32FC1)

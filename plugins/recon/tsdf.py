@@ -15,7 +15,7 @@ from pydantic import Field, model_validator
 
 from agrisim import BackendSpec, Options, hookimpl
 from agrisim.capabilities import ReconstructorCapabilities
-from agrisim.evaluation.views import View, backproject
+from agrisim.evaluation.views import View, as_pinhole, backproject
 from agrisim.interfaces import ALL, Cloud, Reconstruction, Reconstructor, SurfaceMesh
 from agrisim.scene.model import LabelTable
 
@@ -78,6 +78,7 @@ class TsdfReconstructor(Reconstructor):
     def integrate(self, view: View) -> dict[str, Cloud]:
         o3d = self._o3d
         o = self.options
+        view = as_pinhole(view)  # (Open3D's fusion reads pinholes)
         K = o3d.core.Tensor(view.camera.K)
         extrinsic = o3d.core.Tensor(np.linalg.inv(view.world_T_camera))
         color = o3d.t.geometry.Image(np.ascontiguousarray(view.images.rgb))
@@ -142,8 +143,8 @@ def agrisim_reconstructors() -> list[BackendSpec]:
             factory=TsdfReconstructor,
             options_model=TsdfOptions,
             description="Open3D TSDF fusion (VoxelBlockGrid) of the labelled depth to a surface mesh, per label",
-            capabilities=ReconstructorCapabilities(
-                clouds=False, meshes=True
-            ),  # merged() streams clouds; the result is meshes
+            # merged() streams clouds; the result is meshes. Views through a lens are resampled
+            # onto their pinhole first (as_pinhole)
+            capabilities=ReconstructorCapabilities(clouds=False, meshes=True, lenses=True),
         )
     ]

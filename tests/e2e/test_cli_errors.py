@@ -263,8 +263,8 @@ CASES = [
         id="lens-with-a-pinhole-renderer",
     ),
     pytest.param(
-        ["--camera-calibration", "{tmp}/lens.yaml", "--recon", "tsdf"],
-        ["tsdf", "pinhole views only", "pointcloud"],
+        ["--camera-calibration", "{tmp}/lens.yaml", "--recon", "splat"],
+        ["splat", "pinhole views only", "pointcloud"],
         id="lens-with-a-pinhole-reconstructor",
     ),
 ]

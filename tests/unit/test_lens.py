@@ -228,3 +228,32 @@ def test_the_path_tracer_sees_through_the_lens(lens: Distortion) -> None:
     light_square = np.floor(grid).sum(axis=2) % 2 == 0
     threshold = 0.5 * (np.median(grey[well_inside & light_square]) + np.median(grey[well_inside & ~light_square]))
     assert ((grey > threshold) == light_square)[well_inside].mean() > 0.999
+
+
+@pytest.mark.parametrize("lens", [BARREL, FISHEYE], ids=lambda lens: lens.model)
+def test_a_lens_view_resampled_onto_its_pinhole_is_the_pinholes_view(lens: Distortion) -> None:
+    """``as_pinhole`` (for reconstructors that read pinholes: the TSDF): the board seen through
+    the lens and resampled onto the pinhole of its K is what the pinhole itself renders: labels
+    and depth, to within a pixel of the squares' edges (nearest-neighbour resampling)."""
+    from agrisim.evaluation.views import as_pinhole
+    from agrisim.interfaces import View
+
+    labels = LabelTable([Label(0, "background", (0, 0, 0)), Label(1, "a", (1, 1, 1)), Label(2, "b", (2, 2, 2))])
+    renderer = RaycastRenderer(
+        Scene([_board(0.5)], [], labels),
+        None,
+        RenderConfig(hide_robots=True, labels="organs"),
+        RaycastOptions(variant="llvm", shadow_samples=0),
+    )
+    through = CameraModel(240, 180, 150.0, 150.0, 119.5, 89.5, lens)
+    pinhole = CameraModel(240, 180, 150.0, 150.0, 119.5, 89.5)
+    resampled = as_pinhole(View("v", through, np.eye(4), renderer.render(through, np.eye(4), {}))).images
+    truth = renderer.render(pinhole, np.eye(4), {})
+    # a pixel whose 3x3 neighbourhood has one label in the truth: not within a pixel of an edge
+    padded = np.pad(truth.labels, 1, mode="edge")
+    window = np.stack([padded[dy : dy + 180, dx : dx + 240] for dy in range(3) for dx in range(3)])
+    uniform = (window == truth.labels).all(axis=0)
+    seen = resampled.labels > 0  # (the lens image covers only part of the pinhole's corners)
+    assert (uniform & seen).mean() > 0.5
+    np.testing.assert_array_equal(resampled.labels[uniform & seen], truth.labels[uniform & seen])
+    np.testing.assert_allclose(resampled.depth[uniform & seen], truth.depth[uniform & seen], rtol=1e-6)
