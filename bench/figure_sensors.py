@@ -43,7 +43,7 @@ def main() -> None:
     distance = SurfaceDistance(truth)
     lo, hi = truth.points.min(axis=0) - 0.02, truth.points.max(axis=0) + 0.02
     n = len(runs)
-    fig = plt.figure(figsize=(4.2 * (n + 1), 7.6), dpi=110)
+    fig = plt.figure(figsize=(4.0 * (n + 1), 7.0), dpi=100)
     rgb = np.asarray(Image.open(runs[0] / "rgb" / f"{args.frame}.png"))
     ax = fig.add_subplot(2, n + 1, 1)
     ax.imshow(rgb)
@@ -82,12 +82,12 @@ def main() -> None:
         ax.set_xlim(lo[0], hi[0])
         ax.set_ylim(lo[1], hi[1])
         ax.set_zlim(lo[2], hi[2])
-        ax.set_box_aspect(hi - lo)
+        ax.set_box_aspect(hi - lo, zoom=1.5)
         ax.set_axis_off()
         ax.set_title(
-            f"{name}: {metrics['points']:,} points\nprecision@2mm {metrics['precision']['2']:.3f}, "
+            f"{name}: {metrics['points']:,} points\nprecision@2mm {metrics['precision']['2']:.3f}\n"
             f"recall@2mm {metrics['recall']['2']:.3f}",
-            fontsize=10,
+            fontsize=9,
         )
     cbar = fig.colorbar(sc, ax=clouds, shrink=0.6, pad=0.02)
     cbar.set_label(f"distance to the true surface, mm (clipped at {MAX_MM:g})")

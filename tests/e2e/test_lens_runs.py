@@ -102,3 +102,19 @@ def test_nerfstudios_rays_through_the_lens_meet_the_plant(run_dir: Path) -> None
         agree = plant & (np.abs(t - depth) <= 0.0005 + 1e-6)  # the PNG rounds to whole millimetres
         assert plant.sum() > 1000
         assert agree.sum() >= 0.99 * plant.sum(), f"{frame['file_path']}: {agree.sum()}/{plant.sum()}"
+
+
+def test_the_bags_camera_info_carries_the_lens(run_dir: Path, cli) -> None:  # noqa: ANN001
+    """``agrisim export rosbag``: every ``camera_info`` read back by mcap_ros2 (ROS 2's reader)
+    says ``plumb_bob`` with the calibration's coefficients, the ones ``image_raw`` was taken
+    through."""
+    from test_rosbag import read_bag
+
+    code, _, err = cli(["export", "rosbag", str(run_dir)])
+    assert code == 0, err
+    infos = [msg for topic, msgs in read_bag(run_dir).items() if topic.endswith("camera_info") for _, msg in msgs]
+    assert len(infos) == 6
+    for info in infos:
+        assert info.distortion_model == "plumb_bob"
+        np.testing.assert_array_equal(info.d, D)
+        np.testing.assert_array_equal(np.reshape(info.k, (3, 3)), K)
