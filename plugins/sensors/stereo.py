@@ -12,6 +12,9 @@ D415      55 mm     65 x 40 deg     yes         0.45-3 m
 D405      18 mm     87 x 58 deg     no          0.07-0.5 m
 ========  ========  ==============  ==========  =========
 
+The minimum depths are the datasheet's at 1280 x 720; at a smaller image the device measures
+nearer, in proportion to the width (:func:`min_depth`: at 848 x 480, 0.19, 0.30 and 0.05 m).
+
 The depth origin is the left imager. The right imager sits ``baseline`` to its right. The
 projector of the D435 and D415 sits between the imagers, and the colour camera 15 mm to the
 left imager's right (a typical factory calibration; each unit has its own). The D405 has no
@@ -122,15 +125,23 @@ class StereoOptions(Options):
     when a GPU is usable, else LLVM)."""
 
 
+def min_depth(device: Device, resolution: str) -> float:
+    """The nearest depth the device measures at ``resolution``, m. The datasheet's minimum is at
+    1280 x 720, where the ASIC's search of 126 disparities ends (min-Z = f b / 126); the same
+    126 pixels reach nearer on a smaller image, in proportion to its focal length in pixels."""
+    return device.min_z_m * RESOLUTIONS[resolution][0] / 1280
+
+
 def depth_range(device: Device, options: StereoOptions) -> tuple[float, float]:
     """(nearest, farthest) depth reported; a ConfigError naming the device's range when the
     options ask for depth outside it."""
-    lo = device.min_z_m if options.min_depth_m is None else options.min_depth_m
+    nearest = min_depth(device, options.resolution)
+    lo = nearest if options.min_depth_m is None else options.min_depth_m
     hi = device.max_z_m if options.max_depth_m is None else options.max_depth_m
-    if lo < device.min_z_m or hi > device.max_z_m or lo >= hi:
+    if lo < nearest or hi > device.max_z_m or lo >= hi:
         raise ConfigError(
             f"depth sensor {device.name!r}: depth {lo:g}-{hi:g} m is outside its range "
-            f"{device.min_z_m:g}-{device.max_z_m:g} m (min_depth_m, max_depth_m)"
+            f"{nearest:.3g}-{device.max_z_m:g} m at {options.resolution} (min_depth_m, max_depth_m)"
         )
     return lo, hi
 

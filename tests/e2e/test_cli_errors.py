@@ -232,7 +232,7 @@ CASES = [
     ),
     pytest.param(
         ["--depth-sensor", "d405", "--set", "sensor.d405.max_depth_m=2"],
-        ["d405", "0.07-0.5 m", "max_depth_m"],
+        ["d405", "0.0464-0.5 m at 848x480", "max_depth_m"],
         id="stereo-depth-range-it-lacks",
     ),
     pytest.param(["--camera", "rpi4-wide"], ["rpi4-wide", "rpi-camera-3-wide"], id="unknown-camera-preset"),
