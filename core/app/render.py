@@ -121,28 +121,23 @@ class RenderPlan:
             )
         self.scene_path = scene_path
         self.points_path = self.run_dir / layout.PLANT_POINTS
-        if self.points_path.is_file() and not getattr(self.spec.capabilities, "points", False):
-            able = [
-                n
-                for n, sp in registry.specs("renderer").items()
-                if getattr(sp.capabilities, "rerender", False) and getattr(sp.capabilities, "points", False)
-            ]
-            raise UserError(
-                f"the run in {self.run_dir} draws its plant as points, which renderer {renderer!r} cannot draw; "
-                f"renderers that can re-render point plants: {', '.join(able) or 'none installed'}"
-            )
-        if self.cameras["intrinsics"].get("distortion") is not None and not getattr(
-            self.spec.capabilities, "lenses", False
-        ):
-            able = [
-                n
-                for n, sp in registry.specs("renderer").items()
-                if getattr(sp.capabilities, "rerender", False) and getattr(sp.capabilities, "lenses", False)
-            ]
-            raise UserError(
-                f"the run in {self.run_dir} has a distorting lens, which renderer {renderer!r} cannot draw through; "
-                f"renderers that can re-render through a lens: {', '.join(able) or 'none installed'}"
-            )
+        # what the run needs of a re-renderer, beyond re-rendering: (capability, what, the run has it)
+        needs = [
+            ("points", "draws its plant as points, which renderer {r} cannot draw", "re-render point plants"),
+            ("lenses", "has a distorting lens, which renderer {r} cannot draw through", "re-render through a lens"),
+        ]
+        has = {"points": self.points_path.is_file(), "lenses": self.cameras["intrinsics"].get("distortion") is not None}
+        for capability, lacks, can in needs:
+            if has[capability] and not getattr(self.spec.capabilities, capability, False):
+                able = [
+                    n
+                    for n, sp in registry.specs("renderer").items()
+                    if getattr(sp.capabilities, "rerender", False) and getattr(sp.capabilities, capability, False)
+                ]
+                raise UserError(
+                    f"the run in {self.run_dir} {lacks.format(r=repr(renderer))}; "
+                    f"renderers that can {can}: {', '.join(able) or 'none installed'}"
+                )
         self.frames = [f for f in run.get("frames_complete") or [] if f in self.cameras["frames"]]
         if not self.frames:
             raise UserError(f"the run in {self.run_dir} has no rendered frames")

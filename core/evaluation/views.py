@@ -9,6 +9,7 @@ clouds and metrics. Back-projection follows the paper's Eq. 1 and OpenCV's pixel
 
 from __future__ import annotations
 
+from functools import lru_cache
 from pathlib import Path
 
 import numpy as np
@@ -19,6 +20,7 @@ from agrisim.files import layout
 from agrisim.files.encoding import mm_to_depth
 from agrisim.files.exr import read_exr
 from agrisim.interfaces import CameraModel, Capture, Frame, View
+from agrisim.scene.lens import Distortion
 
 
 def view_from_capture(capture: Capture, exact_depth: bool = False, depth: str = "truth") -> View:
@@ -150,11 +152,20 @@ def as_pinhole(view: View) -> View:
 
 
 def _undistortion_maps(camera: CameraModel) -> tuple[np.ndarray, np.ndarray]:
-    """Where each pixel of ``camera``'s pinhole lands in its lens image (float32 maps)."""
+    """Where each pixel of ``camera``'s pinhole lands in its lens image (float32 maps; made
+    once per camera, not per view)."""
+    assert camera.distortion is not None
+    c = camera
+    return _maps(c.width, c.height, c.fx, c.fy, c.cx, c.cy, c.distortion)
+
+
+@lru_cache(maxsize=2)
+def _maps(
+    width: int, height: int, fx: float, fy: float, cx: float, cy: float, lens: Distortion
+) -> tuple[np.ndarray, np.ndarray]:
     import cv2
 
-    assert camera.distortion is not None
-    K, D, size = camera.K, camera.distortion.opencv, (camera.width, camera.height)
-    if camera.distortion.model == "fisheye":
+    K, D, size = CameraModel(width, height, fx, fy, cx, cy).K, lens.opencv, (width, height)
+    if lens.model == "fisheye":
         return cv2.fisheye.initUndistortRectifyMap(K, D, np.eye(3), K, size, cv2.CV_32FC1)
     return cv2.initUndistortRectifyMap(K, D, np.eye(3), K, size, cv2.CV_32FC1)

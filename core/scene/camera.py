@@ -118,6 +118,13 @@ def barrel_for_fov(half_width: float, hfov_deg: float) -> Distortion:
 #: the Camera Module 3's IMX708 (4608 x 2592 pixels of 1.4 um) behind its 2.75 mm wide lens
 _IMX708_W_MM, _IMX708_H_MM, _WIDE_FOCAL_MM = 4608 * 1.4e-3, 2592 * 1.4e-3, 2.75
 
+
+def _fov_preset(hfov_deg: float, source: str) -> Preset:
+    """A 16:9 pinhole given by its horizontal field of view (a unit focal length)."""
+    width = 2 * math.tan(math.radians(hfov_deg) / 2)
+    return Preset(width, width * 9 / 16, 1.0, None, source)
+
+
 PRESETS: dict[str, Preset] = {
     "rpi3-wide-1080p": Preset(
         6.45, 3.63, 2.75, None, "the paper's RaspPi3Wide (UE5 CineCamera): 6.45 x 3.63 mm sensor, 2.75 mm; a pinhole"
@@ -131,19 +138,13 @@ PRESETS: dict[str, Preset] = {
         "horizontal (the pinhole of sensor and focal length has 99.1); k1 fitted to the 102 degrees (it gives 67.6 "
         "vertical against the published 67; the brief's 120 diagonal no unfolded k1 reaches)",
     ),
-    "realsense-d435-colour": Preset(
-        2 * math.tan(math.radians(69.0) / 2),
-        2 * math.tan(math.radians(69.0) / 2) * 9 / 16,
-        1.0,
-        None,
+    "realsense-d435-colour": _fov_preset(
+        69.0,
         "Intel RealSense D400 datasheet: OV2740 colour camera, 69 x 42 degrees at 16:9 (42.2 with square pixels); "
         "Intel publishes no distortion (each unit's is in its calibration: pass it with --camera-calibration)",
     ),
-    "azure-kinect-colour": Preset(
-        2 * math.tan(math.radians(90.0) / 2),
-        2 * math.tan(math.radians(90.0) / 2) * 9 / 16,
-        1.0,
-        None,
+    "azure-kinect-colour": _fov_preset(
+        90.0,
         "Azure Kinect DK hardware specification: colour camera 90 x 59 degrees at 16:9 (58.7 with square pixels); "
         "distortion per unit (the SDK's calibration: pass it with --camera-calibration)",
     ),
