@@ -44,6 +44,9 @@ class RendererCapabilities:
     lenses: bool = False
     """Draws through a lens's distortion (``CameraModel.distortion``): each pixel's own ray,
     labels and depth exact at the distorted positions."""
+    radiance: bool = False
+    """Keeps each view's linear radiance when its options' ``radiance`` is set (an imager
+    makes its images from it)."""
 
 
 @dataclass(frozen=True)
@@ -110,9 +113,11 @@ def check_renderer(
     labels: str,
     points: bool = False,
     lens: bool = False,
+    radiance: bool = False,
 ) -> None:
     """Refuse rendering with ``spec`` in ``seg_modes`` with ``labels`` (and a point plant, with
-    ``points``; through a distorting lens, with ``lens``) if it cannot do them.
+    ``points``; through a distorting lens, with ``lens``; keeping linear radiance for an imager,
+    with ``radiance``) if it cannot do them.
 
     ``renderers`` are all installed renderers, to name those that could.
     """
@@ -125,6 +130,8 @@ def check_renderer(
             out.append("point plants")
         if lens and not getattr(caps, "lenses", False):
             out.append("through a lens's distortion")
+        if radiance and not getattr(caps, "radiance", False):
+            out.append("linear radiance for an imager")
         return out
 
     lacking = missing(spec.capabilities)

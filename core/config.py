@@ -251,6 +251,49 @@ class CameraConfig(_Model):
         return v
 
 
+class ImagerConfig(_Model):
+    """The colour camera's sensor and image processing (``agrisim.scene.imager``): ``none``
+    keeps the renderer's noise-free images."""
+
+    model: str = "none"
+    """``none``, ``imx708`` (Camera Module 3) or ``ov2740`` (RealSense D4xx colour); ``--imager``."""
+    lux: float = Field(default=1000.0, gt=0.0, le=1e6)
+    """Illuminance, lux, that the renderer's irradiance 1 stands for (a lab under ceiling lights:
+    1000 lx; sunlight: 100,000)."""
+    exposure: Literal["auto"] | float = "auto"
+    """``auto`` (the sensor's auto-exposure, converging from view to view) or a fixed exposure
+    time, seconds (``--exposure``)."""
+    gain: float = Field(default=1.0, ge=1.0, le=64.0)
+    """Analogue gain with a fixed exposure."""
+    ae_frames: int = Field(default=15, ge=0, le=10_000)
+    """Frames the camera streams (and the auto-exposure meters) between two shots: 15 is half a
+    second at 30 fps, the arm's settling."""
+    jpeg_quality: int = Field(default=0, ge=0, le=100)
+    """0: the developed image stored losslessly; 1..100: through JPEG at that quality, as a
+    streaming camera sends it (``--jpeg-quality``)."""
+    bit_depth: int | None = Field(default=None, ge=8, le=16)
+    """The ADC's bits, overriding the sensor's (its black level scaled with it); None: the
+    sensor's own (10 for both presets)."""
+    raw: bool = False
+    """Also write each view's raw Bayer frame (``raw/<frame>.png``, uint16 digital numbers)."""
+
+    @field_validator("model")
+    @classmethod
+    def _model(cls, v: str) -> str:
+        from agrisim.scene.imager import imager_names
+
+        if v not in imager_names():
+            raise ValueError(f"unknown imager {v!r}; imagers: {', '.join(imager_names())}")
+        return v
+
+    @field_validator("exposure")
+    @classmethod
+    def _exposure(cls, v: str | float) -> str | float:
+        if v != "auto" and not 1e-6 <= float(v) <= 10.0:
+            raise ValueError(f"exposure {v} s is outside 1e-06..10 s (or auto)")
+        return v
+
+
 class RenderConfig(_Model):
     """Run-wide rendering settings, whichever renderer draws."""
 
@@ -322,6 +365,8 @@ class RunConfig(_Model):
     renderer: RendererChoice = RendererChoice()
     """Renderer and per-backend options (``[renderer.raycast]``)."""
     render: RenderConfig = RenderConfig()
+    imager: ImagerConfig = ImagerConfig()
+    """The colour camera's sensor and processing (``--imager``); ``none``: noise-free images."""
     sensor: SensorChoice = SensorChoice()
     """Depth sensor and per-backend options (``[sensor.azure-kinect-nfov]``)."""
     recon: ReconChoice = ReconChoice()

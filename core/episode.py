@@ -11,6 +11,7 @@ from __future__ import annotations
 import dataclasses
 import datetime as _dt
 import time
+import zlib
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from typing import Any
@@ -27,7 +28,7 @@ from agrisim.evaluation.session import ReconSession, summary_metrics
 from agrisim.evaluation.views import View, load_frame, view_from_capture, view_of
 from agrisim.files.atomic import remove_partial
 from agrisim.files.dataset import DatasetWriter
-from agrisim.files.rundir import prepare_out_dir, resolve_out_dir, saved_run
+from agrisim.files.rundir import prepare_out_dir, resolve_out_dir, saved_frames, saved_run
 from agrisim.interfaces import (
     Capture,
     DepthSensor,
@@ -49,6 +50,7 @@ from agrisim.robot.setpoints import Setpoint, routine
 from agrisim.robot.trajectory import Limits, TimedPath, time_parametrize
 from agrisim.scene.camera_choice import camera_of
 from agrisim.scene.cell import build_cell
+from agrisim.scene.imager import IMAGERS, Exposure, ImagePipeline
 from agrisim.scene.model import Scene
 from agrisim.scene.plant_choice import check_plant_name, draws_points, resolve_plant
 from agrisim.scene.transforms import pose_error
@@ -72,8 +74,10 @@ class Episode:
         # --resume replays the episode deterministically (the robot side is cheap) and renders
         # only the frames that are not complete on disk yet.
         self.done_frames: set[str] = set()
+        self.saved_frames: dict[str, Any] = {}
         if config.output.resume:
             self.done_frames = set(saved_run(self.out_dir).get("frames_complete") or [])
+            self.saved_frames = saved_frames(self.out_dir)
         self.cell = build_cell(config.cell)
         self.setpoints = routine(self.cell, config.routine)
         self.camera = camera_of(config.camera)
@@ -98,7 +102,10 @@ class Episode:
                 f"recon.poses = {config.recon.poses!r} needs the finished run: agrisim colmap RUN, then "
                 f"agrisim recon RUN --set recon.poses={config.recon.poses}; a run reconstructs on the true poses"
             )
+        self.imagers: dict[str, ImagePipeline] = {}
         if config.renderer.backend == "none":
+            if config.imager.model != "none":
+                raise ConfigError(f"imager {config.imager.model!r} needs a renderer (renderer is 'none')")
             check_plant_name(self.registry, config)
             # nothing renders, but a typo or a bad value in an option table is still refused
             config.renderer.check_tables("renderer", self.registry.specs("renderer"))
@@ -113,7 +120,9 @@ class Episode:
                 config.render.labels,
                 points=draws_points(config),
                 lens=not self.camera.pinhole,
+                radiance=config.imager.model != "none",
             )
+            self._open_imagers()
             self.sensor_spec, self.sensor_options = self._backend("sensor", config.sensor)
             check_sensor(self.sensor_spec, self.registry.specs("sensor"), points=draws_points(config))
             with _timed(self._prep_wall, "plant"):
@@ -130,6 +139,29 @@ class Episode:
                 self.recon_spec, self.recon_options = self._backend("reconstructor", config.recon)
             else:
                 config.recon.check_tables("recon", self.registry.specs("reconstructor"))
+
+    def _open_imagers(self) -> None:
+        """One imager per arm's camera (each has its own auto-exposure), fed the renderer's
+        linear radiance; under ``--resume`` each goes on from the exposure of its arm's last
+        frame on disk."""
+        c = self.config.imager
+        if c.model == "none":
+            return
+        # the record keeps the options as given; the renderer is built keeping radiance
+        self._renderer_record = self.renderer_options
+        self.keep_radiance = bool(getattr(self.renderer_options, "radiance", False))
+        self.renderer_options = self.renderer_options.model_copy(update={"radiance": True})
+        fixed = None if c.exposure == "auto" else (float(c.exposure), c.gain)
+        imager = IMAGERS[c.model] if c.bit_depth is None else IMAGERS[c.model].at_bit_depth(c.bit_depth)
+        for arm in self.cell.arms:
+            self.imagers[arm.name] = ImagePipeline(
+                imager, c.lux, fixed, c.ae_frames, c.jpeg_quality, seed=self.config.seed
+            )
+        if self.done_frames:
+            for sp in (sp for sps in self.setpoints.values() for sp in sps):  # in shooting order
+                shot = self.saved_frames.get(sp.frame, {}).get("exposure")
+                if sp.frame in self.done_frames and shot is not None:
+                    self.imagers[sp.robot].resume_from(Exposure.from_json(shot))
 
     def _sink_options(self) -> dict[str, BaseModel]:
         """Every installed sink's options from ``[sink.NAME]``, validated and pre-flighted: a
@@ -249,7 +281,10 @@ class Episode:
         )
         if self.renderer_spec is not None:
             run.backends["renderer"] = self.renderer_spec.name
-            run.backend_options["renderer"] = self.renderer_options.model_dump(mode="json")
+            record = self._renderer_record if self.imagers else self.renderer_options
+            run.backend_options["renderer"] = record.model_dump(mode="json")
+        if self.imagers:
+            run.imager = next(iter(self.imagers.values())).describe()
         if sensor is not None and self.sensor_spec is not None:
             run.backends["sensor"] = self.sensor_spec.name
             run.backend_options["sensor"] = self.sensor_options.model_dump(mode="json")
@@ -540,9 +575,14 @@ class Episode:
             if self._renderer is not None:
                 capture.images = load_frame(self.out_dir, capture.frame, self.camera)
                 view = view_of(capture, self.config.recon.depth)
+            if self.imagers:
+                capture.exposure = self.saved_frames.get(capture.frame, {}).get("exposure")
         elif self._renderer is not None and self.renderer_spec is not None:
             with self._stage("render"), blame("renderer", self.renderer_spec, f" rendering {capture.frame}"):
                 capture.images = self._renderer.render(self.camera, world_T_camera, capture.link_poses or {})
+            if self.imagers:
+                with self._stage("imager"):
+                    self._shoot(capture)
             if self._sensor is not None and self.sensor_spec is not None:
                 with self._stage("sensor"), blame("sensor", self.sensor_spec, f" measuring {capture.frame}"):
                     capture.images.depth_sensor = self._sensor.measure(
@@ -555,6 +595,17 @@ class Episode:
             with self._stage("recon"), blame("reconstructor", self.recon_spec, f" integrating {capture.frame}"):
                 self._session.add(view)
         return capture
+
+    def _shoot(self, capture: Capture) -> None:
+        """The imager's shot of the rendered radiance in place of the noise-free RGB."""
+        images = capture.images
+        assert images is not None and images.radiance is not None, "the renderer kept no radiance"
+        shot = self.imagers[capture.robot].shoot(images.radiance, zlib.crc32(capture.frame.encode()))
+        images.rgb = shot.rgb
+        images.raw = shot.raw if self.config.imager.raw else None
+        if not self.keep_radiance:
+            images.radiance = None
+        capture.exposure = shot.exposure.to_json()
 
     def _metrics_meta(self) -> dict[str, Any]:
         c = self.config

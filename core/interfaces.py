@@ -81,6 +81,9 @@ class Frame:
     #: float32 H x W planar depth in metres on these pixels as the run's depth sensor measured
     #: it (:class:`DepthSensor`; 0 where it gave none), or None when the sensor is exact
     depth_sensor: np.ndarray | None = None
+    #: uint16 H x W raw Bayer frame (digital numbers, black level included) that an imager
+    #: developed ``rgb`` from, when the run keeps it (``raw/<frame>.png``)
+    raw: np.ndarray | None = None
     # depth_mm's answer, kept: the dataset writer, the recording and the reconstruction all ask
     _depth_mm: np.ndarray | None = field(default=None, init=False, repr=False, compare=False)
 
@@ -98,7 +101,7 @@ class Frame:
         ``agrisim recon`` integrate bit-identical data."""
         depth = np.asarray(self.depth, np.float32) if exact_depth else mm_to_depth(self.depth_mm())
         sensed = None if self.depth_sensor is None else mm_to_depth(depth_to_mm(self.depth_sensor))
-        return Frame(self.rgb, self.labels, depth, self.instances, self.radiance, sensed)
+        return Frame(self.rgb, self.labels, depth, self.instances, self.radiance, sensed, self.raw)
 
     def with_depth(self, source: str) -> Frame:
         """These images with the depth that ``source`` names: ``truth`` (as they are) or
@@ -106,7 +109,9 @@ class Frame:
         sensor is exact)."""
         if source == "truth" or self.depth_sensor is None:
             return self
-        return Frame(self.rgb, self.labels, self.depth_sensor, self.instances, self.radiance, self.depth_sensor)
+        return Frame(
+            self.rgb, self.labels, self.depth_sensor, self.instances, self.radiance, self.depth_sensor, self.raw
+        )
 
     def copy(self) -> Frame:
         """A deep copy (the arrays too)."""
@@ -117,6 +122,7 @@ class Frame:
             None if self.instances is None else self.instances.copy(),
             None if self.radiance is None else self.radiance.copy(),
             None if self.depth_sensor is None else self.depth_sensor.copy(),
+            None if self.raw is None else self.raw.copy(),
         )
 
 
@@ -138,6 +144,9 @@ class Capture:
     replayed: bool = False
     #: ``world_T_link`` of every arm link (robot -> link -> 4x4) the frame was rendered with
     link_poses: dict[str, dict[str, np.ndarray]] | None = None
+    #: the imager's exposure of this frame (time_s, analogue_gain, metered_luminance), when the
+    #: run has an imager
+    exposure: dict[str, float] | None = None
 
 
 # ---------------------------------------------------------------------------- backends

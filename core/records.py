@@ -74,6 +74,8 @@ class Run:
     labels: LabelTable | None = None  # the label table of the images
     #: the depth sensor's imager and pose against the camera (None: the exact sensor, or none)
     sensor: SensorGeometry | None = None
+    #: the colour camera's imager, its figures and settings (None: noise-free images)
+    imager: dict[str, Any] | None = None
     run_id: str = field(default_factory=lambda: uuid.uuid4().hex)
     results: list[SetpointResult] = field(default_factory=list)
     wall_s: dict[str, float] = field(default_factory=dict)

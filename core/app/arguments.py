@@ -291,6 +291,7 @@ COMPARE_EPISODE_FLAGS: list[tuple[str, str, Any, str]] = [
     ("--renderer", "NAME", str, "renderer (default: raycast)"),
     ("--shadow-samples", "N", int, "shadow rays per pixel, 0..32 (default: 1)"),
     ("--depth-sensor", "NAME", str, "depth camera for depth_sensor/ and the reconstruction (default: exact)"),
+    ("--imager", "NAME", str, "the colour camera's sensor and processing (default: none, noise-free)"),
     ("--physics", "NAME", str, "physics backend (default: pybullet)"),
     ("--planner", "NAME", str, "motion planner (default: ompl)"),
     ("--recon", "NAME", str, "reconstructor (default: pointcloud)"),
@@ -337,6 +338,21 @@ def _episode_flags(parser: argparse.ArgumentParser) -> None:
         metavar="NAME",
         help="the depth camera whose measurement goes to depth_sensor/ and to the reconstruction "
         "(default: exact; azure-kinect-nfov, d435, d415, d405; see agrisim plugins)",
+    )
+    run.add_argument(
+        "--imager",
+        metavar="NAME",
+        help="the colour camera's sensor and processing: noise, Bayer mosaic, exposure, vignetting "
+        "(default: none, noise-free; imx708, ov2740)",
+    )
+    run.add_argument(
+        "--exposure", metavar="auto|SECONDS", help="the imager's exposure time, or auto-exposure (default: auto)"
+    )
+    run.add_argument(
+        "--jpeg-quality",
+        type=int,
+        metavar="Q",
+        help="the imager's images through JPEG at quality 1..100 (default: off)",
     )
     run.add_argument("--supersample", type=int, metavar="S", help="S x S RGB rays per pixel, 1..4 (default: 1)")
     run.add_argument("--hide-robots", action="store_true", default=None, help="render without the arms")
@@ -426,6 +442,16 @@ def web_address(args: argparse.Namespace) -> tuple[str, int, int]:
     return bind, web, grpc
 
 
+def _exposure(text: str | None) -> str | float | None:
+    """``--exposure``: ``auto`` or seconds."""
+    if text is None or text == "auto":
+        return text
+    try:
+        return float(text)
+    except ValueError:
+        raise UserError(f"--exposure {text!r}: give auto or a time in seconds (e.g. 0.01)") from None
+
+
 def overrides_from_args(args: argparse.Namespace) -> dict[str, Any]:
     """The flags given on the command line, as a nested config dictionary."""
     out: dict[str, Any] = {}
@@ -439,6 +465,9 @@ def overrides_from_args(args: argparse.Namespace) -> dict[str, Any]:
         "render.labels": args.labels,
         "renderer.backend": args.renderer,
         "sensor.backend": getattr(args, "depth_sensor", None),
+        "imager.model": getattr(args, "imager", None),
+        "imager.exposure": _exposure(getattr(args, "exposure", None)),
+        "imager.jpeg_quality": getattr(args, "jpeg_quality", None),
         "render.shadow_samples": args.shadow_samples,
         "render.supersample": args.supersample,
         "render.hide_robots": args.hide_robots,

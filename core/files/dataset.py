@@ -112,6 +112,7 @@ class DatasetWriter:
         self.summary: dict[str, Any] | None = None
         self.camera: CameraModel | None = None
         self.sensor = None if run.sensor is None else (run.backends.get("sensor", ""), run.sensor)
+        self.imager = run.imager
         self.versions = package_versions()  # once: run.json is rewritten after every setpoint
         self._writer = ThreadPoolExecutor(max_workers=1, thread_name_prefix="agrisim-dataset")
         self._pending: list[tuple[Future[None], str, dict[str, Any]]] = []
@@ -170,6 +171,7 @@ class DatasetWriter:
                 "convention": "OpenCV (x right, y down, z forward); pixel centres at integer coordinates",
                 "intrinsics": camera_to_json(cam),
                 **({"sensor": self._sensor_doc()} if self.sensor is not None else {}),
+                **({"imager": self.imager} if self.imager is not None else {}),
                 "frames": self._frame_texts.object(dict(sorted(self.frames.items()))),
             },
         )
@@ -232,6 +234,8 @@ class DatasetWriter:
             # full precision: a re-render (agrisim render) must see the very pose rendered
             "world_T_camera": np.asarray(capture.world_T_camera, np.float64).tolist(),
         }
+        if capture.exposure is not None:  # the imager's: what --resume's auto-exposure goes on from
+            entry["exposure"] = capture.exposure
         if capture.replayed:  # complete on disk from before --resume: nothing to write again
             self.frames[capture.frame] = entry
             self._write_cameras()
@@ -319,3 +323,5 @@ def write_frame(
         write_png(layout.image(out, "instances", frame), images.instances.astype(np.uint16))
     if images.depth_sensor is not None:
         write_png(layout.image(out, layout.DEPTH_SENSOR, frame), depth_to_mm(images.depth_sensor))
+    if images.raw is not None:
+        write_png(layout.image(out, layout.RAW, frame), images.raw)

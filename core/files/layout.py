@@ -17,6 +17,7 @@
     OUT/trajectories/<frame>.json  the arm's move to that setpoint: planner waypoints, the
                                planned and the executed joint trajectory in simulated time
     OUT/radiance/<frame>.exr   linear RGB radiance (float32), when the renderer was asked for it
+    OUT/raw/<frame>.png        the imager's raw Bayer frame (uint16 digital numbers, RGGB), when kept
     OUT/recording.rrd          the Rerun recording (unless --rrd puts it elsewhere)
     OUT/coco/annotations.json  the COCO export (agrisim export coco)
     OUT/rosbag/                the ROS 2 bag export (agrisim export rosbag)
@@ -49,8 +50,10 @@ COLMAP = "colmap"
 #: what the run's depth sensor measured, uint16 mm on the colour camera's pixels (not with the
 #: exact sensor, whose measurement is ``depth/``)
 DEPTH_SENSOR = "depth_sensor"
+#: the imager's raw Bayer frames (``imager.raw``)
+RAW = "raw"
 #: the image folders of a frame, each holding ``<frame>.png``
-FRAME_FOLDERS = ("rgb", "labels", "labels_vis", "depth", "instances", DEPTH_SENSOR)
+FRAME_FOLDERS = ("rgb", "labels", "labels_vis", "depth", "instances", DEPTH_SENSOR, RAW)
 #: the folders every complete rendered frame has (instances only where leaves are numbered)
 REQUIRED_FOLDERS = ("rgb", "labels", "depth")
 

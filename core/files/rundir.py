@@ -138,6 +138,16 @@ def saved_run(out: Path) -> dict[str, Any]:
     return doc
 
 
+def saved_frames(out: Path) -> dict[str, Any]:
+    """The frames ``cameras.json`` in ``out`` lists (frame -> its entry); none when it has no
+    such file yet (for ``--resume``)."""
+    path = out / layout.CAMERAS_JSON
+    if not path.is_file():
+        return {}
+    frames = read_json(path, "not a camera list", OutputError, prefix="--resume: ").get("frames")
+    return frames if isinstance(frames, dict) else {}
+
+
 def prepare_out_dir(out: Path, config: RunConfig) -> None:
     """Create the output directory, replacing an old one only under --overwrite."""
     if out.exists() and config.output.overwrite:

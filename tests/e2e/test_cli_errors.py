@@ -267,6 +267,17 @@ CASES = [
         ["splat", "pinhole views only", "pointcloud"],
         id="lens-with-a-pinhole-reconstructor",
     ),
+    pytest.param(["--imager", "imx219"], ["unknown imager 'imx219'", "imx708, ov2740"], id="unknown-imager"),
+    pytest.param(["--imager", "imx708", "--jpeg-quality", "101"], ["jpeg_quality", "100"], id="jpeg-quality-over"),
+    pytest.param(
+        ["--imager", "imx708", "--set", "imager.bit_depth=20"], ["imager.bit_depth", "16"], id="bit-depth-over"
+    ),
+    pytest.param(["--imager", "imx708", "--exposure", "fast"], ["--exposure 'fast'", "auto"], id="exposure-word"),
+    pytest.param(
+        ["--imager", "imx708", "--renderer", "pybullet"],
+        ["pybullet", "linear radiance for an imager", "raycast"],
+        id="imager-with-a-renderer-without-radiance",
+    ),
 ]
 
 

@@ -91,6 +91,22 @@ def test_a_resumed_run_with_a_depth_sensor_reads_its_measurements_back(tmp_path,
             assert cut.read_bytes() == whole.read_bytes()
 
 
+def test_a_resumed_run_with_an_imager_goes_on_from_its_exposures(tmp_path, capsys):
+    """The auto-exposure carries from view to view: a resumed run takes it up from the last
+    frame of each arm on disk (cameras.json's exposure), so the remaining frames' noise and
+    exposure, raw frames included, are the uninterrupted run's."""
+    imaged = {"imager": {"model": "imx708", "raw": True}}
+    for name in ("whole", "cut"):
+        Episode(build_config(ARGS, imaged, {"output": {"out": str(tmp_path / name), "no_rrd": True}})).run()
+    lost = _interrupt(tmp_path / "cut", keep=2)
+    assert "r1_002" in lost  # resumed from r1_001's exposure
+    assert main(["run", "--resume", "--out", str(tmp_path / "cut"), "--no-rrd"]) == 0
+    assert _files(tmp_path / "cut") == _files(tmp_path / "whole")
+    assert any(f.startswith("raw/") for f in _files(tmp_path / "whole"))
+    cameras = [json.loads((tmp_path / run / "cameras.json").read_text()) for run in ("whole", "cut")]
+    assert cameras[0] == cameras[1] and all("exposure" in f for f in cameras[0]["frames"].values())
+
+
 def test_a_complete_run_is_not_resumed(tmp_path, capsys):
     _run(tmp_path / "done")
     with pytest.raises(SystemExit) as exc:

@@ -20,7 +20,7 @@ from agrisim.plugins.render.raycast.materials import SRGB_TO_LINEAR, MaterialTab
 from agrisim.plugins.render.raycast.renderer import RaycastRenderer
 from agrisim.scene import texturing
 from agrisim.scene.camera import from_fov
-from agrisim.scene.colour import srgb_to_linear
+from agrisim.scene.colour import encode_srgb8, srgb_to_linear
 from agrisim.scene.model import Label, LabelTable, Light, Material, Mesh, Scene
 
 CAMERA = from_fov(60.0, 160, 120)
@@ -466,6 +466,25 @@ def test_same_inputs_give_identical_images(cell):
     d = renderer(scene, cell, RaycastOptions(seed=7), shadow_samples=3).render(CAMERA, SHADOW_T, {})
     assert a.rgb.tobytes() != d.rgb.tobytes()  # another seed: other noise in the penumbra
     np.testing.assert_array_equal(a.depth, d.depth)
+
+
+def test_the_kept_radiance_encodes_to_the_rgb(cell):
+    """``radiance`` keeps what the RGB was encoded from: through the one encoder every renderer
+    shares, at the run's exposure, it gives the RGB again (a background of its own included),
+    and keeping it changes nothing else."""
+    scene = shadow_scene(True)
+    options = RaycastOptions(radiance=True, exposure=1.7, background=(30, 60, 90), batch_pixels=2048)
+    kept = renderer(scene, cell, options, shadow_samples=3).render(CAMERA, SHADOW_T, {})
+    plain = renderer(scene, cell, options.model_copy(update={"radiance": False}), shadow_samples=3)
+    plain_frame = plain.render(CAMERA, SHADOW_T, {})
+    assert plain_frame.radiance is None and kept.radiance is not None
+    assert kept.radiance.shape == (*kept.rgb.shape[:2], 3) and kept.radiance.dtype == np.float32
+    encoded = np.empty((kept.rgb.size // 3, 3), np.uint8)
+    encode_srgb8(kept.radiance.reshape(-1, 3).copy(), encoded, exposure=1.7)
+    np.testing.assert_array_equal(encoded.reshape(kept.rgb.shape), kept.rgb)
+    assert (kept.depth == 0).any()  # the background is in the test
+    np.testing.assert_array_equal(kept.rgb, plain_frame.rgb)
+    np.testing.assert_array_equal(kept.labels, plain_frame.labels)
 
 
 def test_adaptive_shadow_sampling_matches_full_sampling(cell):

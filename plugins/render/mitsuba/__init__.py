@@ -83,6 +83,7 @@ def agrisim_renderers() -> list[BackendSpec]:
                 supersampling=True,
                 rerender=True,
                 lenses=True,
+                radiance=True,
             ),
             preflight=preflight,
         )

@@ -90,6 +90,10 @@ class RaycastOptions(Options):
     adaptive_after: int = Field(8, ge=0, le=32)
     """With more shadow samples than this, pixels whose first ones all agree (fully lit or fully
     shadowed) keep that answer; only the others (penumbrae) get the rest. 0: all get all."""
+    radiance: bool = False
+    """Also keep each view's linear radiance (before exposure and tone mapping; float32 R, G, B,
+    a white surface under irradiance 1 is 1): an imager (``--imager``) makes its images from
+    it, and the dataset gets ``radiance/<frame>.exr``."""
     background: tuple[int, int, int] = (0, 0, 0)
     """sRGB colour of pixels that hit nothing."""
     arm_triangles: int = Field(30000, ge=0, le=10_000_000)
@@ -128,6 +132,7 @@ def agrisim_renderers() -> list[BackendSpec]:
                 points=True,
                 rerender=True,
                 lenses=True,
+                radiance=True,
             ),
         )
     ]

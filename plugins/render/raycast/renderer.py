@@ -19,6 +19,7 @@ from agrisim.plugins.render.raycast.tracing import SceneTracer, label_map
 from agrisim.robot.visuals import arm_link_meshes
 from agrisim.scene.camera import view_seed
 from agrisim.scene.cell import Cell
+from agrisim.scene.colour import srgb_to_linear
 from agrisim.scene.model import Mesh, Scene
 
 F32 = np.float32
@@ -42,10 +43,14 @@ class RaycastRenderer(Renderer):
             self.tracer, self.lights, ambient=o.ambient, bilinear=o.texture_filter == "bilinear", epsilon=o.epsilon
         )
         self.background = [int(c) for c in o.background]
+        # the radiance that the background's sRGB encodes to at the run's exposure
+        self.background_radiance = self.tracer.mi.Color3f(
+            *(float(c) for c in srgb_to_linear(np.asarray(o.background) / 255.0) / o.exposure)
+        )
 
     def _rgb(self, camera: CameraModel, T: np.ndarray, rows: tuple[int, int], o, d, s, seed: int):  # noqa: ANN001, ANN202
-        """UInt32 8-bit sRGB of the pixels of ``rows`` (r | g << 8 | b << 16), whose centre rays
-        (``o``, ``d``) kept the surfaces ``s``."""
+        """(UInt32 8-bit sRGB of the pixels of ``rows`` (r | g << 8 | b << 16), whose centre rays
+        (``o``, ``d``) kept the surfaces ``s``; their Color3f linear radiance and whether each hit)."""
         mi, opts = self.tracer.mi, self.options
         n_pix = camera.width * (rows[1] - rows[0])
         pixel = dr.arange(mi.UInt32, n_pix) + dr.opaque(mi.UInt32, rows[0] * camera.width)
@@ -77,7 +82,7 @@ class RaycastRenderer(Renderer):
             linear *= 1.0 / (ss * ss)
         levels = self.shader.encode(linear, float(opts.exposure), opts.tonemap == "reinhard")
         r, g, b = (dr.select(hit, levels[c], self.background[c]) for c in range(3))
-        return r | (g << 8) | (b << 16)
+        return r | (g << 8) | (b << 16), linear, hit
 
     def render(
         self,
@@ -92,7 +97,8 @@ class RaycastRenderer(Renderer):
             tracer.place_arms(link_poses, (camera, T))
         seed = view_seed(camera, T, self.options.seed)
         repopa = self.seg_mode == "repopa"
-        parts: dict[str, list[np.ndarray]] = {"rgb": [], "labels": [], "depth": [], "instances": []}
+        parts: dict[str, list[np.ndarray]] = {"rgb": [], "labels": [], "depth": [], "instances": [], "radiance": []}
+        keep = self.options.radiance
         step = max(1, self.options.batch_pixels // W)
         UInt8 = dr.uint8_array_t(tracer.mi.Float)
         for r0 in range(0, H, step):  # bounded memory at any resolution; results do not depend on it
@@ -100,9 +106,13 @@ class RaycastRenderer(Renderer):
             o, d = tracer.camera_rays(camera, T, rows)
             s = tracer.trace(o, d, raw=repopa)
             labels, depth, instances = tracer.annotate(s, repopa, self.label_map)
-            packed = self._rgb(camera, T, rows, o, d, s, seed)
+            packed, linear, hit = self._rgb(camera, T, rows, o, d, s, seed)
             labels = UInt8(labels)
-            dr.eval(packed, labels, depth, instances)
+            if keep:  # the pixels that hit nothing: the background's radiance
+                linear = dr.select(hit, linear, self.background_radiance)
+                dr.eval(packed, labels, depth, instances, linear)
+            else:
+                dr.eval(packed, labels, depth, instances)
             # RGB as bytes by a second, small kernel (scattered from the big one, the shading ran
             # once per channel)
             n = dr.width(packed)
@@ -116,6 +126,8 @@ class RaycastRenderer(Renderer):
             parts["rgb"].append(np.asarray(rgb).reshape(h, W, 3))
             parts["labels"].append(np.asarray(labels).reshape(h, W))
             parts["depth"].append(np.asarray(depth).reshape(h, W))
+            if keep:
+                parts["radiance"].append(np.stack([np.asarray(linear[c]) for c in range(3)], -1).reshape(h, W, 3))
             if instances is not None:
                 parts["instances"].append(np.asarray(instances).astype(np.uint16).reshape(h, W))
         images = {k: (v[0] if len(v) == 1 else np.concatenate(v)) if v else None for k, v in parts.items()}

@@ -1,0 +1,45 @@
+"""A run through an imager (``--imager``): the RGB is the sensor's and the ISP's, developed from
+the raw frame on disk; the labels and depth stay the renderer's exact ones."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+from PIL import Image
+
+from agrisim.app.cli import main
+from agrisim.scene.imager import IMAGERS, ImagePipeline
+
+ARGS = ["--plant", "coltsfoot", "--physics", "kinematic", "--setpoints", "1x2", "--arms", "1", "--no-rrd"]
+ARGS += ["--camera", "rpi-camera-3-wide", "--resolution", "192x108", "--shadow-samples", "4", "--recon", "none"]
+
+
+def _png(path: Path) -> np.ndarray:
+    return np.asarray(Image.open(path))
+
+
+def test_an_imaged_run_keeps_exact_labels_and_develops_its_raw_frames(tmp_path: Path, capsys) -> None:
+    assert main(["run", *ARGS, "--out", str(tmp_path / "exact")]) == 0
+    imaged = ["--imager", "imx708", "--jpeg-quality", "90", "--set", "imager.raw=true"]
+    assert main(["run", *ARGS, *imaged, "--out", str(tmp_path / "imaged")]) == 0
+    cameras = json.loads((tmp_path / "imaged" / "cameras.json").read_text())
+    doc = cameras["imager"]
+    assert doc["name"] == "imx708" and doc["bayer"] == "RGGB" and "assumed" in doc["sources"]
+    run = json.loads((tmp_path / "imaged" / "run.json").read_text())
+    assert run["backend_options"]["renderer"]["radiance"] is False  # as given: no radiance/ written
+    assert not (tmp_path / "imaged" / "radiance").exists()
+    pipe = ImagePipeline(IMAGERS["imx708"], jpeg_quality=90)
+    for frame, entry in cameras["frames"].items():
+        exact, imaged_dir = tmp_path / "exact", tmp_path / "imaged"
+        for folder in ("labels", "depth", "instances"):
+            assert np.array_equal(_png(exact / folder / f"{frame}.png"), _png(imaged_dir / folder / f"{frame}.png"))
+        raw = _png(imaged_dir / "raw" / f"{frame}.png")
+        assert raw.dtype == np.uint16 and raw.shape == (108, 192) and raw.max() <= 1023
+        rgb = _png(imaged_dir / "rgb" / f"{frame}.png")
+        assert np.array_equal(rgb, pipe.develop(raw))  # the RGB is the raw frame developed
+        assert not np.array_equal(rgb, _png(exact / "rgb" / f"{frame}.png"))
+        exposure = entry["exposure"]
+        assert 100e-6 <= exposure["time_s"] <= 66.7e-3 and 1.0 <= exposure["analogue_gain"] <= 16.0
+        assert abs(exposure["metered_luminance"] - 0.16) < 0.03  # the AE's target, nearly met
