@@ -11,7 +11,6 @@ from __future__ import annotations
 import dataclasses
 import datetime as _dt
 import time
-import zlib
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from typing import Any
@@ -50,7 +49,7 @@ from agrisim.robot.setpoints import Setpoint, routine
 from agrisim.robot.trajectory import Limits, TimedPath, time_parametrize
 from agrisim.scene.camera_choice import camera_of
 from agrisim.scene.cell import build_cell
-from agrisim.scene.imager import IMAGERS, Exposure, ImagePipeline
+from agrisim.scene.imager import Exposure, ImagePipeline, pipeline_of, view_key
 from agrisim.scene.model import Scene
 from agrisim.scene.plant_choice import check_plant_name, draws_points, resolve_plant
 from agrisim.scene.transforms import pose_error
@@ -151,12 +150,10 @@ class Episode:
         self._renderer_record = self.renderer_options
         self.keep_radiance = bool(getattr(self.renderer_options, "radiance", False))
         self.renderer_options = self.renderer_options.model_copy(update={"radiance": True})
-        fixed = None if c.exposure == "auto" else (float(c.exposure), c.gain)
-        imager = IMAGERS[c.model] if c.bit_depth is None else IMAGERS[c.model].at_bit_depth(c.bit_depth)
         for arm in self.cell.arms:
-            self.imagers[arm.name] = ImagePipeline(
-                imager, c.lux, fixed, c.ae_frames, c.jpeg_quality, seed=self.config.seed
-            )
+            pipeline = pipeline_of(c, self.config.seed)
+            assert pipeline is not None
+            self.imagers[arm.name] = pipeline
         if self.done_frames:
             for sp in (sp for sps in self.setpoints.values() for sp in sps):  # in shooting order
                 shot = self.saved_frames.get(sp.frame, {}).get("exposure")
@@ -600,7 +597,7 @@ class Episode:
         """The imager's shot of the rendered radiance in place of the noise-free RGB."""
         images = capture.images
         assert images is not None and images.radiance is not None, "the renderer kept no radiance"
-        shot = self.imagers[capture.robot].shoot(images.radiance, zlib.crc32(capture.frame.encode()))
+        shot = self.imagers[capture.robot].shoot(images.radiance, view_key(capture.frame))
         images.rgb = shot.rgb
         images.raw = shot.raw if self.config.imager.raw else None
         if not self.keep_radiance:

@@ -57,7 +57,7 @@ def _link_poses(run_dir: Path, frame: str) -> dict[str, dict[str, np.ndarray]]:
 
 #: folders of the source not carried: its RGB, and what was made from it (COLMAP's model of
 #: those images, the bag that holds them)
-NOT_CARRIED_FOLDERS = {"rgb", layout.RADIANCE, layout.COLMAP, layout.ROSBAG}
+NOT_CARRIED_FOLDERS = {"rgb", layout.RADIANCE, layout.RAW, layout.COLMAP, layout.ROSBAG}
 
 
 def _carry(source: Path, out: Path) -> None:
@@ -125,8 +125,13 @@ class RenderPlan:
         needs = [
             ("points", "draws its plant as points, which renderer {r} cannot draw", "re-render point plants"),
             ("lenses", "has a distorting lens, which renderer {r} cannot draw through", "re-render through a lens"),
+            ("radiance", "has an imager, which needs the linear radiance renderer {r} does not keep", "feed an imager"),
         ]
-        has = {"points": self.points_path.is_file(), "lenses": self.cameras["intrinsics"].get("distortion") is not None}
+        has = {
+            "points": self.points_path.is_file(),
+            "lenses": self.cameras["intrinsics"].get("distortion") is not None,
+            "radiance": self.config.imager.model != "none",
+        }
         for capability, lacks, can in needs:
             if has[capability] and not getattr(self.spec.capabilities, capability, False):
                 able = [
@@ -191,8 +196,24 @@ class RenderPlan:
         scene = read_scene(self.scene_path)
         if self.points_path.is_file():  # the plant as drawn: points, saved beside the scene
             scene.points = load_point_plant(self.points_path, place=False, up="z").points
-        renderer = self.spec.factory(scene, None, self.config.render, self.options)
+        options = self.options
+        if self.config.imager.model != "none":  # the imager shoots the radiance
+            options = options.model_copy(update={"radiance": True})
+        renderer = self.spec.factory(scene, None, self.config.render, options)
         return renderer, camera_from_json(self.cameras["intrinsics"])
+
+    def _shoot(self, frame: str, radiance: np.ndarray | None) -> tuple[np.ndarray, np.ndarray | None]:
+        """(RGB, raw) of ``frame``'s radiance through the run's imager, at the exposure the run
+        recorded for it and with its noise: the camera shot again, under the new light."""
+        from agrisim.scene.imager import Exposure, pipeline_of, view_key
+
+        pipeline = pipeline_of(self.config.imager, self.config.seed)
+        assert pipeline is not None and radiance is not None
+        recorded = self.cameras["frames"][frame].get("exposure")
+        if recorded is not None:
+            pipeline = pipeline.at_exposure(Exposure.from_json(recorded))
+        shot = pipeline.shoot(radiance, view_key(frame))
+        return shot.rgb, (shot.raw if self.config.imager.raw else None)
 
     def _parts(self) -> list[Path]:
         return sorted(self.out.glob(PART_JSON.format("*")))
@@ -246,10 +267,15 @@ class RenderPlan:
         settings = self.config.render
         renderer, camera = self.renderer()
 
-        def save(frame: str, rgb: np.ndarray, radiance: np.ndarray | None) -> None:
+        imaging = self.config.imager.model != "none"
+        keep_radiance = bool(getattr(self.options, "radiance", False))
+
+        def save(frame: str, rgb: np.ndarray, radiance: np.ndarray | None, raw: np.ndarray | None) -> None:
             # one writer thread: frames are listed done in order, each after its PNG exists
-            if radiance is not None:
+            if radiance is not None and keep_radiance:
                 write_exr(layout.radiance(out, frame), radiance)
+            if raw is not None:
+                write_png(layout.image(out, layout.RAW, frame), raw)
             write_png(layout.image(out, "rgb", frame), rgb)
             record["frames_done"].append(frame)
             write_json(path, record)
@@ -267,9 +293,12 @@ class RenderPlan:
                     T = np.asarray(self.cameras["frames"][frame]["world_T_camera"], np.float64)
                     poses = {} if settings.hide_robots else _link_poses(self.run_dir, frame)
                     rgb, radiance = renderer.render_rgb(camera, T, poses)
+                    raw = None
+                    if imaging:
+                        rgb, raw = self._shoot(frame, radiance)
                     while pending and (pending[0].done() or len(pending) > 2):  # at most 2 frames queued
                         pending.pop(0).result()  # (a failed write is raised here)
-                    pending.append(writer.submit(save, frame, rgb, radiance))
+                    pending.append(writer.submit(save, frame, rgb, radiance, raw))
             finally:
                 renderer.close()
             for f in pending:

@@ -26,12 +26,16 @@ preset (:data:`IMAGERS`).
 
 from __future__ import annotations
 
+import zlib
 from dataclasses import dataclass, field, replace
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from agrisim.scene.colour import encode_srgb8
+
+if TYPE_CHECKING:
+    from agrisim.config import ImagerConfig
 
 #: photons per second per m^2 in one lux of 555 nm light (1 lx = 1/683 W/m^2; h c / 555 nm =
 #: 3.58e-19 J): the photometric scale the sensor's quantum efficiency is stated against
@@ -174,6 +178,22 @@ IMAGERS: dict[str, Imager] = {
         ),
     ),
 }
+
+
+def pipeline_of(config: ImagerConfig, seed: int) -> ImagePipeline | None:
+    """The image pipeline that a run's ``[imager]`` settings describe (None for ``none``), its
+    noise seeded by the run's ``seed``."""
+    if config.model == "none":
+        return None
+    imager = IMAGERS[config.model] if config.bit_depth is None else IMAGERS[config.model].at_bit_depth(config.bit_depth)
+    fixed = None if config.exposure == "auto" else (float(config.exposure), config.gain)
+    return ImagePipeline(imager, config.lux, fixed, config.ae_frames, config.jpeg_quality, seed=seed)
+
+
+def view_key(frame: str) -> int:
+    """The number that seeds a frame's noise beside the run's seed (its name's CRC-32): the same
+    frame gets the same noise in a run, its ``--resume`` and ``agrisim render``."""
+    return zlib.crc32(frame.encode())
 
 
 def imager_names() -> list[str]:
@@ -345,6 +365,10 @@ class ImagePipeline:
                 total = float(np.clip(total + speed * (want - total), lo, hi))
         shot = self._split(total)
         return Exposure(shot.time_s, shot.gain, self.metered(radiance, shot.total))
+
+    def at_exposure(self, exposure: Exposure) -> ImagePipeline:
+        """This pipeline at a fixed ``exposure`` (a frame shot again as it was)."""
+        return replace(self, exposure=(exposure.time_s, exposure.gain))
 
     def resume_from(self, exposure: Exposure) -> None:
         """Continue the auto-exposure from a shot taken before (``--resume``)."""

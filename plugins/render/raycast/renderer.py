@@ -140,7 +140,8 @@ class RaycastRenderer(Renderer):
         link_poses: Mapping[str, Mapping[str, np.ndarray]],
     ) -> tuple[np.ndarray, np.ndarray | None]:
         # the labels and depth come with the RGB at little cost: one pass draws all three
-        return self.render(camera, world_T_camera, link_poses).rgb, None
+        frame = self.render(camera, world_T_camera, link_poses)
+        return frame.rgb, frame.radiance
 
     def arm_meshes(self) -> dict[str, list[tuple[str, Mesh]]]:
         if self.hide_robots:
