@@ -262,11 +262,6 @@ CASES = [
         ["pybullet", "through a lens's distortion", "raycast"],
         id="lens-with-a-pinhole-renderer",
     ),
-    pytest.param(
-        ["--camera-calibration", "{tmp}/lens.yaml", "--recon", "splat"],
-        ["splat", "pinhole views only", "pointcloud"],
-        id="lens-with-a-pinhole-reconstructor",
-    ),
     pytest.param(["--imager", "imx219"], ["unknown imager 'imx219'", "imx708, ov2740"], id="unknown-imager"),
     pytest.param(["--imager", "imx708", "--jpeg-quality", "101"], ["jpeg_quality", "100"], id="jpeg-quality-over"),
     pytest.param(

@@ -247,7 +247,8 @@ def test_a_lens_view_resampled_onto_its_pinhole_is_the_pinholes_view(lens: Disto
     )
     through = CameraModel(240, 180, 150.0, 150.0, 119.5, 89.5, lens)
     pinhole = CameraModel(240, 180, 150.0, 150.0, 119.5, 89.5)
-    resampled = as_pinhole(View("v", through, np.eye(4), renderer.render(through, np.eye(4), {}))).images
+    lens_view = View("v", through, np.eye(4), renderer.render(through, np.eye(4), {}))
+    resampled = as_pinhole(lens_view).images
     truth = renderer.render(pinhole, np.eye(4), {})
     # a pixel whose 3x3 neighbourhood has one label in the truth: not within a pixel of an edge
     padded = np.pad(truth.labels, 1, mode="edge")
@@ -257,3 +258,29 @@ def test_a_lens_view_resampled_onto_its_pinhole_is_the_pinholes_view(lens: Disto
     assert (uniform & seen).mean() > 0.5
     np.testing.assert_array_equal(resampled.labels[uniform & seen], truth.labels[uniform & seen])
     np.testing.assert_allclose(resampled.depth[uniform & seen], truth.depth[uniform & seen], rtol=1e-6)
+    # the splat reconstructor trains on exactly these pinhole views (gsplat rasterises pinholes)
+    from agrisim.plugins.recon.splat.reconstructor import SplatReconstructor
+
+    splat = SplatReconstructor(labels)
+    splat.integrate(lens_view)
+    assert splat.views[0].camera == pinhole
+    np.testing.assert_array_equal(splat.views[0].images.rgb, resampled.rgb)
+
+
+def test_a_reconstructor_that_reads_pinholes_only_refuses_a_lens() -> None:
+    """A plugin's reconstructor that does not declare ``lenses`` is refused a lens's views in one
+    line naming what can; the built-in ones all read them (splat through undistorted views)."""
+    from agrisim.capabilities import ReconstructorCapabilities, check_reconstructor
+    from agrisim.registry import BackendSpec, Registry, make_plugin_manager
+
+    pinholes_only = BackendSpec(
+        name="my-nerf",
+        factory=lambda *a: None,
+        description="a NeRF of pinhole views",
+        capabilities=ReconstructorCapabilities(lenses=False),
+    )
+    with pytest.raises(UserError, match="'my-nerf' reads pinhole views only.*pointcloud"):
+        check_reconstructor(pinholes_only, hide_robots=True, lens=True)
+    check_reconstructor(pinholes_only, hide_robots=True, lens=False)
+    built_in = Registry(make_plugin_manager()).specs("reconstructor")
+    assert all(spec.capabilities.lenses for spec in built_in.values()), sorted(built_in)

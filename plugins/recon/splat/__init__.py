@@ -12,7 +12,8 @@ What each part does:
   strategy) and renders colour and depth; :mod:`.reconstructor` collects the views, trains,
   evaluates and returns the outputs (``RUN/splat/``, the metrics, the plant's splat centres as
   its clouds); :mod:`.recording` writes the training as a Rerun recording where Rerun is
-  installed.
+  installed. Views through a lens are resampled onto the pinhole of their K first
+  (:func:`agrisim.evaluation.views.as_pinhole`): gsplat trains and is scored on undistorted views.
 """
 
 from __future__ import annotations
@@ -49,7 +50,7 @@ def agrisim_reconstructors() -> list[BackendSpec]:
             options_model=SplatOptions,
             description="3D Gaussian splatting (gsplat) on the views with true poses; held-out PSNR/SSIM, depth and splat-centre accuracy",
             capabilities=ReconstructorCapabilities(
-                clouds=True, needs_cuda=True, needs_hidden_robots=True, folder=FOLDER
+                clouds=True, needs_cuda=True, needs_hidden_robots=True, folder=FOLDER, lenses=True
             ),
             preflight=preflight,
         )

@@ -18,7 +18,7 @@ from collections.abc import Callable
 import numpy as np
 from PIL import Image
 
-from agrisim.evaluation.views import View, backproject
+from agrisim.evaluation.views import View, as_pinhole, backproject
 from agrisim.interfaces import ALL, Cloud, Reconstruction, Reconstructor
 from agrisim.scene.model import LabelTable
 
@@ -59,7 +59,9 @@ class SplatReconstructor(Reconstructor):
         self._result: Reconstruction | None = None
 
     def integrate(self, view: View) -> dict[str, Cloud]:
-        self.views.append(view)  # trained on all together at the end
+        # gsplat's pinhole rasteriser: a lens's view resampled onto the pinhole of its K
+        # (OpenCV's undistortion maps), so training and held-out scores are on undistorted views
+        self.views.append(as_pinhole(view))  # trained on all together at the end
         self._result = None
         return {}
 
