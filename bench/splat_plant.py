@@ -9,6 +9,7 @@ the run's), so that the carry holds the scene and cameras but no images::
     python bench/splat_plant.py train RUN --draw raycast --set renderer.raycast.shadow_samples=32 \
         --variant base --variant depth:depth_weight=1 --variant plant:plant_weight=5,plant_init=0.5 \
         [--out DIR] [--files VARIANT]
+    python bench/splat_plant.py train RUN --draw mitsuba --camera rpi-camera-3-wide --imager imx708 ...
     python bench/splat_plant.py pack RUN CARRY   # on the CPU: RUN's views with lossless WebP RGB
 
 Each variant is ``NAME[:KEY=VALUE,...]`` of ``[recon.splat]`` options over the defaults. With
@@ -35,6 +36,7 @@ from PIL import Image
 
 from agrisim.app.arguments import apply_sets, parse_value
 from agrisim.app.render import RenderPlan
+from agrisim.config import ImagerConfig
 from agrisim.evaluation.photogrammetry import estimated_poses
 from agrisim.evaluation.session import capture_order
 from agrisim.evaluation.views import load_depth
@@ -44,6 +46,8 @@ from agrisim.files.rundir import camera_from_json
 from agrisim.interfaces import Frame, View
 from agrisim.plugins.recon.splat.options import SplatOptions
 from agrisim.plugins.recon.splat.reconstructor import SplatReconstructor
+from agrisim.scene.camera import preset
+from agrisim.scene.imager import ImagePipeline, pipeline_of, view_key
 from agrisim.scene.model import LabelTable
 
 
@@ -57,20 +61,44 @@ def variant(text: str) -> tuple[str, dict[str, object]]:
     return name, options
 
 
-def drawn_views(run: Path, renderer: str, overrides: dict) -> list[View]:
-    """Every frame of ``run`` drawn again: RGB, labels and depth as a run would store them."""
+def drawn_views(
+    run: Path, renderer: str, overrides: dict, camera_preset: str | None = None, imager: str | None = None
+) -> list[View]:
+    """Every frame of ``run`` drawn again: RGB, labels and depth as a run would store them;
+    through another camera (``camera_preset``, at the run's image size) and an imager
+    (``imager``: each arm's camera auto-exposing from view to view in capture order), where
+    named, than the run's."""
     plan = RenderPlan(run, renderer, overrides, Path(tempfile.mkdtemp()) / "unused", overwrite=False)
+    if imager is not None:
+        plan.config = plan.config.model_copy(update={"imager": ImagerConfig(model=imager)})
     draw, camera = plan.renderer()
+    if camera_preset is not None:
+        camera = preset(camera_preset, f"{camera.width}x{camera.height}")
+    pipelines: dict[str, ImagePipeline | None] = {}
     views = []
     start = time.perf_counter()
     try:
-        for frame in plan.frames:
+        order = capture_order(json.loads((run / layout.RUN_JSON).read_text()), plan.frames)
+        for frame in order:
             T = np.asarray(plan.cameras["frames"][frame]["world_T_camera"], np.float64)
-            views.append(View(frame, camera, T, draw.render(camera, T, {}).stored()))
+            images = draw.render(camera, T, {})
+            robot = frame.split("_")[0]
+            if robot not in pipelines:
+                pipelines[robot] = pipeline_of(plan.config.imager, plan.config.seed)
+            shooter = pipelines[robot]
+            if shooter is not None and images.radiance is not None:
+                images.rgb = shooter.shoot(images.radiance, view_key(frame)).rgb
+                images.radiance = None
+            views.append(View(frame, camera, T, images.stored()))
     finally:
         draw.close()
     seconds = time.perf_counter() - start
-    print(f"{len(views)} views {camera.width}x{camera.height} drawn by {renderer} in {seconds:.1f} s", flush=True)
+    through = f" through {camera_preset}" if camera_preset else ""
+    shot = f", shot by {imager}" if imager else ""
+    print(
+        f"{len(views)} views {camera.width}x{camera.height} drawn by {renderer}{through}{shot} in {seconds:.1f} s",
+        flush=True,
+    )
     return views
 
 
@@ -158,11 +186,18 @@ def train(args: argparse.Namespace) -> None:
     for poses in args.poses:
         if args.draw and poses != "truth":
             raise SystemExit("--draw draws the views at their true poses only")
-        views = drawn_views(args.run, args.draw, overrides) if args.draw else stored_views(args.run, poses)
+        if (args.camera or args.imager) and not args.draw:
+            raise SystemExit("--camera and --imager apply to views drawn here (--draw)")
+        views = (
+            drawn_views(args.run, args.draw, overrides, args.camera, args.imager)
+            if args.draw
+            else stored_views(args.run, poses)
+        )
         plant_share = np.mean([np.mean(v.images.labels != 0) for v in views])
         print(f"{poses} poses: {len(views)} views; plant pixels {100 * plant_share:.1f}% of the image", flush=True)
         variants = [(f"{n}-{poses}" if len(args.poses) > 1 else n, o) for n, o in args.variants]
-        train_variants(args, views, variants, {"poses": poses, "draw": args.draw, "render_options": overrides})
+        about = {"poses": poses, "draw": args.draw, "render_options": overrides, "camera": args.camera}
+        train_variants(args, views, variants, {**about, "imager": args.imager})
 
 
 def train_variants(args: argparse.Namespace, views: list[View], variants: list[tuple[str, dict]], about: dict) -> None:
@@ -196,6 +231,8 @@ def main() -> None:
     t.add_argument("run", type=Path)
     t.add_argument("--draw", metavar="RENDERER", help="draw the views from the run's scene with this renderer")
     t.add_argument("--set", dest="sets", action="append", default=[], help="renderer.* KEY=VALUE for --draw")
+    t.add_argument("--camera", metavar="PRESET", help="with --draw: through this camera preset, not the run's")
+    t.add_argument("--imager", metavar="NAME", help="with --draw: shot by this imager (auto-exposure), not the run's")
     t.add_argument("--variant", dest="variants", action="append", type=variant, required=True)
     t.add_argument("--out", type=Path)
     t.add_argument("--poses", nargs="+", choices=["truth", "colmap"], default=["truth"], help="train on these poses")

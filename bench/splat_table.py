@@ -70,18 +70,25 @@ def prepare(root: Path, carry: Path, species: list[str], resolution: str) -> Non
             pack(views, carry / s)
 
 
-def train_on_gpus(carry: Path, species: list[str], gpus: list[int], out: Path, draw: str | None) -> None:
+def train_on_gpus(
+    carry: Path, species: list[str], gpus: list[int], out: Path, draw: str | None, through: list[str] | None = None
+) -> None:
     """Every species of ``carry`` trained on true poses, a ``splat_plant.py train`` process per
-    species, one on each GPU of ``gpus`` at once; prints and saves the wall times."""
+    species, one on each GPU of ``gpus`` at once; prints and saves the wall times. Each
+    ``through`` (``PRESET:IMAGER``, with ``draw``) trains every species again on views drawn
+    through that camera and shot by that imager (variant ``<s>-PRESET-IMAGER``)."""
     import os
     import queue
     import threading
     import time
 
     here = Path(__file__).resolve().parent
-    todo: queue.Queue[str] = queue.Queue()
+    todo: queue.Queue[tuple[str, str, list[str]]] = queue.Queue()
     for s in species:
-        todo.put(s)
+        todo.put((s, f"{s}-truth", []))
+        for lens in through or []:
+            camera, imager = lens.split(":")
+            todo.put((s, f"{s}-{camera}-{imager}", ["--camera", camera, "--imager", imager]))
     out.mkdir(parents=True, exist_ok=True)
     rows: list[dict] = []
     t0 = time.perf_counter()
@@ -89,19 +96,19 @@ def train_on_gpus(carry: Path, species: list[str], gpus: list[int], out: Path, d
     def worker(gpu: int) -> None:
         while True:
             try:
-                s = todo.get_nowait()
+                s, name, extra = todo.get_nowait()
             except queue.Empty:
                 return
-            cmd = [sys.executable, str(here / "splat_plant.py"), "train", str(carry / s), "--variant", f"{s}-truth",
-                   "--poses", "truth", "--out", str(out)] + (["--draw", draw] if draw else [])  # fmt: skip
+            cmd = [sys.executable, str(here / "splat_plant.py"), "train", str(carry / s), "--variant", name,
+                   "--poses", "truth", "--out", str(out)] + (["--draw", draw] if draw else []) + extra  # fmt: skip
             start = time.perf_counter() - t0
-            with open(out / f"{s}.log", "w") as log:
+            with open(out / f"{name}.log", "w") as log:
                 done = subprocess.run(cmd, stdout=log, stderr=subprocess.STDOUT, check=False,
                                       env=dict(os.environ, CUDA_VISIBLE_DEVICES=str(gpu)))  # fmt: skip
             end = time.perf_counter() - t0
-            rows.append({"species": s, "gpu": gpu, "start_s": round(start, 1), "end_s": round(end, 1),
-                         "status": done.returncode})  # fmt: skip
-            print(f"{s}: GPU {gpu}, {start:.0f}-{end:.0f} s, exit {done.returncode}", flush=True)
+            rows.append({"species": s, "variant": name, "gpu": gpu, "start_s": round(start, 1),
+                         "end_s": round(end, 1), "status": done.returncode})  # fmt: skip
+            print(f"{name}: GPU {gpu}, {start:.0f}-{end:.0f} s, exit {done.returncode}", flush=True)
 
     threads = [threading.Thread(target=worker, args=(g,)) for g in gpus]
     for t in threads:
@@ -151,6 +158,23 @@ def table(folder: Path) -> None:
         )
 
 
+def lens_table(folder: Path) -> None:
+    """Each species on the pinhole's noise-free views against the same views through a lens and
+    an imager (the ``through`` variants), where both were trained."""
+    for path in sorted(folder.glob("*-truth.json")):
+        s = path.name[: -len("-truth.json")]
+        for other in sorted(folder.glob(f"{s}-*-*.json")):
+            if other == path or other.name.endswith("-colmap.json"):
+                continue
+            t, c = (json.loads(p.read_text())["splat"] for p in (path, other))
+            label = other.stem[len(s) + 1 :]
+            print(
+                f"| {s.replace('_', ' ')} | {label} | {t['psnr']:.2f} / {c['psnr']:.2f} | {t['ssim']:.3f} / {c['ssim']:.3f} "
+                f"| {t['psnr_plant']:.2f} / {c['psnr_plant']:.2f} "
+                f"| {t['geometry']['recall@2mm']:.3f} / {c['geometry']['recall@2mm']:.3f} |"
+            )
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     sub = parser.add_subparsers(dest="command", required=True)
@@ -166,6 +190,9 @@ def main() -> None:
     g.add_argument("--out", type=Path, required=True)
     g.add_argument("--draw", metavar="RENDERER")
     g.add_argument("--species", nargs="+", default=SPECIES)
+    g.add_argument(
+        "--through", action="append", metavar="PRESET:IMAGER", help="also each species through a lens and imager"
+    )
     t = sub.add_parser("table")
     t.add_argument("folder", type=Path)
     args = parser.parse_args()
@@ -173,9 +200,13 @@ def main() -> None:
         prepare(args.root, args.carry, args.species, args.resolution)
     elif args.command == "train":
         gpus = [int(d) for d in args.devices.split(",")] if args.devices else list(range(args.gpus or 1))
-        train_on_gpus(args.carry, args.species, gpus, args.out, args.draw)
+        train_on_gpus(args.carry, args.species, gpus, args.out, args.draw, args.through)
     else:
         table(args.folder)
+        print()
+        print("| plant | views | PSNR pinhole / these | SSIM | plant PSNR | plant recall @2mm |")
+        print("|---|---|---|---|---|---|")
+        lens_table(args.folder)
 
 
 if __name__ == "__main__":
