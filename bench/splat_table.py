@@ -71,12 +71,19 @@ def prepare(root: Path, carry: Path, species: list[str], resolution: str) -> Non
 
 
 def train_on_gpus(
-    carry: Path, species: list[str], gpus: list[int], out: Path, draw: str | None, through: list[str] | None = None
+    carry: Path,
+    species: list[str],
+    gpus: list[int],
+    out: Path,
+    draw: str | None,
+    through: list[str] | None = None,
+    per_gpu: int = 1,
 ) -> None:
     """Every species of ``carry`` trained on true poses, a ``splat_plant.py train`` process per
     species, one on each GPU of ``gpus`` at once; prints and saves the wall times. Each
     ``through`` (``PRESET:IMAGER``, with ``draw``) trains every species again on views drawn
-    through that camera and shot by that imager (variant ``<s>-PRESET-IMAGER``)."""
+    through that camera and shot by that imager (variant ``<s>-PRESET-IMAGER``). ``per_gpu``
+    trainings share a GPU at once (two take about the time of one on an H100)."""
     import os
     import queue
     import threading
@@ -110,7 +117,7 @@ def train_on_gpus(
                          "end_s": round(end, 1), "status": done.returncode})  # fmt: skip
             print(f"{name}: GPU {gpu}, {start:.0f}-{end:.0f} s, exit {done.returncode}", flush=True)
 
-    threads = [threading.Thread(target=worker, args=(g,)) for g in gpus]
+    threads = [threading.Thread(target=worker, args=(g,)) for g in gpus for _ in range(per_gpu)]
     for t in threads:
         t.start()
     for t in threads:
@@ -190,6 +197,7 @@ def main() -> None:
     g.add_argument("--out", type=Path, required=True)
     g.add_argument("--draw", metavar="RENDERER")
     g.add_argument("--species", nargs="+", default=SPECIES)
+    g.add_argument("--per-gpu", type=int, default=1, help="trainings sharing a GPU at once (default: 1)")
     g.add_argument(
         "--through", action="append", metavar="PRESET:IMAGER", help="also each species through a lens and imager"
     )
@@ -200,7 +208,7 @@ def main() -> None:
         prepare(args.root, args.carry, args.species, args.resolution)
     elif args.command == "train":
         gpus = [int(d) for d in args.devices.split(",")] if args.devices else list(range(args.gpus or 1))
-        train_on_gpus(args.carry, args.species, gpus, args.out, args.draw, args.through)
+        train_on_gpus(args.carry, args.species, gpus, args.out, args.draw, args.through, args.per_gpu)
     else:
         table(args.folder)
         print()
