@@ -331,13 +331,20 @@ class ImagePipeline:
     def metered(self, radiance: np.ndarray, total: float) -> float:
         """The mean luminance the ISP would develop from ``radiance`` at total exposure
         ``total`` (time x gain), noise-free, highlights clipped: what the AE reads."""
-        im = self.imager
+        return self._meter(self._luminance(radiance), total)
+
+    def _luminance(self, radiance: np.ndarray) -> np.ndarray:
+        """The shaded luminance of every 4th pixel each way: what the meter reads (a camera's
+        AE statistics are a coarse grid too)."""
         h, w = radiance.shape[:2]
-        y = np.asarray(radiance, np.float32).reshape(-1, 3) @ LUMA.astype(np.float32)
-        y = y.reshape(h, w) * self._shade(h, w)
+        y = np.asarray(radiance[::4, ::4], np.float32) @ LUMA.astype(np.float32)
+        return y * self._shade(h, w)[::4, ::4]
+
+    def _meter(self, luminance: np.ndarray, total: float) -> float:
+        im = self.imager
         # the developed value of a grey: electrons over the full well, times the gain
         k = im.electrons_per_s(self.lux) * total / im.full_well_e
-        return float(np.minimum(y[::4, ::4] * np.float32(k), 1.0).mean())
+        return float(np.minimum(luminance * np.float32(k), 1.0).mean())
 
     def _split(self, total: float) -> Exposure:
         """Time first, then gain (the exposure profiles of libcamera): the longest time up to
@@ -358,13 +365,14 @@ class ImagePipeline:
         frames.append((im.ae_speed, self.ae_frames))
         lo = im.shutter_range_s[0] * im.gain_range[0]
         hi = im.shutter_range_s[1] * im.gain_range[1]
+        luminance = self._luminance(radiance)
         for speed, n in frames:
             for _ in range(n):
-                y = self.metered(radiance, total)
+                y = self._meter(luminance, total)
                 want = total * im.ae_target / max(y, 1e-6)
                 total = float(np.clip(total + speed * (want - total), lo, hi))
         shot = self._split(total)
-        return Exposure(shot.time_s, shot.gain, self.metered(radiance, shot.total))
+        return Exposure(shot.time_s, shot.gain, self._meter(luminance, shot.total))
 
     def at_exposure(self, exposure: Exposure) -> ImagePipeline:
         """This pipeline at a fixed ``exposure`` (a frame shot again as it was)."""
