@@ -28,14 +28,11 @@ from __future__ import annotations
 
 import zlib
 from dataclasses import dataclass, field, replace
-from typing import TYPE_CHECKING, Any
+from typing import Any, Protocol
 
 import numpy as np
 
 from agrisim.scene.colour import encode_srgb8
-
-if TYPE_CHECKING:
-    from agrisim.config import ImagerConfig
 
 #: photons per second per m^2 in one lux of 555 nm light (1 lx = 1/683 W/m^2; h c / 555 nm =
 #: 3.58e-19 J): the photometric scale the sensor's quantum efficiency is stated against
@@ -180,7 +177,27 @@ IMAGERS: dict[str, Imager] = {
 }
 
 
-def pipeline_of(config: ImagerConfig, seed: int) -> ImagePipeline | None:
+class ImagerSettings(Protocol):
+    """What :func:`pipeline_of` reads of a run's ``[imager]`` (:class:`agrisim.config.ImagerConfig`,
+    which imports this module: a protocol keeps the two apart)."""
+
+    @property
+    def model(self) -> str: ...
+    @property
+    def lux(self) -> float: ...
+    @property
+    def exposure(self) -> str | float: ...
+    @property
+    def gain(self) -> float: ...
+    @property
+    def ae_frames(self) -> int: ...
+    @property
+    def jpeg_quality(self) -> int: ...
+    @property
+    def bit_depth(self) -> int | None: ...
+
+
+def pipeline_of(config: ImagerSettings, seed: int) -> ImagePipeline | None:
     """The image pipeline that a run's ``[imager]`` settings describe (None for ``none``), its
     noise seeded by the run's ``seed``."""
     if config.model == "none":
