@@ -32,6 +32,7 @@ from typing import Any, Protocol
 
 import numpy as np
 
+from agrisim.errors import UserError
 from agrisim.scene.colour import encode_srgb8
 
 #: photons per second per m^2 in one lux of 555 nm light (1 lx = 1/683 W/m^2; h c / 555 nm =
@@ -204,6 +205,12 @@ def pipeline_of(config: ImagerSettings, seed: int) -> ImagePipeline | None:
         return None
     imager = IMAGERS[config.model] if config.bit_depth is None else IMAGERS[config.model].at_bit_depth(config.bit_depth)
     fixed = None if config.exposure == "auto" else (float(config.exposure), config.gain)
+    if fixed is not None:
+        (t0, t1), (g0, g1) = imager.shutter_range_s, imager.gain_range
+        if not t0 <= fixed[0] <= t1:
+            raise UserError(f"imager {imager.name!r} exposes {t0 * 1e3:g}-{t1 * 1e3:g} ms, not {fixed[0] * 1e3:g} ms")
+        if not g0 <= fixed[1] <= g1:
+            raise UserError(f"imager {imager.name!r} has analogue gains {g0:g}-{g1:g}, not {fixed[1]:g}")
     return ImagePipeline(imager, config.lux, fixed, config.ae_frames, config.jpeg_quality, seed=seed)
 
 

@@ -269,6 +269,14 @@ CASES = [
     ),
     pytest.param(["--imager", "imx708", "--exposure", "fast"], ["--exposure 'fast'", "auto"], id="exposure-word"),
     pytest.param(
+        ["--imager", "ov2740", "--exposure", "0.1"], ["'ov2740' exposes", "33.333 ms"], id="exposure-too-long"
+    ),
+    pytest.param(
+        ["--imager", "imx708", "--exposure", "0.01", "--set", "imager.gain=32"],
+        ["analogue gains 1-16", "not 32"],
+        id="gain-it-lacks",
+    ),
+    pytest.param(
         ["--imager", "imx708", "--renderer", "pybullet"],
         ["pybullet", "linear radiance for an imager", "raycast"],
         id="imager-with-a-renderer-without-radiance",
