@@ -178,6 +178,39 @@ def test_opencv_calibrates_the_rendered_lens_back() -> None:
     assert abs(k1 / truth - 1) < 0.1 and max(abs(k2), abs(p1), abs(p2)) < 0.005, (k1, truth, D.ravel())
 
 
+def test_opencv_calibrates_a_rendered_fisheye_back() -> None:
+    """The same round trip through a fisheye (Kannala-Brandt, 140 degrees across) with
+    ``cv2.fisheye.calibrate``: focal length and principal point within 0.5%, k1 within 0.02."""
+    lens = Distortion("fisheye", (0.05, -0.005, 0.0, 0.0))
+    camera = CameraModel(640, 360, 250.0, 250.0, 319.5, 179.5, lens)
+    renderer = RaycastRenderer(
+        Scene([_checkerboard()], [], LabelTable()),
+        None,
+        RenderConfig(hide_robots=True),
+        RaycastOptions(variant="llvm", shadow_samples=0, supersample=3),
+    )
+    board = np.array([[(j + 1) * SQUARE, (i + 1) * SQUARE, 0] for i in range(ROWS - 1) for j in range(COLUMNS - 1)])
+    objects, corners = [], []
+    for T in _views(camera, seed=1):
+        grey = cv2.cvtColor(renderer.render(camera, T, {}).rgb, cv2.COLOR_RGB2GRAY)
+        found, at = cv2.findChessboardCorners(grey, (COLUMNS - 1, ROWS - 1))
+        if found:
+            stop = (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_COUNT, 100, 1e-4)
+            corners.append(cv2.cornerSubPix(grey, at, (5, 5), (-1, -1), stop).reshape(1, -1, 2).astype(np.float64))
+            objects.append(board.reshape(1, -1, 3).astype(np.float64))
+    assert len(corners) >= 15, f"the board found in {len(corners)} of 20 views"
+    flags = cv2.CALIB_RECOMPUTE_EXTRINSIC | cv2.CALIB_FIX_SKEW
+    stop = (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_COUNT, 200, 1e-12)
+    rms, K, D, _, _ = cv2.fisheye.calibrate(
+        objects, corners, (camera.width, camera.height), None, None, flags=flags, criteria=stop
+    )
+    assert rms < 0.2, rms
+    np.testing.assert_allclose(
+        [K[0, 0], K[1, 1], K[0, 2], K[1, 2]], [camera.fx, camera.fy, camera.cx, camera.cy], rtol=0.005
+    )
+    assert abs(D.ravel()[0] - lens.coefficients[0]) < 0.02, D.ravel()
+
+
 @pytest.mark.parametrize("lens", [BARREL, Distortion("brown-conrady", (-0.2, 0.05, 0.001, -0.002, 0.0)), FISHEYE])
 def test_pycolmap_projects_through_the_camera_agrisim_gives_it(lens: Distortion) -> None:
     """``agrisim colmap``'s known camera (FULL_OPENCV, OPENCV or OPENCV_FISHEYE) read by pycolmap
