@@ -46,8 +46,11 @@ def main() -> None:
         help="more agrisim colmap flags, e.g. '--priors none --peak-threshold 0.0067' (the tables of 2026-11-25)",
     )
     parser.add_argument("--rerender", action="store_true", help="COLMAP on the views path-traced by mitsuba")
-    parser.add_argument("extra", nargs="*", help="more agrisim run flags, after --")
-    args = parser.parse_args()
+    # (argparse mixes up a "--" after an option of several values: split by hand)
+    argv = sys.argv[1:]
+    cut = argv.index("--") if "--" in argv else len(argv)
+    args = parser.parse_args(argv[:cut])
+    args.extra = argv[cut + 1 :]
     agrisim = [sys.executable, "-m", "agrisim"]
     print(
         f"CPU: {cpu_model()}; raycast, {args.resolution}, {args.shadow_samples} shadow rays a pixel"
