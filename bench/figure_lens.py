@@ -9,14 +9,16 @@ length, its barrel distortion bending the table's straight edges), each with its
 from __future__ import annotations
 
 import argparse
-import json
+import sys
 from pathlib import Path
 
 import matplotlib
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
+
+sys.path.insert(0, str(Path(__file__).parent))
+from saved_run import frame_pose  # noqa: E402
 
 from agrisim.config import RenderConfig  # noqa: E402
 from agrisim.files import layout  # noqa: E402
@@ -34,10 +36,7 @@ def main() -> None:
     parser.add_argument("--out", type=Path, default=Path("docs/lens.png"))
     args = parser.parse_args()
 
-    cameras = json.loads((args.run_dir / "cameras.json").read_text())
-    T = np.asarray(cameras["frames"][args.frame]["world_T_camera"], np.float64)
-    doc = json.loads(layout.link_poses(args.run_dir, args.frame).read_text())
-    poses = {r: {k: np.asarray(v) for k, v in links.items()} for r, links in doc.items()}
+    T, poses = frame_pose(args.run_dir, args.frame)
     renderer = RaycastRenderer(
         read_scene(args.run_dir / layout.SCENE_GLB),
         None,

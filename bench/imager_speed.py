@@ -8,7 +8,6 @@ sRGB; and with JPEG), the median of several, in one process. Prints figures; ass
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 import time
 from pathlib import Path
@@ -17,6 +16,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).parent))
 from machine import cpu_model  # noqa: E402
+from saved_run import frame_pose  # noqa: E402
 
 from agrisim.config import RenderConfig  # noqa: E402
 from agrisim.files import layout  # noqa: E402
@@ -44,10 +44,7 @@ def main() -> None:
     parser.add_argument("--repeat", type=int, default=5)
     args = parser.parse_args()
 
-    cameras = json.loads((args.run_dir / "cameras.json").read_text())
-    T = np.asarray(cameras["frames"][args.frame]["world_T_camera"], np.float64)
-    doc = json.loads(layout.link_poses(args.run_dir, args.frame).read_text())
-    poses = {r: {k: np.asarray(v) for k, v in links.items()} for r, links in doc.items()}
+    T, poses = frame_pose(args.run_dir, args.frame)
     scene = read_scene(args.run_dir / layout.SCENE_GLB)
     camera = preset("rpi-camera-3-wide", args.resolution)
     renderer = RaycastRenderer(scene, None, RenderConfig(), RaycastOptions(radiance=True))

@@ -9,6 +9,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from agrisim.config import RenderConfig, build_config
 from agrisim.files import layout
 from agrisim.files.rundir import camera_from_json
@@ -40,3 +42,12 @@ def saved_run(run_dir: Path) -> SavedRun:
         read_scene(run_dir / layout.SCENE_GLB),
         camera_from_json(cameras["intrinsics"]),
     )
+
+
+def frame_pose(run_dir: Path, frame: str) -> tuple[np.ndarray, dict[str, dict[str, np.ndarray]]]:
+    """Where ``frame`` of the run in ``run_dir`` was taken: world_T_camera and the arms' link
+    poses it was rendered with."""
+    cameras = json.loads((run_dir / layout.CAMERAS_JSON).read_text())
+    T = np.asarray(cameras["frames"][frame]["world_T_camera"], np.float64)
+    doc = json.loads(layout.link_poses(run_dir, frame).read_text())
+    return T, {r: {k: np.asarray(v) for k, v in links.items()} for r, links in doc.items()}

@@ -148,8 +148,9 @@ def _views(camera: CameraModel, seed: int) -> list[np.ndarray]:
     return views
 
 
-def test_opencv_calibrates_the_rendered_lens_back() -> None:
-    camera = preset("rpi-camera-3-wide", "640x360")
+def _board_corners(camera: CameraModel, seed: int) -> tuple[list[np.ndarray], list[np.ndarray]]:
+    """The checkerboard rendered through ``camera`` at :func:`_views`' 20 poses: for each view
+    where OpenCV finds it, its inner corners (board metres) and where they are (sub-pixel)."""
     renderer = RaycastRenderer(
         Scene([_checkerboard()], [], LabelTable()),
         None,
@@ -158,14 +159,21 @@ def test_opencv_calibrates_the_rendered_lens_back() -> None:
     )
     board = np.array([[(j + 1) * SQUARE, (i + 1) * SQUARE, 0] for i in range(ROWS - 1) for j in range(COLUMNS - 1)])
     objects, corners = [], []
-    for T in _views(camera, seed=0):
+    for T in _views(camera, seed):
         grey = cv2.cvtColor(renderer.render(camera, T, {}).rgb, cv2.COLOR_RGB2GRAY)
         found, at = cv2.findChessboardCorners(grey, (COLUMNS - 1, ROWS - 1))
         if found:
             stop = (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_COUNT, 100, 1e-4)
             corners.append(cv2.cornerSubPix(grey, at, (5, 5), (-1, -1), stop))
-            objects.append(board.astype(np.float32))
+            objects.append(board)
+    return objects, corners
+
+
+def test_opencv_calibrates_the_rendered_lens_back() -> None:
+    camera = preset("rpi-camera-3-wide", "640x360")
+    objects, corners = _board_corners(camera, seed=0)
     assert len(corners) >= 18, f"the board found in {len(corners)} of 20 views"
+    objects = [o.astype(np.float32) for o in objects]
     rms, K, D, _, _ = cv2.calibrateCamera(
         objects, corners, (camera.width, camera.height), None, None, flags=cv2.CALIB_FIX_K3
     )
@@ -183,21 +191,10 @@ def test_opencv_calibrates_a_rendered_fisheye_back() -> None:
     ``cv2.fisheye.calibrate``: focal length and principal point within 0.5%, k1 within 0.02."""
     lens = Distortion("fisheye", (0.05, -0.005, 0.0, 0.0))
     camera = CameraModel(640, 360, 250.0, 250.0, 319.5, 179.5, lens)
-    renderer = RaycastRenderer(
-        Scene([_checkerboard()], [], LabelTable()),
-        None,
-        RenderConfig(hide_robots=True),
-        RaycastOptions(variant="llvm", shadow_samples=0, supersample=3),
-    )
-    board = np.array([[(j + 1) * SQUARE, (i + 1) * SQUARE, 0] for i in range(ROWS - 1) for j in range(COLUMNS - 1)])
-    objects, corners = [], []
-    for T in _views(camera, seed=1):
-        grey = cv2.cvtColor(renderer.render(camera, T, {}).rgb, cv2.COLOR_RGB2GRAY)
-        found, at = cv2.findChessboardCorners(grey, (COLUMNS - 1, ROWS - 1))
-        if found:
-            stop = (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_COUNT, 100, 1e-4)
-            corners.append(cv2.cornerSubPix(grey, at, (5, 5), (-1, -1), stop).reshape(1, -1, 2).astype(np.float64))
-            objects.append(board.reshape(1, -1, 3).astype(np.float64))
+    objects, corners = _board_corners(camera, seed=1)
+    # cv2.fisheye wants each view's points as one row of float64
+    objects = [o.reshape(1, -1, 3).astype(np.float64) for o in objects]
+    corners = [c.reshape(1, -1, 2).astype(np.float64) for c in corners]
     assert len(corners) >= 15, f"the board found in {len(corners)} of 20 views"
     flags = cv2.CALIB_RECOMPUTE_EXTRINSIC | cv2.CALIB_FIX_SKEW
     stop = (cv2.TERM_CRITERIA_EPS + cv2.TERM_CRITERIA_COUNT, 200, 1e-12)
