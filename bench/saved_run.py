@@ -5,17 +5,23 @@ own images are there (a carried run leaves them behind)."""
 from __future__ import annotations
 
 import json
+import tempfile
+import time
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from agrisim.config import RenderConfig, build_config
+from agrisim.app.render import RenderPlan
+from agrisim.config import ImagerConfig, RenderConfig, build_config
+from agrisim.evaluation.session import capture_order
 from agrisim.files import layout
 from agrisim.files.rundir import camera_from_json
 from agrisim.files.scene_glb import read_scene
-from agrisim.scene.camera import CameraModel
+from agrisim.interfaces import View
+from agrisim.scene.camera import CameraModel, preset
+from agrisim.scene.imager import ImagePipeline, pipeline_of, view_key
 from agrisim.scene.model import Scene
 
 
@@ -51,3 +57,44 @@ def frame_pose(run_dir: Path, frame: str) -> tuple[np.ndarray, dict[str, dict[st
     T = np.asarray(cameras["frames"][frame]["world_T_camera"], np.float64)
     doc = json.loads(layout.link_poses(run_dir, frame).read_text())
     return T, {r: {k: np.asarray(v) for k, v in links.items()} for r, links in doc.items()}
+
+
+def drawn_views(
+    run: Path, renderer: str, overrides: dict, camera_preset: str | None = None, imager: str | None = None
+) -> list[View]:
+    """Every frame of ``run`` drawn again: RGB, labels and depth as a run would store them;
+    through another camera (``camera_preset``, at the run's image size) and an imager
+    (``imager``: each arm's camera auto-exposing from view to view in capture order), where
+    named, than the run's."""
+    plan = RenderPlan(run, renderer, overrides, Path(tempfile.mkdtemp()) / "unused", overwrite=False)
+    if imager is not None:
+        plan.config = plan.config.model_copy(update={"imager": ImagerConfig(model=imager)})
+    draw, camera = plan.renderer()
+    if camera_preset is not None:
+        camera = preset(camera_preset, f"{camera.width}x{camera.height}")
+    pipelines: dict[str, ImagePipeline | None] = {}
+    views = []
+    start = time.perf_counter()
+    try:
+        order = capture_order(json.loads((run / layout.RUN_JSON).read_text()), plan.frames)
+        for frame in order:
+            T = np.asarray(plan.cameras["frames"][frame]["world_T_camera"], np.float64)
+            images = draw.render(camera, T, {})
+            robot = frame.split("_")[0]
+            if robot not in pipelines:
+                pipelines[robot] = pipeline_of(plan.config.imager, plan.config.seed)
+            shooter = pipelines[robot]
+            if shooter is not None and images.radiance is not None:
+                images.rgb = shooter.shoot(images.radiance, view_key(frame)).rgb
+                images.radiance = None
+            views.append(View(frame, camera, T, images.stored()))
+    finally:
+        draw.close()
+    seconds = time.perf_counter() - start
+    through = f" through {camera_preset}" if camera_preset else ""
+    shot = f", shot by {imager}" if imager else ""
+    print(
+        f"{len(views)} views {camera.width}x{camera.height} drawn by {renderer}{through}{shot} in {seconds:.1f} s",
+        flush=True,
+    )
+    return views

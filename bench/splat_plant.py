@@ -27,16 +27,13 @@ import io
 import json
 import lzma
 import shutil
-import tempfile
-import time
+import sys
 from pathlib import Path
 
 import numpy as np
 from PIL import Image
 
 from agrisim.app.arguments import apply_sets, parse_value
-from agrisim.app.render import RenderPlan
-from agrisim.config import ImagerConfig
 from agrisim.evaluation.photogrammetry import estimated_poses
 from agrisim.evaluation.session import capture_order
 from agrisim.evaluation.views import load_depth
@@ -46,9 +43,10 @@ from agrisim.files.rundir import camera_from_json
 from agrisim.interfaces import Frame, View
 from agrisim.plugins.recon.splat.options import SplatOptions
 from agrisim.plugins.recon.splat.reconstructor import SplatReconstructor
-from agrisim.scene.camera import preset
-from agrisim.scene.imager import ImagePipeline, pipeline_of, view_key
 from agrisim.scene.model import LabelTable
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from saved_run import drawn_views  # noqa: E402
 
 
 def variant(text: str) -> tuple[str, dict[str, object]]:
@@ -59,47 +57,6 @@ def variant(text: str) -> tuple[str, dict[str, object]]:
         options[key] = parse_value(value)
     SplatOptions(**options)  # refused here, before anything is rendered
     return name, options
-
-
-def drawn_views(
-    run: Path, renderer: str, overrides: dict, camera_preset: str | None = None, imager: str | None = None
-) -> list[View]:
-    """Every frame of ``run`` drawn again: RGB, labels and depth as a run would store them;
-    through another camera (``camera_preset``, at the run's image size) and an imager
-    (``imager``: each arm's camera auto-exposing from view to view in capture order), where
-    named, than the run's."""
-    plan = RenderPlan(run, renderer, overrides, Path(tempfile.mkdtemp()) / "unused", overwrite=False)
-    if imager is not None:
-        plan.config = plan.config.model_copy(update={"imager": ImagerConfig(model=imager)})
-    draw, camera = plan.renderer()
-    if camera_preset is not None:
-        camera = preset(camera_preset, f"{camera.width}x{camera.height}")
-    pipelines: dict[str, ImagePipeline | None] = {}
-    views = []
-    start = time.perf_counter()
-    try:
-        order = capture_order(json.loads((run / layout.RUN_JSON).read_text()), plan.frames)
-        for frame in order:
-            T = np.asarray(plan.cameras["frames"][frame]["world_T_camera"], np.float64)
-            images = draw.render(camera, T, {})
-            robot = frame.split("_")[0]
-            if robot not in pipelines:
-                pipelines[robot] = pipeline_of(plan.config.imager, plan.config.seed)
-            shooter = pipelines[robot]
-            if shooter is not None and images.radiance is not None:
-                images.rgb = shooter.shoot(images.radiance, view_key(frame)).rgb
-                images.radiance = None
-            views.append(View(frame, camera, T, images.stored()))
-    finally:
-        draw.close()
-    seconds = time.perf_counter() - start
-    through = f" through {camera_preset}" if camera_preset else ""
-    shot = f", shot by {imager}" if imager else ""
-    print(
-        f"{len(views)} views {camera.width}x{camera.height} drawn by {renderer}{through}{shot} in {seconds:.1f} s",
-        flush=True,
-    )
-    return views
 
 
 def stored_views(run: Path, poses: str = "truth") -> list[View]:

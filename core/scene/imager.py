@@ -323,7 +323,7 @@ class ImagePipeline:
     # -- raw to RGB ---------------------------------------------------------------------------
     def develop_linear(self, raw: np.ndarray) -> np.ndarray:
         """H x W x 3 float32 linear sRGB, 1 = the raw range's top: demosaiced (OpenCV), white
-        balanced and through the colour matrix."""
+        balanced, clipped where any channel saturates, and through the colour matrix."""
         import cv2
 
         im = self.imager
@@ -332,7 +332,13 @@ class ImagePipeline:
         scale = 65535.0 / span
         lifted = np.clip((raw.astype(np.float32) - im.black_level) * np.float32(scale), 0, 65535)
         rgb = cv2.cvtColor(np.rint(lifted).astype(np.uint16), cv2.COLOR_BayerRGGB2RGB).astype(np.float32)
-        rgb *= (im.white_balance() / 65535.0).astype(np.float32)
+        gains = im.white_balance()
+        rgb *= (gains / 65535.0).astype(np.float32)
+        # a site clipped at the raw range's top says only "at least this bright": white balanced,
+        # a clipped green beside unclipped gains on red and blue turns a blown highlight magenta.
+        # ISPs clip every channel at the level where the weakest-gained one saturates, so that
+        # blown highlights are white (dcraw's highlight mode 0 does the same)
+        np.minimum(rgb, np.float32(gains.min()), out=rgb)
         return rgb @ np.asarray(im.ccm, np.float32).T
 
     def develop(self, raw: np.ndarray) -> np.ndarray:

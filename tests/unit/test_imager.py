@@ -96,6 +96,18 @@ def test_colours_come_back_through_the_mosaic_white_balance_and_matrix(name: str
         np.testing.assert_allclose(patch, colour * scale, rtol=0.03, atol=2e-3)
 
 
+@pytest.mark.parametrize("name", sorted(IMAGERS))
+def test_a_blown_highlight_is_white(name: str) -> None:
+    """A lamp far past the full well in every channel develops to white, not to the magenta that
+    white balancing a clipped green beside unclipped red and blue gains would give."""
+    pipe = _flat(name)
+    im = pipe.imager
+    lamp = np.full((64, 64, 3), 50.0, np.float32)
+    t = im.full_well_e / im.electrons_per_s(pipe.lux)  # the lamp holds 50 full wells
+    rgb = pipe.develop(pipe.read_out(pipe.electrons(lamp, t), 1.0, np.random.default_rng(0)))
+    assert rgb[8:56, 8:56].min() >= 250, rgb[8:56, 8:56].reshape(-1, 3).min(0)
+
+
 def test_the_raw_frame_is_rggb() -> None:
     """A red surface lights the red sites (even rows, even columns) most, a blue one the blue
     sites (odd, odd): the mosaic is the RGGB that OpenCV's COLOR_BayerRGGB2RGB reads."""
