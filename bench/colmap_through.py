@@ -98,7 +98,9 @@ def draw(args: argparse.Namespace) -> None:
                 continue
             shutil.rmtree(out, ignore_errors=True)  # an interrupted draw: drawn again whole
             cmd = [sys.executable, str(here), "draw-one", str(args.saved / s), str(out), *extra, *sets]
-            done = subprocess.run(cmd, capture_output=True, text=True, env=dict(os.environ, CUDA_VISIBLE_DEVICES=str(gpu)))
+            done = subprocess.run(
+                cmd, capture_output=True, text=True, env=dict(os.environ, CUDA_VISIBLE_DEVICES=str(gpu))
+            )
             status = "ok" if done.returncode == 0 else f"exit {done.returncode}: {done.stderr.strip()[-400:]}"
             print(f"{out.name}: GPU {gpu}, done at {time.perf_counter() - t0:.0f} s, {status}", flush=True)
 
@@ -146,7 +148,13 @@ def _cells(run: Path) -> list[str] | None:
         return "-" if med is None else f"{med:.{digits}f} / {top:.{digits}f}"
 
     reproj = "-" if s["reprojection_px"] is None else f"{s['reprojection_px']:.2f}"
-    return [f"{s['registered']}", f"{s['within_20mm']}", pair("centre_error_mm", 1), pair("rotation_error_deg", 2), reproj]
+    return [
+        f"{s['registered']}",
+        f"{s['within_20mm']}",
+        pair("centre_error_mm", 1),
+        pair("rotation_error_deg", 2),
+        reproj,
+    ]
 
 
 def table(args: argparse.Namespace) -> None:
