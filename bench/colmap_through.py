@@ -8,7 +8,7 @@ COLMAP needs pycolmap (``bench/device_site.sh OUT pycolmap==4.2.1``), so the two
 two calls on one warm machine, each with its own carry::
 
     python bench/colmap_through.py draw SAVED OUT [--through rpi-camera-3-wide:imx708] [--gpus 4]
-        [--species ...] [--set renderer.mitsuba.spp=8 ...]        # OUT/<s>-pinhole/, OUT/<s>-<preset>-<imager>/
+        [--species ...] [--set spp=8 ...]        # OUT/<s>-pinhole/, OUT/<s>-<preset>-<imager>/
     python bench/colmap_through.py colmap OUT [--jobs 20] [--threads 3]   # OUT/*/colmap/
     python bench/colmap_through.py table OUT     # Markdown: pinhole -> through, a row a species
 

@@ -92,9 +92,8 @@ def main() -> None:
                 dr.eval(colour, aux)
                 dr.sync_thread()
                 clock.lap("guides split" if renderer.guided else "guide pass")
-                optix = renderer._optix
-                linear = optix(colour, aux, sensor) if optix is not None else denoise.denoise(colour, aux)
-                clock.lap(f"denoise ({renderer.denoiser}) + copy to host")
+                linear = denoise.denoise(colour, aux)
+                clock.lap("denoise + copy to host")
             else:
                 linear = np.asarray(image, np.float32)[..., :3]
                 clock.lap("copy to host")

@@ -158,12 +158,6 @@ CASES = [
         marks=pytest.mark.skipif(cuda_usable(), reason="a usable GPU is here"),
     ),
     pytest.param(
-        ["--renderer", "mitsuba", "--set", "renderer.mitsuba.denoiser=optix"],
-        ["denoiser = 'optix'", "CUDA variant"],
-        id="mitsuba-optix-denoiser-on-the-cpu",
-        marks=pytest.mark.skipif(cuda_usable(), reason="a usable GPU is here"),
-    ),
-    pytest.param(
         ["--renderer", "mitsuba", "--set", "renderer.mitsuba.spp=0"], ["mitsuba", "spp", "1"], id="mitsuba-spp-0"
     ),
     pytest.param(

@@ -53,11 +53,11 @@ def preflight(config: RunConfig, options: MitsubaOptions) -> None:
     map that cannot be read."""
     from .variant import resolve_variant
 
-    variant = resolve_variant(options.variant)
-    if options.denoise == "on" or (options.denoise == "auto" and options.denoiser != "auto"):
-        from .denoise import chosen
+    resolve_variant(options.variant)
+    if options.denoise == "on":
+        from .denoise import check_denoiser
 
-        chosen(options, variant)  # refuses a denoiser that cannot run here
+        check_denoiser()
     if options.envmap is not None:
         from .scene import check_envmap
 

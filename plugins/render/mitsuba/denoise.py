@@ -1,7 +1,6 @@
-"""Denoising of path-traced radiance: Intel Open Image Denoise (``pyoidn``, CPU or CUDA) or
-NVIDIA's OptiX AI denoiser inside Mitsuba (CUDA variant).
+"""Denoising of path-traced radiance with Intel Open Image Denoise (``pyoidn``, CPU or CUDA).
 
-OIDN's ``RT`` filter (and OptiX's, likewise) is guided by the albedo and shading normal of each pixel's first hits, which keep texture
+OIDN's ``RT`` filter is guided by the albedo and shading normal of each pixel's first hits, which keep texture
 and edges sharp while the path tracer's noise goes: the ``cutout_path`` integrator returns them in
 its own samples; Mitsuba's ``path`` and ``volpath`` need a second, cheap pass (the ``aov``
 integrator alone, the same samples per pixel). The radiance is HDR (lamps are far brighter
@@ -34,41 +33,25 @@ def _pyoidn():  # noqa: ANN202
     return pyoidn
 
 
-def _available(denoiser: str, variant: str) -> str | None:
-    """The denoiser ``denoiser`` (``auto``, ``oidn`` or ``optix``) names that can run with
-    Mitsuba's ``variant``, or None."""
-    cuda = variant.startswith("cuda")
-    if denoiser == "oidn":
-        return "oidn" if _pyoidn() is not None else None
-    if denoiser == "optix":
-        return "optix" if cuda else None
-    return "oidn" if _pyoidn() is not None else ("optix" if cuda else None)
+def check_denoiser() -> None:
+    """Refuse ``denoise = "on"`` without pyoidn."""
+    if _pyoidn() is None:
+        raise ConfigError("[renderer.mitsuba] denoise = 'on' needs the package pyoidn (pip install pyoidn)")
 
 
-def _missing(denoiser: str) -> str:
-    if denoiser == "optix":
-        return (
-            "[renderer.mitsuba] denoiser = 'optix' needs Mitsuba's CUDA variant (an NVIDIA GPU); use 'oidn' on the CPU"
-        )
-    if denoiser == "oidn":
-        return "[renderer.mitsuba] denoiser = 'oidn' needs the package pyoidn (pip install pyoidn)"
-    return "[renderer.mitsuba] denoise = 'on' needs the package pyoidn (pip install pyoidn) or Mitsuba's CUDA variant (OptiX)"
-
-
-def chosen(options: MitsubaOptions, variant: str) -> str | None:
-    """The denoiser this run uses, ``oidn`` or ``optix``, or None (``auto``: below
-    AUTO_BELOW_SPP samples, the first of OIDN and OptiX that can run here). Refused with a
-    ConfigError: ``denoise = "on"`` with none, and a ``denoiser`` named that cannot run."""
+def wanted(options: MitsubaOptions) -> bool:
+    """Should this run denoise? (``auto``: below AUTO_BELOW_SPP samples, when pyoidn is here.)"""
     if options.denoise == "off":
-        return None
-    name = _available(options.denoiser, variant)
-    if name is None and (options.denoise == "on" or options.denoiser != "auto"):
-        raise ConfigError(_missing(options.denoiser))
-    if options.denoise == "auto" and options.spp >= AUTO_BELOW_SPP:
-        return None
-    if name is None:
-        log.warning("no denoiser here (pyoidn, or OptiX on a GPU): mitsuba renders %d spp without one", options.spp)
-    return name
+        return False
+    if options.denoise == "on":
+        check_denoiser()
+        return True
+    if options.spp >= AUTO_BELOW_SPP:
+        return False
+    if _pyoidn() is None:
+        log.warning("pyoidn is not installed: mitsuba renders %d spp without denoising", options.spp)
+        return False
+    return True
 
 
 def _cuda_torch():  # noqa: ANN202
@@ -99,30 +82,3 @@ def denoise(colour, aux) -> np.ndarray:  # noqa: ANN001 - Dr.Jit tensors or arra
     c, a = np.asarray(colour, np.float32), np.asarray(aux, np.float32)
     albedo, normal = np.ascontiguousarray(a[..., 0:3]), np.ascontiguousarray(a[..., 3:6])
     return np.asarray(pyoidn.denoise(np.ascontiguousarray(c[..., :3]), albedo, normal, hdr=True), np.float32)
-
-
-class OptixDenoise:
-    """Mitsuba's OptiX denoiser (``mi.OptixDenoiser``) guided by albedo and normals, one per
-    image size; the radiance stays on the GPU until the denoised image comes back."""
-
-    def __init__(self, mi) -> None:  # noqa: ANN001 - the mitsuba module
-        self.mi = mi
-        self._by_size: dict[tuple[int, int], object] = {}
-
-    def __call__(self, colour, aux, sensor) -> np.ndarray:  # noqa: ANN001 - Dr.Jit tensors, Mitsuba's sensor
-        """The denoised radiance (H x W x 3 float32) of ``colour`` guided by ``aux`` (albedo,
-        then world-space normals), the normals turned into ``sensor``'s frame as OptiX wants."""
-        mi = self.mi
-        h, w = int(colour.shape[0]), int(colour.shape[1])
-        denoiser = self._by_size.get((w, h))
-        if denoiser is None:
-            denoiser = self._by_size[(w, h)] = mi.OptixDenoiser(
-                mi.ScalarVector2u(w, h), albedo=True, normals=True, temporal=False
-            )
-        out = denoiser(  # type: ignore[operator]
-            colour,
-            albedo=aux[..., 0:3],
-            normals=aux[..., 3:6],
-            to_sensor=sensor.world_transform().inverse(),
-        )
-        return np.asarray(out, np.float32)[..., :3]

@@ -25,14 +25,9 @@ class MitsubaOptions(Options):
     lays the samples on an r x ceil(spp / r) grid, r = floor(sqrt(spp)): 1, 2, 4, 8, 16, 64,
     256, 1024 are kept, others rounded up (32 -> 35, 128 -> 132, with Mitsuba's warning)."""
     denoise: Literal["auto", "on", "off"] = "auto"
-    """Denoise the radiance (``denoiser``), guided by the first hits' albedo and normal:
-    ``auto`` denoises below 256 samples per pixel (where the noise shows) when a denoiser is
-    here."""
-    denoiser: Literal["auto", "oidn", "optix"] = "auto"
-    """``oidn``: Intel Open Image Denoise (the package ``pyoidn``; CPU, or CUDA through
-    PyTorch). ``optix``: NVIDIA's OptiX AI denoiser inside Mitsuba (the CUDA variant; nothing
-    to install: for a GPU machine where pyoidn's 88 MB wheel does not travel). ``auto``: OIDN
-    where pyoidn is installed, else OptiX with the CUDA variant."""
+    """Open Image Denoise (``pyoidn``) on the radiance, guided by the first hits' albedo and
+    normal: ``auto`` denoises below 256 samples per pixel (where the noise shows) when pyoidn
+    is installed."""
     max_depth: int = Field(8, ge=1, le=1024)
     """Longest path, in vertices (1: only emitters seen directly; 2: direct light only)."""
     rr_depth: int = Field(3, ge=1, le=1024)

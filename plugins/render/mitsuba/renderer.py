@@ -59,9 +59,7 @@ class MitsubaRenderer(Renderer):
             "max_depth": int(options.max_depth),
             "rr_depth": int(options.rr_depth),
         }
-        self.denoiser = denoise.chosen(options, mi.variant())
-        self.denoise = self.denoiser is not None
-        self._optix = denoise.OptixDenoise(mi) if self.denoiser == "optix" else None
+        self.denoise = denoise.wanted(options)
         # cutout_path gives the denoiser's guides in its own samples; Mitsuba's integrators need
         # a second pass (the aov integrator) for them
         self.guided = self.denoise and options.integrator == cutout.NAME
@@ -169,15 +167,8 @@ class MitsubaRenderer(Renderer):
         image = self._render("image", sensor, seed)
         if not self.denoise:
             return np.asarray(image, F32)[..., :3]
-        return self.denoised(image, sensor, seed)
-
-    def denoised(self, image, sensor, seed: int) -> np.ndarray:  # noqa: ANN001 - Dr.Jit tensor, Mitsuba's sensor
-        """The denoised radiance (H x W x 3 float32) of a rendered ``image``, by this run's
-        denoiser (OIDN: on the GPU when the image is there and PyTorch can pass it)."""
-        colour, aux = self._guides(image, sensor, seed)
-        if self._optix is not None:
-            return self._optix(colour, aux, sensor)
-        return denoise.denoise(colour, aux)
+        # (on the GPU when the image is there and PyTorch can pass it to OIDN)
+        return denoise.denoise(*self._guides(image, sensor, seed))
 
     def _guides(self, image, sensor, seed: int):  # noqa: ANN001, ANN202 - Dr.Jit tensors
         """(radiance, albedo and normal) of a rendered ``image``: its own channels with
