@@ -8,7 +8,7 @@ COLMAP needs pycolmap (``bench/device_site.sh OUT pycolmap==4.2.1``), so the two
 two calls on one warm machine, each with its own carry::
 
     python bench/colmap_through.py draw SAVED OUT [--through rpi-camera-3-wide:imx708] [--gpus 4]
-        [--species ...] [--set spp=8 ...]        # OUT/<s>-pinhole/, OUT/<s>-<preset>-<imager>/
+        [--species ...] [--set renderer.mitsuba.spp=8 ...]        # OUT/<s>-pinhole/, OUT/<s>-<preset>-<imager>/
     python bench/colmap_through.py colmap OUT [--jobs 20] [--threads 3]   # OUT/*/colmap/
     python bench/colmap_through.py table OUT     # Markdown: pinhole -> through, a row a species
 
@@ -34,8 +34,12 @@ import time
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from pathlib import Path
 
+import numpy as np
+
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from machine import cpu_model  # noqa: E402
+
+from agrisim.evaluation.photogrammetry import PEAK_THRESHOLD  # noqa: E402 (pycolmap is imported when COLMAP runs)
 
 PINHOLE = "pinhole"
 
@@ -44,9 +48,30 @@ def _drawn_dirs(out: Path) -> list[Path]:
     return sorted(p.parent for p in out.glob("*/drawn.json"))
 
 
-def draw_one(saved: Path, out: Path, camera: str | None, imager: str | None, sets: list[str]) -> None:
+def _recording_denoiser(kept: list[tuple[np.ndarray, ...]]) -> None:
+    """Stand pyoidn in for Mitsuba's denoise step, keeping what OIDN would be given (radiance,
+    albedo, normal as float16) and passing the noisy radiance on: for a GPU machine where pyoidn
+    cannot travel beside Mitsuba, ``develop`` denoises later, as the renderer would have."""
+    from agrisim.plugins.render.mitsuba import denoise
+
+    def host(x: object) -> np.ndarray:
+        return np.asarray(x.cpu() if hasattr(x, "cpu") else x, np.float16)  # type: ignore[union-attr]
+
+    class Recorder:
+        @staticmethod
+        def denoise(colour: object, albedo: object, normal: object, hdr: bool = True) -> object:
+            kept.append((host(colour), host(albedo), host(normal)))
+            return colour
+
+    denoise._pyoidn = lambda: Recorder  # type: ignore[attr-defined]
+
+
+def draw_one(
+    saved: Path, out: Path, camera: str | None, imager: str | None, sets: list[str], store_noisy: bool = False
+) -> None:
     """``saved``'s views drawn by Mitsuba (through ``camera`` and shot by ``imager`` where named)
-    into the complete run ``out``."""
+    into the complete run ``out``; with ``store_noisy``, each view's noisy radiance and the
+    denoiser's guides go to ``out/noisy/<frame>.npz`` for ``develop`` instead."""
     from saved_run import drawn_views
 
     from agrisim.app.arguments import apply_sets
@@ -57,8 +82,12 @@ def draw_one(saved: Path, out: Path, camera: str | None, imager: str | None, set
 
     overrides: dict = {}
     apply_sets(overrides, sets)
+    kept: list[tuple[np.ndarray, ...]] = []
+    if store_noisy:
+        _recording_denoiser(kept)
+        apply_sets(overrides, ["renderer.mitsuba.denoise=on"])
     start = time.perf_counter()
-    views = drawn_views(saved, "mitsuba", overrides, camera, imager)
+    views = drawn_views(saved, "mitsuba", overrides, camera, None if store_noisy else imager)
     seconds = time.perf_counter() - start
     out.mkdir(parents=True)
     run = json.loads((saved / layout.RUN_JSON).read_text())
@@ -68,8 +97,68 @@ def draw_one(saved: Path, out: Path, camera: str | None, imager: str | None, set
     write_json(out / layout.CAMERAS_JSON, cameras)
     for v in views:
         write_frame(out, v.frame, v.images, None)
+    if store_noisy:
+        assert len(kept) == len(views), f"{len(kept)} denoiser calls for {len(views)} views"
+        (out / "noisy").mkdir()
+        for v, (colour, albedo, normal) in zip(views, kept, strict=True):
+            np.savez(out / "noisy" / f"{v.frame}.npz", colour=colour, albedo=albedo, normal=normal)
     about = {"saved": str(saved), "renderer": "mitsuba", "options": overrides, "camera": camera, "imager": imager}
-    write_json(out / "drawn.json", {**about, "views": len(views), "draw_seconds": round(seconds, 1)})
+    order = [v.frame for v in views]
+    doc = {
+        **about,
+        "views": len(views),
+        "draw_seconds": round(seconds, 1),
+        "order": order,
+        "developed": not store_noisy,
+    }
+    write_json(out / "drawn.json", doc)
+
+
+def develop(args: argparse.Namespace) -> None:
+    """Every drawn run whose views wait in ``noisy/``: denoised by OIDN (pyoidn, guided by the
+    albedo and normal, HDR: what the renderer does), then shot by the run's imager (each arm's
+    camera auto-exposing in capture order) or, without one, encoded as the renderer encodes
+    (exposure 1, clipped, sRGB); the RGB written over the noisy one, ``noisy/`` removed."""
+    from importlib.metadata import version
+
+    import pyoidn
+
+    from agrisim.config import ImagerConfig, build_config
+    from agrisim.files import layout
+    from agrisim.files.atomic import write_json
+    from agrisim.files.dataset import write_png
+    from agrisim.scene.colour import encode_srgb8
+    from agrisim.scene.imager import ImagePipeline, pipeline_of, view_key
+
+    todo = [r for r in _drawn_dirs(args.out) if (r / "noisy").is_dir()]
+    print(f"CPU: {cpu_model()}, {os.cpu_count()} cores; {len(todo)} runs to denoise and develop", flush=True)
+    t0 = time.perf_counter()
+    for run in todo:
+        doc = json.loads((run / "drawn.json").read_text())
+        config = build_config(json.loads((run / layout.RUN_JSON).read_text())["config"])
+        settings = ImagerConfig(model=doc["imager"]) if doc["imager"] else None
+        shooters: dict[str, ImagePipeline | None] = {}
+        for frame in doc["order"]:
+            noisy = np.load(run / "noisy" / f"{frame}.npz")
+            colour, albedo, normal = (
+                np.ascontiguousarray(noisy[k], np.float32) for k in ("colour", "albedo", "normal")
+            )
+            radiance = np.asarray(pyoidn.denoise(colour, albedo, normal, hdr=True), np.float32)
+            robot = frame.split("_")[0]
+            if robot not in shooters:  # each arm's camera its own, auto-exposing from its first view
+                shooters[robot] = pipeline_of(settings, config.seed) if settings is not None else None
+            shooter = shooters[robot]
+            if shooter is not None:
+                rgb = shooter.shoot(radiance, view_key(frame)).rgb
+            else:
+                h, w = radiance.shape[:2]
+                rgb = np.empty((h * w, 3), np.uint8)
+                encode_srgb8(np.ascontiguousarray(radiance.reshape(-1, 3)), rgb)
+                rgb = rgb.reshape(h, w, 3)
+            write_png(layout.image(run, "rgb", frame), rgb)
+        write_json(run / "drawn.json", {**doc, "developed": True, "denoiser": f"OIDN (pyoidn {version('pyoidn')})"})
+        shutil.rmtree(run / "noisy")
+        print(f"{run.name}: developed, done at {time.perf_counter() - t0:.0f} s", flush=True)
 
 
 def draw(args: argparse.Namespace) -> None:
@@ -84,7 +173,7 @@ def draw(args: argparse.Namespace) -> None:
         for lens in args.through:
             camera, imager = lens.split(":")
             jobs.put((s, f"{camera}-{imager}", ["--camera", camera, "--imager", imager]))
-    sets = [a for s in args.sets for a in ("--set", s)]
+    sets = [a for s in args.sets for a in ("--set", s)] + (["--store-noisy"] if args.store_noisy else [])
     t0 = time.perf_counter()
 
     def worker(gpu: int) -> None:
@@ -112,11 +201,11 @@ def draw(args: argparse.Namespace) -> None:
     print(f"drawn in {time.perf_counter() - t0:.0f} s on {args.gpus} GPU(s)", flush=True)
 
 
-def _colmap(run: Path, threads: int) -> tuple[str, float]:
+def _colmap(run: Path, threads: int, peak_threshold: float) -> tuple[str, float]:
     from agrisim.evaluation.photogrammetry import run_colmap
 
     start = time.perf_counter()
-    run_colmap(run, feature_threads=threads, overwrite=True)
+    run_colmap(run, feature_threads=threads, peak_threshold=peak_threshold, overwrite=True)
     seconds = time.perf_counter() - start
     (run / "colmap" / "seconds.json").write_text(json.dumps({"colmap_seconds": round(seconds, 1)}) + "\n")
     return run.name, seconds
@@ -124,11 +213,16 @@ def _colmap(run: Path, threads: int) -> tuple[str, float]:
 
 def colmap(args: argparse.Namespace) -> None:
     """``agrisim colmap``'s pipeline on every drawn run without its poses yet, ``jobs`` at once."""
-    todo = [r for r in _drawn_dirs(args.out) if not (r / "colmap" / "seconds.json").is_file()]
+    todo = [
+        r
+        for r in _drawn_dirs(args.out)
+        if json.loads((r / "drawn.json").read_text()).get("developed", True)
+        and not (r / "colmap" / "seconds.json").is_file()
+    ]
     print(f"CPU: {cpu_model()}, {os.cpu_count()} cores; {len(todo)} runs, {args.jobs} at once", flush=True)
     t0 = time.perf_counter()
     with ProcessPoolExecutor(args.jobs) as pool:
-        futures = {pool.submit(_colmap, r, args.threads): r for r in todo}
+        futures = {pool.submit(_colmap, r, args.threads, args.peak_threshold): r for r in todo}
         for f in as_completed(futures):
             try:
                 name, seconds = f.result()
@@ -192,16 +286,30 @@ def main() -> None:
     d.add_argument("--gpus", type=int, default=1)
     d.add_argument("--species", nargs="+")
     d.add_argument("--set", dest="sets", action="append", default=[], metavar="KEY=VALUE")
+    d.add_argument(
+        "--store-noisy",
+        action="store_true",
+        help="keep each view's noisy radiance and guides for `develop` (a machine without pyoidn)",
+    )
     one = sub.add_parser("draw-one")
     one.add_argument("saved", type=Path)
     one.add_argument("out", type=Path)
     one.add_argument("--camera")
     one.add_argument("--imager")
     one.add_argument("--set", dest="sets", action="append", default=[])
+    one.add_argument("--store-noisy", action="store_true")
+    dev = sub.add_parser("develop")
+    dev.add_argument("out", type=Path)
     c = sub.add_parser("colmap")
     c.add_argument("out", type=Path)
     c.add_argument("--jobs", type=int, default=max(1, (os.cpu_count() or 1) // 3))
     c.add_argument("--threads", type=int, default=3, help="SIFT threads a run")
+    c.add_argument(
+        "--peak-threshold",
+        type=float,
+        default=PEAK_THRESHOLD,
+        help=f"SIFT's contrast threshold (agrisim colmap's default {PEAK_THRESHOLD}; COLMAP's own 0.0067)",
+    )
     t = sub.add_parser("table")
     t.add_argument("out", type=Path)
     args = parser.parse_args()
@@ -209,7 +317,9 @@ def main() -> None:
         args.species = args.species or sorted(p.name for p in args.saved.iterdir() if (p / "run.json").is_file())
         draw(args)
     elif args.command == "draw-one":
-        draw_one(args.saved, args.out, args.camera, args.imager, args.sets)
+        draw_one(args.saved, args.out, args.camera, args.imager, args.sets, args.store_noisy)
+    elif args.command == "develop":
+        develop(args)
     elif args.command == "colmap":
         colmap(args)
     else:
