@@ -9,13 +9,17 @@ two calls on one warm machine, each with its own carry::
 
     python bench/colmap_through.py draw SAVED OUT [--through rpi-camera-3-wide:imx708] [--gpus 4]
         [--species ...] [--set renderer.mitsuba.spp=8 ...]        # OUT/<s>-pinhole/, OUT/<s>-<preset>-<imager>/
+    python bench/colmap_through.py develop OUT [--jobs 8]    # after draw --store-noisy (pyoidn)
     python bench/colmap_through.py colmap OUT [--jobs 20] [--threads 3]   # OUT/*/colmap/
     python bench/colmap_through.py table OUT     # Markdown: pinhole -> through, a row a species
 
 SAVED/<s> holds a saved run (run.json, cameras.json, scene/lab.glb, or scene/lab.glb.xz to fit
 the carry). Each drawn view is written as a run writes it (rgb, labels, depth), so OUT/<s>-*/ are
 complete runs that ``agrisim colmap`` reads; ``drawn.json`` says how each was drawn and in how
-long. COLMAP runs as ``agrisim colmap RUN`` does (exhaustive matching, the run's intrinsics, the
+long. Mitsuba denoises with OIDN, whose 47 MB (pyoidn) cannot travel beside Mitsuba in one 64
+MiB carry: ``draw --store-noisy`` keeps each view's noisy radiance and the denoiser's guides,
+and ``develop`` (a call carrying pyoidn) denoises, shoots and writes them, as the renderer
+would have (the pinhole's views to 71 dB of a draw that denoised itself: float16 guides). COLMAP runs as ``agrisim colmap RUN`` does (exhaustive matching, the run's intrinsics, the
 robot's priors; one thread matches and maps, so several runs at once use the cores).
 """
 
@@ -118,7 +122,17 @@ def develop(args: argparse.Namespace) -> None:
     """Every drawn run whose views wait in ``noisy/``: denoised by OIDN (pyoidn, guided by the
     albedo and normal, HDR: what the renderer does), then shot by the run's imager (each arm's
     camera auto-exposing in capture order) or, without one, encoded as the renderer encodes
-    (exposure 1, clipped, sRGB); the RGB written over the noisy one, ``noisy/`` removed."""
+    (exposure 1, clipped, sRGB); the RGB written over the noisy one, ``noisy/`` removed.
+    ``jobs`` runs at once."""
+    todo = [r for r in _drawn_dirs(args.out) if (r / "noisy").is_dir()]
+    print(f"CPU: {cpu_model()}, {os.cpu_count()} cores; {len(todo)} runs to develop, {args.jobs} at once", flush=True)
+    t0 = time.perf_counter()
+    with ProcessPoolExecutor(args.jobs) as pool:
+        for run in pool.map(_develop_run, todo):
+            print(f"{run}: developed, done at {time.perf_counter() - t0:.0f} s", flush=True)
+
+
+def _develop_run(run: Path) -> str:
     from importlib.metadata import version
 
     import pyoidn
@@ -130,35 +144,29 @@ def develop(args: argparse.Namespace) -> None:
     from agrisim.scene.colour import encode_srgb8
     from agrisim.scene.imager import ImagePipeline, pipeline_of, view_key
 
-    todo = [r for r in _drawn_dirs(args.out) if (r / "noisy").is_dir()]
-    print(f"CPU: {cpu_model()}, {os.cpu_count()} cores; {len(todo)} runs to denoise and develop", flush=True)
-    t0 = time.perf_counter()
-    for run in todo:
-        doc = json.loads((run / "drawn.json").read_text())
-        config = build_config(json.loads((run / layout.RUN_JSON).read_text())["config"])
-        settings = ImagerConfig(model=doc["imager"]) if doc["imager"] else None
-        shooters: dict[str, ImagePipeline | None] = {}
-        for frame in doc["order"]:
-            noisy = np.load(run / "noisy" / f"{frame}.npz")
-            colour, albedo, normal = (
-                np.ascontiguousarray(noisy[k], np.float32) for k in ("colour", "albedo", "normal")
-            )
-            radiance = np.asarray(pyoidn.denoise(colour, albedo, normal, hdr=True), np.float32)
-            robot = frame.split("_")[0]
-            if robot not in shooters:  # each arm's camera its own, auto-exposing from its first view
-                shooters[robot] = pipeline_of(settings, config.seed) if settings is not None else None
-            shooter = shooters[robot]
-            if shooter is not None:
-                rgb = shooter.shoot(radiance, view_key(frame)).rgb
-            else:
-                h, w = radiance.shape[:2]
-                rgb = np.empty((h * w, 3), np.uint8)
-                encode_srgb8(np.ascontiguousarray(radiance.reshape(-1, 3)), rgb)
-                rgb = rgb.reshape(h, w, 3)
-            write_png(layout.image(run, "rgb", frame), rgb)
-        write_json(run / "drawn.json", {**doc, "developed": True, "denoiser": f"OIDN (pyoidn {version('pyoidn')})"})
-        shutil.rmtree(run / "noisy")
-        print(f"{run.name}: developed, done at {time.perf_counter() - t0:.0f} s", flush=True)
+    doc = json.loads((run / "drawn.json").read_text())
+    config = build_config(json.loads((run / layout.RUN_JSON).read_text())["config"])
+    settings = ImagerConfig(model=doc["imager"]) if doc["imager"] else None
+    shooters: dict[str, ImagePipeline | None] = {}
+    for frame in doc["order"]:
+        noisy = np.load(run / "noisy" / f"{frame}.npz")
+        colour, albedo, normal = (np.ascontiguousarray(noisy[k], np.float32) for k in ("colour", "albedo", "normal"))
+        radiance = np.asarray(pyoidn.denoise(colour, albedo, normal, hdr=True), np.float32)
+        robot = frame.split("_")[0]
+        if robot not in shooters:  # each arm's camera its own, auto-exposing from its first view
+            shooters[robot] = pipeline_of(settings, config.seed) if settings is not None else None
+        shooter = shooters[robot]
+        if shooter is not None:
+            rgb = shooter.shoot(radiance, view_key(frame)).rgb
+        else:
+            h, w = radiance.shape[:2]
+            rgb = np.empty((h * w, 3), np.uint8)
+            encode_srgb8(np.ascontiguousarray(radiance.reshape(-1, 3)), rgb)
+            rgb = rgb.reshape(h, w, 3)
+        write_png(layout.image(run, "rgb", frame), rgb)
+    write_json(run / "drawn.json", {**doc, "developed": True, "denoiser": f"OIDN (pyoidn {version('pyoidn')})"})
+    shutil.rmtree(run / "noisy")
+    return run.name
 
 
 def draw(args: argparse.Namespace) -> None:
@@ -300,6 +308,7 @@ def main() -> None:
     one.add_argument("--store-noisy", action="store_true")
     dev = sub.add_parser("develop")
     dev.add_argument("out", type=Path)
+    dev.add_argument("--jobs", type=int, default=max(1, (os.cpu_count() or 1) // 8))
     c = sub.add_parser("colmap")
     c.add_argument("out", type=Path)
     c.add_argument("--jobs", type=int, default=max(1, (os.cpu_count() or 1) // 3))

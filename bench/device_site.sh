@@ -2,9 +2,11 @@
 # One file that carries what agrisim's GPU benches need to a GPU machine with no package index
 # (Python 3.12): an installed site-packages, slimmed and compressed with xz, for
 # bench/device_install.sh to unpack there.
-#   bash bench/device_site.sh OUT.tar.xz [--ray] [NAME==VERSION ...]
-# Always: Mitsuba and Dr.Jit (slimmed by shared/tools/device-wheels.sh: three variants) and the
-# light dependencies of agrisim's core (pydantic, pygltflib, isal, pluggy, rich, as locked).
+#   bash bench/device_site.sh OUT.tar.xz [--ray] [--no-mitsuba] [NAME==VERSION ...]
+# Always: the light dependencies of agrisim's core (pydantic, pygltflib, isal, pluggy, rich, as
+# locked); Mitsuba and Dr.Jit (slimmed by shared/tools/device-wheels.sh: three variants) unless
+# --no-mitsuba. pyoidn, when named, loses its SYCL, HIP and Level Zero back ends (CPU and CUDA
+# stay): 47 MB packed, most of it the network weights.
 # --ray adds Ray as locked, slimmed: no Java jars (32 MB), no dashboard web build, none of its
 # libraries (RLlib, Serve, Data, Train, Tune, LLM), its three native binaries stripped of their
 # symbol tables (120 MB -> 84 MB); Ray's core runs as before (tasks, GPUs, retries).
@@ -14,9 +16,14 @@ set -euo pipefail
 out=$(realpath -m "$1")
 shift
 ray=0
+mitsuba=1
 extra=()
 for arg in "$@"; do
-  if [ "$arg" = "--ray" ]; then ray=1; else extra+=("$arg"); fi
+  case "$arg" in
+    --ray) ray=1 ;;
+    --no-mitsuba) mitsuba=0 ;;
+    *) extra+=("$arg") ;;
+  esac
 done
 repo=$(cd "$(dirname "$0")/.." && pwd)
 tmp=$(mktemp -d); trap 'rm -rf "$tmp"' EXIT
@@ -34,7 +41,7 @@ if [ $ray = 1 ]; then
     pins+=("$(locked "$name")")
   done
 fi
-bash "$repo/../shared/tools/device-wheels.sh" "$tmp/wheels" >/dev/null
+if [ $mitsuba = 1 ]; then bash "$repo/../shared/tools/device-wheels.sh" "$tmp/wheels" >/dev/null; fi
 python3 -m pip download -q --no-deps --only-binary=:all: --python-version 3.12 --implementation cp "${platforms[@]}" \
   -d "$tmp/wheels" "${pins[@]}" "${extra[@]}"
 # pip installs for the other Python (3.12) by its tags; it keeps the binaries' exec bits
@@ -42,6 +49,10 @@ python3 -m pip install -q --no-deps --no-compile --only-binary=:all: --python-ve
   "${platforms[@]}" --target "$tmp/site" "$tmp"/wheels/*.whl
 site=$tmp/site
 rm -rf "$site"/mitsuba/include "$site"/bin
+if [ -d "$site"/pyoidn ]; then
+  rm -rf "$site"/pyoidn/oidn/bin "$site"/pyoidn/oidn/include "$site"/pyoidn/oidn/lib/cmake
+  rm -f "$site"/pyoidn/oidn/lib/{libur_*,libsycl*,libumf*,libtbbbind*,libOpenImageDenoise_device_hip*,libOpenImageDenoise_device_sycl*}
+fi
 if [ $ray = 1 ]; then
   rm -rf "$site"/ray/jars "$site"/ray/dashboard/client/build "$site"/ray/{rllib,serve,data,train,tune,llm}
   strip --strip-unneeded "$site"/ray/_raylet.so "$site"/ray/core/src/ray/raylet/raylet "$site"/ray/core/src/ray/gcs/gcs_server
