@@ -83,6 +83,26 @@ def build_parser() -> argparse.ArgumentParser:
 
     plants = sub.add_parser("plants", help="list the plant species: triangles, organs, area cut away by opacity")
     plants.add_argument("--seed", type=int, default=0, metavar="N", help="seed to grow each species with (0)")
+    traits = sub.add_parser(
+        "traits",
+        help="a plant's traits, exact from its model: leaf by leaf, and the whole plant's",
+        description="Measure a plant's traits exactly from its model: each leaf's area (its opaque texels), midrib "
+        "length, width, inclination, azimuth, attachment and centroid; the plant's leaf count and area, height, crown "
+        "diameter, convex-hull volume, projected area and leaf angle distribution (nearest de Wit class). Prints "
+        "them and writes traits.json (RUN/traits.json for a run). Definitions and units: docs/traits.md.",
+    )
+    traits.add_argument(
+        "target",
+        metavar="PLANT|RUN",
+        help="a species (agrisim plants), a plant file (glTF/GLB/OBJ whose leaves are instances), or a run's directory",
+    )
+    traits.add_argument(
+        "--seed", type=int, default=None, metavar="N", help="seed to grow a species with (0; a run's own for a run)"
+    )
+    traits.add_argument(
+        "--out", type=Path, default=None, help="traits.json's path (default: RUN/traits.json, or ./traits.json)"
+    )
+    traits.add_argument("--overwrite", action="store_true", help="replace an existing traits.json")
     plugins = sub.add_parser("plugins", help="list every backend of every kind and where it comes from")
     plugins.add_argument("--options", action="store_true", help="also list each backend's options")
     doctor = sub.add_parser(

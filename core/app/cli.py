@@ -300,7 +300,7 @@ def _cmd_doctor(args: argparse.Namespace) -> int:
 
 def _cmd_plants(args: argparse.Namespace) -> int:
     from agrisim.registry import Registry, make_plugin_manager
-    from agrisim.scene.texturing import cutaway_fraction
+    from agrisim.scene.texturing import surface_summary
 
     if args.seed < 0:
         raise UserError(f"--seed must be 0 or more, got {args.seed}")
@@ -310,13 +310,70 @@ def _cmd_plants(args: argparse.Namespace) -> int:
         print("no plant species installed")
         return 0
     width = max(len(n) for n in specs)
-    print(f"{'species':<{width}}  {'triangles':>9}  {'cut away':>8}  labels  [distribution]")
+    print(
+        f"{'species':<{width}}  {'triangles':>9}  {'cut away':>8}  {'leaves':>6}  {'leaf cm^2':>9}  labels  [distribution]"
+    )
     for name, spec in specs.items():
         plant = registry.build("plant", spec, spec.options_model()).build(args.seed)
         organs = ", ".join(lab.name for lab in plant.labels.labels if lab.id)
-        cut = cutaway_fraction(plant.mesh, samples=100_000)
-        print(f"{name:<{width}}  {len(plant.mesh.faces):>9,}  {cut:>7.1%}  {organs}  [{spec.distribution}]")
+        cut, leaves, leaf_area = surface_summary(plant.mesh, samples=100_000)
+        print(
+            f"{name:<{width}}  {len(plant.mesh.faces):>9,}  {cut:>7.1%}  {leaves:>6}  {leaf_area * 1e4:>9.0f}  "
+            f"{organs}  [{spec.distribution}]"
+        )
     print("cut away: share of the plant's surface area that opacity removes (what RepOpa labels wrongly)")
+    print("leaves: leaf instances; leaf cm^2: their opaque area, sampled (agrisim traits SPECIES: exact, leaf by leaf)")
+    return 0
+
+
+def _cmd_traits(args: argparse.Namespace) -> int:
+    from pathlib import Path
+
+    from agrisim.app.progress import EpisodeProgress
+    from agrisim.errors import OutputError
+    from agrisim.files.atomic import write_json
+    from agrisim.files.rundir import read_json
+    from agrisim.registry import Registry, make_plugin_manager
+    from agrisim.scene.plant_choice import check_plant_name, resolve_plant
+    from agrisim.traits.document import traits_document
+
+    target = Path(args.target)
+    if args.seed is not None and args.seed < 0:
+        raise UserError(f"--seed must be 0 or more, got {args.seed}")
+    registry = Registry(make_plugin_manager())
+    if target.is_dir():
+        run = read_json(target / layout.RUN_JSON, "not an agrisim run (no run.json)")
+        if args.seed is not None:
+            raise UserError("--seed applies to a species, not to a run (a run's plant has the run's seed)")
+        config = build_config(run["config"])
+        out = args.out or target / "traits.json"
+    else:
+        config = build_config({"plant": args.target, "seed": 0 if args.seed is None else args.seed})
+        out = args.out or Path("traits.json")
+    check_plant_name(registry, config)
+    if out.exists() and not args.overwrite:
+        raise OutputError(f"{out} already exists; pass --overwrite to replace it")
+    plant = resolve_plant(registry, config)
+    with EpisodeProgress("triangles") as progress:
+        doc = traits_document(plant, config.seed, progress.update)
+    write_json(out, doc)
+    p = doc["plant"]
+    print(
+        f"{plant.name}: {p['leaf_count']} leaves, {p['leaf_area_m2'] * 1e4:.1f} cm^2 of leaf; "
+        f"height {p['height_m'] * 100:.1f} cm, crown {p['crown_diameter_m'] * 100:.1f} cm, "
+        f"hull {p['convex_hull_volume_m3'] * 1e3:.2f} L, projected {p['projected_area_m2'] * 1e4:.1f} cm^2; "
+        f"mean leaf inclination {p['mean_inclination_deg']:.1f} deg ({p['de_wit_class']})"
+    )
+    leaves = doc["leaves"]
+    print(f"{'leaf':>5}  {'area cm^2':>9}  {'length cm':>9}  {'width cm':>8}  {'incl deg':>8}  {'azimuth':>7}")
+    for leaf in leaves[:20]:
+        print(
+            f"{leaf['id']:>5}  {leaf['area_m2'] * 1e4:>9.2f}  {leaf['length_m'] * 100:>9.2f}  "
+            f"{leaf['width_m'] * 100:>8.2f}  {leaf['inclination_deg']:>8.1f}  {leaf['azimuth_deg']:>7.1f}"
+        )
+    if len(leaves) > 20:
+        print(f"  ... {len(leaves) - 20} more in {out}")
+    print(f"wrote {out}")
     return 0
 
 
@@ -488,6 +545,8 @@ def main(argv: Sequence[str] | None = None) -> int:
             return _cmd_run(args)
         if args.command == "plants":
             return _cmd_plants(args)
+        if args.command == "traits":
+            return _cmd_traits(args)
         if args.command == "recon":
             return _cmd_recon(args)
         if args.command == "export":

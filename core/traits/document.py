@@ -1,0 +1,30 @@
+"""``traits.json``: a plant's traits as ``agrisim traits`` writes them, with their units and
+where they are defined (docs/traits.md, field by field)."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any
+
+from agrisim.scene.model import Plant
+from agrisim.traits.truth import INCLINATION_BINS, PROJECTION_CELL_M, plant_traits
+from agrisim.version import __version__
+
+#: the units of traits.json's fields, by the suffix of their names
+UNITS = {"_m": "metres", "_m2": "square metres", "_m3": "cubic metres", "_deg": "degrees", "shares": "area shares"}
+
+
+def traits_document(plant: Plant, seed: int, progress: Callable[[int, int], None] | None = None) -> dict[str, Any]:
+    """The traits.json document of ``plant`` (grown with ``seed``)."""
+    traits = plant_traits(plant, progress).to_json()
+    leaves = traits.pop("leaves")
+    return {
+        "agrisim": __version__,
+        "plant": {"name": plant.name, "seed": seed, **traits},
+        "leaves": leaves,
+        "frame": "the plant's: z up from the soil, the stem at x = y = 0",
+        "units": UNITS,
+        "inclination_bins_deg": INCLINATION_BINS.tolist(),
+        "projection_cell_m": PROJECTION_CELL_M,
+        "definitions": "docs/traits.md",
+    }
