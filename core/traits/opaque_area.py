@@ -133,12 +133,20 @@ def _cut(faces: np.ndarray, corners: np.ndarray, uv_triangles: np.ndarray, mask:
         col = lo[owner, 0] + k % span[owner, 0]
         row = lo[owner, 1] + k // span[owner, 0]
         keep = mask[row % h, col % w]
-        owner, col, row = owner[keep], col[keep], row[keep]
         x0, y0 = col.astype(np.float64), row.astype(np.float64)
+        full, apart = _square_against(tri[owner], x0, y0, np.sign(det[owner]))
+        # a triangle that touches no cut-away texel is one piece, as it is
+        blocked = np.zeros(len(tri), bool)
+        blocked[owner[~keep & ~apart]] = True
+        whole = sel[~blocked[sel]]
+        if len(whole):
+            yield _whole(faces[whole], corners[whole])
+        pick = keep & ~apart & blocked[owner]
+        owner, x0, y0, full = owner[pick], x0[pick], y0[pick], full[pick]
+        apart = np.zeros(len(owner), bool)
         # a texel wholly inside its triangle is a piece as it is; only the edges' texels are clipped
         poly = np.zeros((len(owner), _MAX_VERTICES + 1, 2))
         n = np.full(len(owner), 4)
-        full, apart = _square_against(tri[owner], x0, y0, np.sign(det[owner]))
         poly[full, :4, 0] = x0[full, None] + _SQUARE[:, 0]
         poly[full, :4, 1] = y0[full, None] + _SQUARE[:, 1]
         n[apart] = 0

@@ -131,6 +131,7 @@ class _Reducer:
         self.area = np.zeros(m)
         self.moment = np.zeros((m, 3))
         self.leaf_parts: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []  # (instance, centroid, area)
+        self.leaf_corners: list[tuple[np.ndarray, np.ndarray]] = []  # (instance, corner): where leaves end
         self.hull_points = np.zeros((0, 3))
         lo, hi = mesh.vertices[:, :2].min(axis=0), mesh.vertices[:, :2].max(axis=0)
         self.origin = lo - 2 * PROJECTION_CELL_M
@@ -150,6 +151,9 @@ class _Reducer:
         leaf = inst > 0
         if leaf.any():
             self.leaf_parts.append((inst[leaf], pieces.centroid[leaf].astype(np.float32), pieces.area[leaf]))
+            live = np.arange(pieces.vertices.shape[1])[None, :] < pieces.count[leaf][:, None]
+            owner = np.broadcast_to(inst[leaf][:, None], live.shape)[live]
+            self.leaf_corners.append((owner, pieces.vertices[leaf][live].astype(np.float32)))
         corners = np.concatenate([self.hull_points, pieces.corners()])
         if len(corners) >= 4:
             try:
@@ -249,6 +253,11 @@ def _leaves(reduce: _Reducer, normals: np.ndarray, theta: np.ndarray) -> list[Le
     order = np.argsort(p_inst, kind="stable")
     p_inst, p_xyz, p_area = p_inst[order], p_xyz[order], p_area[order]
     bounds = np.searchsorted(p_inst, np.concatenate([ids, [ids[-1] + 1]]))
+    c_inst = np.concatenate([c[0] for c in reduce.leaf_corners])
+    c_xyz = np.concatenate([c[1] for c in reduce.leaf_corners]).astype(np.float64)
+    order = np.argsort(c_inst, kind="stable")
+    c_inst, c_xyz = c_inst[order], c_xyz[order]
+    c_bounds = np.searchsorted(c_inst, np.concatenate([ids, [ids[-1] + 1]]))
     faces_of = np.argsort(inst, kind="stable")
     f_bounds = np.searchsorted(inst[faces_of], np.concatenate([ids, [ids[-1] + 1]]))
     out = []
@@ -260,7 +269,9 @@ def _leaves(reduce: _Reducer, normals: np.ndarray, theta: np.ndarray) -> list[Le
         n = normals[faces]
         lean = (a[:, None] * n[:, :2]).sum(axis=0)
         azimuth = float(np.degrees(np.arctan2(lean[1], lean[0])) % 360.0)
-        length, width, attachment = _midrib(p_xyz[bounds[i] : bounds[i + 1]], p_area[bounds[i] : bounds[i + 1]])
+        length, width, attachment = _midrib(
+            p_xyz[bounds[i] : bounds[i + 1]], p_area[bounds[i] : bounds[i + 1]], c_xyz[c_bounds[i] : c_bounds[i + 1]]
+        )
         out.append(
             LeafTraits(
                 id=int(leaf_id),
@@ -277,35 +288,51 @@ def _leaves(reduce: _Reducer, normals: np.ndarray, theta: np.ndarray) -> list[Le
     return out
 
 
-def _midrib(points: np.ndarray, weights: np.ndarray) -> tuple[float, float, list[float]]:
+def _midrib(points: np.ndarray, weights: np.ndarray, corners: np.ndarray) -> tuple[float, float, list[float]]:
     """(length along the midrib, widest slice, attachment point) of a leaf's opaque surface,
-    given as the centres of its pieces and their areas (see the module)."""
-    if len(points) < 3:
+    given as its pieces' centres and areas (where its area lies) and corners (where it ends;
+    see the module)."""
+    if not len(points) or len(corners) < 3:
         p = points.mean(axis=0) if len(points) else np.zeros(3)
         return 0.0, 0.0, p.tolist()
     w = weights / weights.sum()
     mean = w @ points
-    centred = points - mean
-    _, _, vt = np.linalg.svd(centred * np.sqrt(w)[:, None], full_matrices=False)
-    along, across, off = centred @ vt[0], centred @ vt[1], centred @ vt[2]
-    lo, hi = float(along.min()), float(along.max())
+    # the axes of its area; of its outline where too few pieces make it (a card of two triangles)
+    outline = np.unique(corners, axis=0)
+    spread = (points - mean) * np.sqrt(w)[:, None] if len(points) >= 3 else outline - outline.mean(axis=0)
+    _, _, vt = np.linalg.svd(spread, full_matrices=False)
+    c_along, c_across = (corners - mean) @ vt[0], (corners - mean) @ vt[1]
+    lo, hi = float(c_along.min()), float(c_along.max())
     edges = np.linspace(lo, hi, SLICES + 1)
-    slot = np.clip(np.searchsorted(edges, along, side="right") - 1, 0, SLICES - 1)
-    mass = np.bincount(slot, weights=w, minlength=SLICES)
-    filled = mass > 0
-    # the midrib: the slices' centres of area, smoothed by a cubic in the long axis (a texel's
-    # jitter from slice to slice would lengthen a straight midrib), from end to end
+
+    def slot_of(x: np.ndarray) -> np.ndarray:
+        return np.clip(np.searchsorted(edges, x, side="right") - 1, 0, SLICES - 1)
+
+    # each slice's middle: halfway across its outline, its outline's mean height off the plane;
+    # the midrib is their line smoothed by a cubic in the long axis (a texel's jitter from slice
+    # to slice would lengthen a straight one), from end to end
+    c_slot = slot_of(c_along)
+    c_off = (corners - mean) @ vt[2]
+    top = np.full(SLICES, -np.inf)
+    bottom = np.full(SLICES, np.inf)
+    np.maximum.at(top, c_slot, c_across)
+    np.minimum.at(bottom, c_slot, c_across)
+    hits = np.bincount(c_slot, minlength=SLICES)
+    width = float(np.max(np.where(hits > 0, top - bottom, 0.0)))
+    filled = (hits > 0) & (top > bottom)  # (a slice of one corner has no middle)
     u = (edges[:-1] + edges[1:])[filled] / 2
-    centre = [np.bincount(slot, weights=w * c, minlength=SLICES)[filled] / mass[filled] for c in (across, off)]
+    middle = [
+        (top[filled] + bottom[filled]) / 2,
+        np.bincount(c_slot, weights=c_off, minlength=SLICES)[filled] / hits[filled],
+    ]
     degree = min(3, int(filled.sum()) - 1)
-    fits = [np.polynomial.Polynomial.fit(u, c, degree, w=np.sqrt(mass[filled])) for c in centre]
-    t = np.linspace(lo, hi, 257)
-    curve = np.stack([t, fits[0](t), fits[1](t)], 1)
+    if degree < 1:
+        curve = np.array([[lo, 0.0, 0.0], [hi, 0.0, 0.0]])
+    else:
+        fits = [np.polynomial.Polynomial.fit(u, m, degree) for m in middle]
+        t = np.linspace(lo, hi, 257)
+        curve = np.stack([t, fits[0](t), fits[1](t)], 1)
     length = float(np.linalg.norm(np.diff(curve, axis=0), axis=1).sum())
-    width = 0.0
-    for s in np.flatnonzero(filled):
-        sel = slot == s
-        width = max(width, float(across[sel].max() - across[sel].min()))
     ends = mean + curve[[0, -1]] @ vt
     base = min(ends, key=lambda p: (float(np.hypot(p[0], p[1])), float(p[2])))
     return length, width, base.tolist()

@@ -88,6 +88,18 @@ def test_an_elliptic_leaf_has_its_axes_as_length_and_width() -> None:
     assert leaf.area_m2 == pytest.approx((alpha > 0).sum() * texel**2, rel=1e-9)  # the texels, exactly
 
 
+def test_a_solid_card_has_its_sides_as_length_and_width() -> None:
+    """An uncut card of 8 x 3 cm, two triangles, tilted: length and width are its sides (its
+    corners bound it, however coarse its triangles), its area their product."""
+    card = _card(1.0, np.full((4, 4), 255, np.uint8))
+    local = np.array([[-0.04, -0.015, 0], [0.04, -0.015, 0], [0.04, 0.015, 0], [-0.04, 0.015, 0]])
+    card.vertices = local @ _rotation_x(20.0).T + [0.05, 0.0, 0.1]
+    leaf = plant_traits(Plant("card", card, LEAF)).leaves[0]
+    assert leaf.length_m == pytest.approx(0.08, rel=1e-6)
+    assert leaf.width_m == pytest.approx(0.03, rel=1e-6)
+    assert leaf.area_m2 == pytest.approx(0.08 * 0.03, rel=1e-9)
+
+
 def _rasterised_area(mesh: Mesh, faces: np.ndarray, supersample: int = 8) -> float:
     """The opaque area of ``faces``, the second way: each triangle rasterised on a grid
     ``supersample`` times finer than the atlas (a subpixel counts when its centre is inside),
