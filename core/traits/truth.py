@@ -14,9 +14,10 @@ the stem at x = y = 0).
 - **Azimuth**: the compass direction its upward normal leans to, counter-clockwise from +x,
   the area-weighted circular mean (each piece weighted by how far it leans).
 - **Length along the midrib**: the leaf's opaque surface cut into slices across its long axis
-  (the first principal axis of its area); the midrib is the line through the slices' centres of
-  area, from the leaf's one end to the other; its length is that line's. **Width**: the widest
-  slice, across the midrib (the second principal axis). The **attachment** is the midrib's end
+  (the first principal axis of its area); the midrib is the line through the slices' middles
+  (halfway across each one's outline), smoothed by a cubic, from the leaf's one end to the
+  other; its length is that line's. **Width**: the widest slice, across the midrib (the second
+  principal axis). The **attachment** is the midrib's end
   nearer the stem (x = y = 0).
 - **Plant**: height is the top of its opaque surface (every organ); crown diameter the widest
   horizontal span of it; convex-hull volume that of all of it; projected area from above that of
