@@ -1,0 +1,49 @@
+"""A run's leaves as a phenotyping pipeline sees them (agrisim.traits.estimate): each leaf's
+points fused from the views by its instance mask lie on that very leaf of the ground-truth mesh
+(scene/plant.glb), by id, within the dataset's millimetre depth; a run without instance masks is
+refused."""
+
+from __future__ import annotations
+
+import shutil
+from pathlib import Path
+
+import numpy as np
+import open3d as o3d
+import pytest
+from conftest import small_run
+
+from agrisim.errors import UserError
+from agrisim.files import layout
+from agrisim.files.plant_asset import load_plant
+from agrisim.traits.estimate import leaf_clouds
+
+
+@pytest.fixture(scope="module")
+def run(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    return small_run(tmp_path_factory.mktemp("leaves") / "run", plant="coltsfoot", seed=4)
+
+
+def test_each_leafs_points_lie_on_that_leaf(run: Path) -> None:
+    """Every fused point within 0.75 mm of its own leaf's true triangles (measured at most 0.52:
+    the depth's whole millimetres, half of one along the ray, and the 1 mm voxels' means)."""
+    clouds = leaf_clouds(run)
+    mesh = load_plant(run / layout.PLANT_GLB, place=False).mesh
+    assert mesh.face_instance is not None
+    assert clouds and set(clouds) <= set(np.unique(mesh.face_instance).tolist()) - {0}
+    vertices = o3d.core.Tensor(mesh.vertices.astype(np.float32))
+    for leaf, points in clouds.items():
+        scene = o3d.t.geometry.RaycastingScene()
+        scene.add_triangles(vertices, o3d.core.Tensor(mesh.faces[mesh.face_instance == leaf].astype(np.uint32)))
+        distance = scene.compute_distance(o3d.core.Tensor(points.astype(np.float32))).numpy()
+        assert distance.max() < 0.75e-3, (leaf, distance.max())
+        # one point a voxel: no two closer than the grid allows
+        assert len(np.unique(np.floor(points / 1e-3), axis=0)) == len(points)
+
+
+def test_a_run_without_instance_masks_is_refused(run: Path, tmp_path: Path) -> None:
+    bare = tmp_path / "bare"
+    shutil.copytree(run, bare)
+    shutil.rmtree(bare / "instances")
+    with pytest.raises(UserError, match="no instance masks"):
+        leaf_clouds(bare)
