@@ -25,6 +25,7 @@ import contextlib
 import os
 from collections.abc import Iterator
 
+import numpy as np
 import pytest
 
 from agrisim.config import CellConfig
@@ -32,6 +33,7 @@ from agrisim.interfaces import Frame
 from agrisim.registry import hookimpl
 from agrisim.robot.kinematics import ArmKinematics
 from agrisim.scene.cell import Cell, build_cell
+from agrisim.scene.model import Label, LabelTable, Material, Mesh
 
 
 def _cuda_usable() -> bool:
@@ -216,3 +218,29 @@ def cli(capsys: pytest.CaptureFixture[str]):  # noqa: ANN201 - returns the runne
 def frames() -> Frames:
     """A plugin object to register on an episode: it keeps a copy of every capture's images."""
     return Frames()
+
+
+# ----------------------------------------------------------------- a leaf card (traits tests)
+
+LEAF_LABELS = LabelTable([Label(0, "background", (0, 0, 0)), Label(1, "leaf", (0, 200, 0))])
+
+
+def rotation_x(deg: float) -> np.ndarray:
+    c, s = np.cos(np.radians(deg)), np.sin(np.radians(deg))
+    return np.array([[1, 0, 0], [0, c, -s], [0, s, c]])
+
+
+def leaf_card(
+    side: float, alpha: np.ndarray, tilt_deg: float = 0.0, at: tuple[float, float, float] = (0.0, 0.0, 0.1)
+) -> Mesh:
+    """A square card of ``side`` metres, textured with ``alpha`` (its RGBA's alpha), tilted about
+    x by ``tilt_deg``, one leaf instance."""
+    h, w = alpha.shape
+    rgba = np.zeros((h, w, 4), np.uint8)
+    rgba[..., 1] = 160
+    rgba[..., 3] = alpha
+    v = (np.array([[-0.5, -0.5, 0], [0.5, -0.5, 0], [0.5, 0.5, 0], [-0.5, 0.5, 0]]) * side) @ rotation_x(tilt_deg).T
+    uv = np.array([[0, 1], [1, 1], [1, 0], [0, 0]], np.float32)
+    mat = Material("leaf", albedo=rgba, alpha_mode="MASK", label=1)
+    faces = np.array([[0, 1, 2], [0, 2, 3]])
+    return Mesh("card", v + np.asarray(at), faces, [mat], np.zeros(2, np.int32), uv, np.array([1, 1], np.uint16))

@@ -8,38 +8,19 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import LEAF_LABELS as LEAF
+from conftest import leaf_card as _card
+from conftest import rotation_x as _rotation_x
 
 from agrisim.errors import UserError
 from agrisim.files.glb import export_glb
 from agrisim.files.plant_asset import load_plant
 from agrisim.plugins.plants.procedural import grow
-from agrisim.scene.model import Label, LabelTable, Material, Mesh, Plant
+from agrisim.scene.model import Mesh, Plant
 from agrisim.traits.opaque_area import face_opaque_area, kept_texels
 from agrisim.traits.truth import DE_WIT, INCLINATION_BINS, de_wit_shares, nearest_de_wit, plant_traits
 
 NUDGE = 1e-3 * np.sqrt(2)
-LEAF = LabelTable([Label(0, "background", (0, 0, 0)), Label(1, "leaf", (0, 200, 0))])
-
-
-def _rotation_x(deg: float) -> np.ndarray:
-    c, s = np.cos(np.radians(deg)), np.sin(np.radians(deg))
-    return np.array([[1, 0, 0], [0, c, -s], [0, s, c]])
-
-
-def _card(
-    side: float, alpha: np.ndarray, tilt_deg: float = 0.0, at: tuple[float, float, float] = (0.0, 0.0, 0.1)
-) -> Mesh:
-    """A square card of ``side`` metres, textured with ``alpha`` (its RGBA's alpha), tilted about
-    x by ``tilt_deg``, one leaf instance."""
-    h, w = alpha.shape
-    rgba = np.zeros((h, w, 4), np.uint8)
-    rgba[..., 1] = 160
-    rgba[..., 3] = alpha
-    v = (np.array([[-0.5, -0.5, 0], [0.5, -0.5, 0], [0.5, 0.5, 0], [-0.5, 0.5, 0]]) * side) @ _rotation_x(tilt_deg).T
-    uv = np.array([[0, 1], [1, 1], [1, 0], [0, 0]], np.float32)
-    mat = Material("leaf", albedo=rgba, alpha_mode="MASK", label=1)
-    faces = np.array([[0, 1, 2], [0, 2, 3]])
-    return Mesh("card", v + np.asarray(at), faces, [mat], np.zeros(2, np.int32), uv, np.array([1, 1], np.uint16))
 
 
 def _ellipse(h: int, w: int, a: float, b: float) -> np.ndarray:
