@@ -41,7 +41,7 @@ def main() -> None:
     args = parser.parse_args()
 
     from agrisim.plugins.render.mitsuba.variant import resolve_variant
-    from agrisim.util.cpu import emulate_llvm_target, llvm_target, vector_isa
+    from agrisim.util.cpu import emulate_llvm_target, llvm_target
 
     resolve_variant("llvm")  # points Dr.Jit at a libLLVM first
     if args.target == "avx2":
@@ -65,7 +65,7 @@ def main() -> None:
     lmap = label_map("organs")
     target = llvm_target()
     print(
-        f"CPU: {cpu_model()} ({vector_isa()}), {os.cpu_count()} cores; Dr.Jit compiles for {target.cpu}, "
+        f"CPU: {cpu_model()}, {os.cpu_count()} cores; Dr.Jit compiles for {target.cpu}, "
         f"{target.width} lanes ({args.target}); {camera.width}x{camera.height}, "
         f"{sum(len(m.faces) for m in scene.meshes):,} static triangles, arms {sorted(scene.arms)}"
     )

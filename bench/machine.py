@@ -3,18 +3,15 @@
 from __future__ import annotations
 
 import subprocess
-from pathlib import Path
 
 
 def cpu_model() -> str:
-    """The CPU's model name from ``/proc/cpuinfo`` (``unknown CPU`` elsewhere)."""
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                return line.split(":", 1)[1].strip()
-    except OSError:
-        pass
-    return "unknown CPU"
+    """The CPU's model name and widest vector ISA, e.g. ``"AMD EPYC 7B13 (AVX2)"``: the engine's
+    speed follows the vector width as much as the model (:mod:`agrisim.util.cpu`)."""
+    from agrisim.util.cpu import cpu_model as model
+    from agrisim.util.cpu import vector_isa
+
+    return f"{model()} ({vector_isa()})"
 
 
 def gpu_name() -> str:

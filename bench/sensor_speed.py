@@ -39,14 +39,13 @@ def main() -> None:
     from agrisim.plugins.render.raycast.renderer import RaycastRenderer
     from agrisim.plugins.sensors.align import align_to_colour
     from agrisim.registry import Registry, make_plugin_manager
-    from agrisim.util.cpu import vector_isa
 
     cameras = json.loads((args.run_dir / "cameras.json").read_text())
     camera = camera_from_json(cameras["intrinsics"])
     frames = list(cameras["frames"])[: args.views]
     scene = read_scene(args.run_dir / layout.SCENE_GLB)
     settings = RenderConfig()
-    where = f"{cpu_model()} ({vector_isa()})" if args.variant == "llvm" else gpu_name()
+    where = cpu_model() if args.variant == "llvm" else gpu_name()
     print(f"{where}; {camera.width}x{camera.height} colour, {len(frames)} views, variant {args.variant}")
 
     def poses(frame: str) -> dict:

@@ -1,89 +1,157 @@
-"""Traits measured from a run's views against their truth, a row a species: leaves seen against
-leaves there, per-leaf area error (MAPE over the leaves seen), inclination and azimuth errors;
-and a plot of estimated against true leaf area (every leaf of every species). Prints the CPU and
-the table; asserts nothing. Each species' run goes to OUT/<species>/ (made where missing: the
-paper's routine, arms hidden, raycast, ``--resolution``), reused when there.
+"""Traits measured from a run's views against their truth, for each species and each depth
+sensor: leaves seen and clustered against leaves there, per-leaf area error (MAPE over the leaves
+seen), inclination error, height and hull error (:mod:`agrisim.traits.scores`); and a plot of
+estimated against true leaf area, on exact depth and on one sensor. Prints the CPU and Markdown
+tables; asserts nothing.
 
-    python bench/traits_table.py OUT [--species coltsfoot ...] [--resolution 960x540]
-        [--depth truth|sensor] [--plot OUT/traits_area.png] [-- EXTRA agrisim run FLAGS]
+Runs are OUT/<species>-<sensor>/, as ``bench/sensor_table.py`` makes them (the paper's routine
+with ``--depth-sensor``; made here where missing), so the two tables can share their runs. Each
+run's scores are kept in OUT/traits_table.json and reused (``--again`` measures anew).
 
-``--depth sensor`` measures on the run's depth sensor (``-- --depth-sensor d435``).
+    python bench/traits_table.py OUT [--plants all] [--sensors exact,azure-kinect-nfov,d435,d415,d405]
+        [--setpoints 5x10] [--resolution 960x540] [--plot docs/traits_area.png] [--plot-sensor d435]
 """
 
 from __future__ import annotations
 
 import argparse
+import json
+import math
 import subprocess
 import sys
+import time
 from pathlib import Path
-
-import numpy as np
+from typing import Any
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from machine import cpu_model  # noqa: E402
 
+SENSORS = "exact,azure-kinect-nfov,d435,d415,d405"
 
-def main() -> None:
-    from agrisim.files import layout
-    from agrisim.files.plant_asset import load_plant
-    from agrisim.plugins.plants.procedural.species import SPECIES
-    from agrisim.traits.estimate import leaf_clouds, leaf_estimates
+
+def _truth(run: Path) -> Any:
+    """The run's plant traits, grown again from its config (its own seed) in the plant frame."""
+    from agrisim.config import build_config
+    from agrisim.registry import Registry, make_plugin_manager
+    from agrisim.scene.plant_choice import resolve_plant
     from agrisim.traits.truth import plant_traits
 
-    argv = sys.argv[1:]
-    cut = argv.index("--") if "--" in argv else len(argv)
+    config = build_config(json.loads((run / "run.json").read_text())["config"])
+    return plant_traits(resolve_plant(Registry(make_plugin_manager()), config))
+
+
+def _make_run(run: Path, species: str, sensor: str, setpoints: str, resolution: str) -> None:
+    args = ["run", "--plant", species, "--depth-sensor", sensor, "--setpoints", setpoints]
+    args += ["--resolution", resolution, "--no-rrd", "--out", str(run), *(["--resume"] if run.exists() else [])]
+    done = subprocess.run([sys.executable, "-m", "agrisim", *args], capture_output=True, text=True)
+    if done.returncode != 0:
+        raise SystemExit(f"agrisim {' '.join(args)} failed:\n{done.stderr}")
+
+
+def _fmt(x: float, spec: str) -> str:
+    return "-" if math.isnan(x) else format(x, spec)
+
+
+def main() -> None:
+    from agrisim.plugins.plants.procedural.species import SPECIES
+    from agrisim.traits.estimate import measure
+    from agrisim.traits.scores import trait_errors
+
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("out", type=Path)
-    parser.add_argument("--species", nargs="+", default=list(SPECIES))
+    parser.add_argument("--plants", default="all")
+    parser.add_argument("--sensors", default=SENSORS)
+    parser.add_argument("--setpoints", default="5x10")
     parser.add_argument("--resolution", default="960x540")
-    parser.add_argument("--depth", choices=["truth", "sensor"], default="truth")
     parser.add_argument("--plot", type=Path)
-    args = parser.parse_args(argv[:cut])
-    extra = argv[cut + 1 :]
-    print(f"CPU: {cpu_model()}; raycast, {args.resolution}, arms hidden, depth: {args.depth} {' '.join(extra)}")
-    print("| plant | leaves seen / there | leaf area MAPE | area error range | inclination error deg, mean / max |")
-    print("|---|---|---|---|---|")
-    pairs: dict[str, tuple[np.ndarray, np.ndarray]] = {}
-    for species in args.species:
-        run = args.out / species
-        if not (run / layout.RUN_JSON).is_file():
-            flags = ["--plant", species, "--resolution", args.resolution, "--hide-robots", "--recon", "none"]
-            subprocess.run(
-                [sys.executable, "-m", "agrisim", "run", *flags, "--no-rrd", "--out", str(run), *extra],
-                check=True,
-                capture_output=True,
-            )
-        truth = {leaf.id: leaf for leaf in plant_traits(load_plant(run / layout.PLANT_GLB, place=False)).leaves}
-        seen = [e for e in leaf_estimates(leaf_clouds(run, depth=args.depth)) if e.id in truth]
-        true_area = np.array([truth[e.id].area_m2 for e in seen])
-        area = np.array([e.area_m2 for e in seen])
-        error = area / true_area - 1.0
-        incline = np.abs(np.array([e.inclination_deg - truth[e.id].inclination_deg for e in seen]))
-        pairs[species] = (true_area, area)
+    parser.add_argument("--plot-sensor", default="d435")
+    parser.add_argument("--again", action="store_true", help="measure every run anew")
+    args = parser.parse_args()
+
+    plants = sorted(SPECIES) if args.plants == "all" else args.plants.split(",")
+    sensors = args.sensors.split(",")
+    store = args.out / "traits_table.json"
+    kept: dict[str, Any] = {} if args.again or not store.is_file() else json.loads(store.read_text())
+    print(f"CPU: {cpu_model()}; setpoints {args.setpoints}, {args.resolution}, sensors {', '.join(sensors)}")
+    for species in plants:
+        truth = None
+        for sensor in sensors:
+            key = f"{species}-{sensor}"
+            if key in kept:
+                continue
+            run = args.out / key
+            t0 = time.perf_counter()
+            if not (run / "metrics.json").is_file():
+                _make_run(run, species, sensor, args.setpoints, args.resolution)
+            truth = truth or _truth(run)
+            estimate = measure(run, depth="sensor")
+            true_area = {leaf.id: leaf.area_m2 for leaf in truth.leaves}
+            kept[key] = {
+                "errors": trait_errors(truth, estimate).to_json(),
+                "areas": [[true_area[e.id], e.area_m2] for e in estimate.leaves if e.id in true_area],
+                "seconds": time.perf_counter() - t0,
+            }
+            store.write_text(json.dumps(kept, indent=1))
+            print(f"{key}: {kept[key]['seconds']:.0f} s", file=sys.stderr, flush=True)
+
+    first = sensors[0]
+    print(f"\nOn {first} depth:\n")
+    print(
+        "| plant | leaves seen / there | clusters (one leaf) | leaf area MAPE | area error range "
+        "| inclination error deg, mean / max | height error mm | hull volume error |"
+    )
+    print("|---|---|---|---|---|---|---|---|")
+    for species in plants:
+        e = kept[f"{species}-{first}"]["errors"]
         print(
-            f"| {species.replace('_', ' ')} | {len(seen)} / {len(truth)} | {100 * np.abs(error).mean():.1f}% "
-            f"| {100 * error.min():+.1f}% to {100 * error.max():+.1f}% | {incline.mean():.1f} / {incline.max():.1f} |",
-            flush=True,
+            f"| {species.replace('_', ' ')} | {e['leaves_seen']} / {e['leaves_there']} "
+            f"| {e['clusters']} ({e['clusters_one_leaf']}) | {_fmt(e['area_mape_pct'], '.1f')}% "
+            f"| {_fmt(e['area_error_min_pct'], '+.1f')}% to {_fmt(e['area_error_max_pct'], '+.1f')}% "
+            f"| {_fmt(e['inclination_error_mean_deg'], '.1f')} / {_fmt(e['inclination_error_max_deg'], '.1f')} "
+            f"| {1e3 * e['height_error_m']:+.1f} | {_fmt(e['hull_volume_error_pct'], '+.1f')}% |"
         )
+    print("\nEach sensor: leaf area MAPE · inclination error (mean, deg) · height error (mm)\n")
+    print("| plant | " + " | ".join(sensors) + " |")
+    print("|---" * (len(sensors) + 1) + "|")
+    for species in plants:
+        cells = []
+        for sensor in sensors:
+            e = kept[f"{species}-{sensor}"]["errors"]
+            cells.append(
+                f"{_fmt(e['area_mape_pct'], '.1f')}% · {_fmt(e['inclination_error_mean_deg'], '.1f')} "
+                f"· {1e3 * e['height_error_m']:+.0f}"
+            )
+        print(f"| {species.replace('_', ' ')} | " + " | ".join(cells) + " |")
     if args.plot is not None:
-        import matplotlib
+        _plot(args.plot, kept, plants, [first, args.plot_sensor])
 
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
 
-        fig, ax = plt.subplots(figsize=(5.5, 5.5))
-        top = 0.0
-        for species, (true_area, area) in pairs.items():
-            ax.scatter(true_area * 1e4, area * 1e4, s=8, label=species.replace("_", " "))
-            top = max(top, float(true_area.max(initial=0.0)), float(area.max(initial=0.0)))
-        ax.plot([0, top * 1e4], [0, top * 1e4], "k-", lw=0.8)
+def _plot(path: Path, kept: dict[str, Any], plants: list[str], sensors: list[str]) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    import numpy as np
+
+    sensors = [s for s in dict.fromkeys(sensors) if all(f"{p}-{s}" in kept for p in plants)]
+    fig, axes = plt.subplots(1, len(sensors), figsize=(5.2 * len(sensors), 5.2), squeeze=False)
+    for ax, sensor in zip(axes[0], sensors, strict=True):
+        pairs = {p: np.array(kept[f"{p}-{sensor}"]["areas"]).reshape(-1, 2) * 1e4 for p in plants}
+        top = max(float(a.max(initial=1.0)) for a in pairs.values())
+        low = min(float(a[a > 0].min(initial=top)) for a in pairs.values())
+        for species, a in pairs.items():
+            ax.scatter(a[:, 0], np.maximum(a[:, 1], low), s=9, label=species.replace("_", " "))
+        ax.plot([low, top], [low, top], "k-", lw=0.8)
+        for band in (0.95, 1.05):
+            ax.plot([low, top], [low * band, top * band], "k:", lw=0.6)
         ax.set_xscale("log")
         ax.set_yscale("log")
         ax.set_xlabel("true leaf area, cm² (agrisim traits)")
-        ax.set_ylabel(f"estimated leaf area, cm² (views, {args.depth} depth)")
-        ax.legend(fontsize=7)
-        fig.savefig(args.plot, dpi=120, bbox_inches="tight")
-        print(f"wrote {args.plot}")
+        ax.set_ylabel("estimated leaf area, cm²")
+        ax.set_title("exact depth" if sensor == "exact" else sensor, fontsize=10)
+    axes[0][0].legend(fontsize=7)
+    fig.savefig(path, dpi=110, bbox_inches="tight")
+    print(f"wrote {path}")
 
 
 if __name__ == "__main__":

@@ -89,7 +89,8 @@ def build_parser() -> argparse.ArgumentParser:
         description="Measure a plant's traits exactly from its model: each leaf's area (its opaque texels), midrib "
         "length, width, inclination, azimuth, attachment and centroid; the plant's leaf count and area, height, crown "
         "diameter, convex-hull volume, projected area and leaf angle distribution (nearest de Wit class). Prints "
-        "them and writes traits.json (RUN/traits.json for a run). Definitions and units: docs/traits.md.",
+        "them and writes traits.json (RUN/traits.json for a run); with --measure, a run's traits are also measured "
+        "from its views and scored against the truth. Definitions and units: docs/traits.md.",
     )
     traits.add_argument(
         "target",
@@ -103,6 +104,18 @@ def build_parser() -> argparse.ArgumentParser:
         "--out", type=Path, default=None, help="traits.json's path (default: RUN/traits.json, or ./traits.json)"
     )
     traits.add_argument("--overwrite", action="store_true", help="replace an existing traits.json")
+    traits.add_argument(
+        "--measure",
+        action="store_true",
+        help="also measure the traits from the run's views, as a phenotyping pipeline would, and score them "
+        'against the truth (traits.json\'s "measured")',
+    )
+    traits.add_argument(
+        "--depth",
+        choices=["sensor", "truth"],
+        default="sensor",
+        help="with --measure: the run's depth sensor (its exact depth where it had none; default) or the exact depth",
+    )
     plugins = sub.add_parser("plugins", help="list every backend of every kind and where it comes from")
     plugins.add_argument("--options", action="store_true", help="also list each backend's options")
     doctor = sub.add_parser(

@@ -336,6 +336,8 @@ def _cmd_traits(args: argparse.Namespace) -> int:
     from agrisim.registry import Registry, make_plugin_manager
     from agrisim.scene.plant_choice import check_plant_name, resolve_plant
     from agrisim.traits.document import traits_document
+    from agrisim.traits.estimate import measurable_frames, measure
+    from agrisim.traits.truth import plant_traits
 
     target = Path(args.target)
     if args.seed is not None and args.seed < 0:
@@ -347,7 +349,11 @@ def _cmd_traits(args: argparse.Namespace) -> int:
             raise UserError("--seed applies to a species, not to a run (a run's plant has the run's seed)")
         config = build_config(run["config"])
         out = args.out or target / "traits.json"
+        if args.measure:
+            measurable_frames(target, run)
     else:
+        if args.measure:
+            raise UserError(f"--measure needs a run's directory (its views), got {args.target!r}")
         config = build_config({"plant": args.target, "seed": 0 if args.seed is None else args.seed})
         out = args.out or Path("traits.json")
     check_plant_name(registry, config)
@@ -355,7 +361,11 @@ def _cmd_traits(args: argparse.Namespace) -> int:
         raise OutputError(f"{out} already exists; pass --overwrite to replace it")
     plant = resolve_plant(registry, config)
     with EpisodeProgress("triangles") as progress:
-        doc = traits_document(plant, config.seed, progress.update)
+        truth = plant_traits(plant, progress.update)
+        measured = None
+        if args.measure:
+            measured = measure(target, args.depth, lambda done, total: progress.stage("views", done, total))
+    doc = traits_document(plant, config.seed, truth, measured)
     write_json(out, doc)
     p = doc["plant"]
     print(
@@ -364,12 +374,26 @@ def _cmd_traits(args: argparse.Namespace) -> int:
         f"hull {p['convex_hull_volume_m3'] * 1e3:.2f} L, projected {p['projected_area_m2'] * 1e4:.1f} cm^2; "
         f"mean leaf inclination {p['mean_inclination_deg']:.1f} deg ({p['de_wit_class']})"
     )
+    found = {leaf.id: leaf for leaf in measured.leaves} if measured is not None else {}
+    if measured is not None:
+        e = doc["measured"]["errors"]
+        print(
+            f"measured from {measured.views} views ({measured.depth} depth): {e['leaves_seen']} of "
+            f"{e['leaves_there']} leaves seen, {e['clusters']} clusters without instances "
+            f"({e['clusters_one_leaf']} one leaf each); leaf area MAPE {e['area_mape_pct']:.1f}%, "
+            f"inclination error {e['inclination_error_mean_deg']:.1f} deg; "
+            f"height {measured.height_m * 100:.1f} cm ({e['height_error_m'] * 1e3:+.1f} mm), "
+            f"hull {measured.convex_hull_volume_m3 * 1e3:.2f} L ({e['hull_volume_error_pct']:+.1f}%)"
+        )
     leaves = doc["leaves"]
-    print(f"{'leaf':>5}  {'area cm^2':>9}  {'length cm':>9}  {'width cm':>8}  {'incl deg':>8}  {'azimuth':>7}")
+    extra = f"  {'measured':>8}  {'meas deg':>8}" if measured is not None else ""
+    print(f"{'leaf':>5}  {'area cm^2':>9}  {'length cm':>9}  {'width cm':>8}  {'incl deg':>8}  {'azimuth':>7}{extra}")
     for leaf in leaves[:20]:
+        seen = found.get(leaf["id"])
+        cells = f"  {seen.area_m2 * 1e4:>8.2f}  {seen.inclination_deg:>8.1f}" if seen is not None else ""
         print(
             f"{leaf['id']:>5}  {leaf['area_m2'] * 1e4:>9.2f}  {leaf['length_m'] * 100:>9.2f}  "
-            f"{leaf['width_m'] * 100:>8.2f}  {leaf['inclination_deg']:>8.1f}  {leaf['azimuth_deg']:>7.1f}"
+            f"{leaf['width_m'] * 100:>8.2f}  {leaf['inclination_deg']:>8.1f}  {leaf['azimuth_deg']:>7.1f}{cells}"
         )
     if len(leaves) > 20:
         print(f"  ... {len(leaves) - 20} more in {out}")

@@ -3,22 +3,26 @@ where they are defined (docs/traits.md, field by field)."""
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from typing import Any
 
 from agrisim.scene.model import Plant
-from agrisim.traits.truth import INCLINATION_BINS, PROJECTION_CELL_M, plant_traits
+from agrisim.traits.estimate import PlantEstimate
+from agrisim.traits.scores import trait_errors
+from agrisim.traits.truth import INCLINATION_BINS, PROJECTION_CELL_M, PlantTraits
 from agrisim.version import __version__
 
 #: the units of traits.json's fields, by the suffix of their names
 UNITS = {"_m": "metres", "_m2": "square metres", "_m3": "cubic metres", "_deg": "degrees", "shares": "area shares"}
 
 
-def traits_document(plant: Plant, seed: int, progress: Callable[[int, int], None] | None = None) -> dict[str, Any]:
-    """The traits.json document of ``plant`` (grown with ``seed``)."""
-    traits = plant_traits(plant, progress).to_json()
+def traits_document(
+    plant: Plant, seed: int, truth: PlantTraits, measured: PlantEstimate | None = None
+) -> dict[str, Any]:
+    """The traits.json document of ``plant`` (grown with ``seed``): its ``truth``, and where
+    given what was ``measured`` of it from a run's views with its errors against the truth."""
+    traits = truth.to_json()
     leaves = traits.pop("leaves")
-    return {
+    doc = {
         "agrisim": __version__,
         "plant": {"name": plant.name, "seed": seed, **traits},
         "leaves": leaves,
@@ -28,3 +32,6 @@ def traits_document(plant: Plant, seed: int, progress: Callable[[int, int], None
         "projection_cell_m": PROJECTION_CELL_M,
         "definitions": "docs/traits.md",
     }
+    if measured is not None:
+        doc["measured"] = {**measured.to_json(), "errors": trait_errors(truth, measured).to_json()}
+    return doc

@@ -206,7 +206,7 @@ def plant_traits(plant: Plant, progress: Callable[[int, int], None] | None = Non
     kind, distance = nearest_de_wit(shares)
     hull = reduce.hull_points
     top = float(hull[:, 2].max()) if len(hull) else 0.0
-    volume, diameter = _hull_figures(hull)
+    volume, diameter = hull_figures(hull)
     leaf_area = float(sum(leaf.area_m2 for leaf in leaves))
     return PlantTraits(
         leaf_count=len(leaves),
@@ -223,8 +223,8 @@ def plant_traits(plant: Plant, progress: Callable[[int, int], None] | None = Non
     )
 
 
-def _hull_figures(points: np.ndarray) -> tuple[float, float]:
-    """(volume, widest horizontal span) of the convex hull of ``points``."""
+def hull_figures(points: np.ndarray) -> tuple[float, float]:
+    """(volume, widest horizontal span) of the convex hull of ``points`` (N x 3), m^3 and m."""
     from scipy.spatial import ConvexHull
 
     if len(points) < 4:
@@ -236,10 +236,14 @@ def _hull_figures(points: np.ndarray) -> tuple[float, float]:
     xy = points[:, :2]
     try:
         xy = xy[ConvexHull(xy).vertices]
-    except Exception:
+    except Exception:  # collinear: every point stays a candidate
         pass
-    span = np.sqrt(((xy[:, None, :] - xy[None, :, :]) ** 2).sum(-1)).max() if len(xy) <= 4096 else 0.0
-    return volume, float(span)
+    # the widest span is between two hull corners; rows in chunks keep the pairs' memory small
+    span = 0.0
+    for start in range(0, len(xy), 1024):
+        rows = xy[start : start + 1024]
+        span = max(span, float(np.sqrt(((rows[:, None, :] - xy[None, :, :]) ** 2).sum(-1)).max()))
+    return volume, span
 
 
 def _leaves(reduce: _Reducer, normals: np.ndarray, theta: np.ndarray) -> list[LeafTraits]:

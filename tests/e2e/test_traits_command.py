@@ -63,8 +63,17 @@ def test_a_runs_traits_go_into_it_and_name_the_leaves_its_masks_show(tmp_path: P
         (["{tmp}/notarun"], ["notarun", "no run.json"]),
         (["coltsfoot", "--seed", "-1"], ["--seed", "-1"]),
         (["{tmp}/run", "--seed", "1"], ["--seed", "species"]),
+        (["coltsfoot", "--measure"], ["--measure", "run's directory", "coltsfoot"]),
     ],
-    ids=["unknown-plant", "missing-file", "points-have-no-leaves", "not-a-run", "negative-seed", "seed-of-a-run"],
+    ids=[
+        "unknown-plant",
+        "missing-file",
+        "points-have-no-leaves",
+        "not-a-run",
+        "negative-seed",
+        "seed-of-a-run",
+        "measure-a-species",
+    ],
 )
 def test_bad_input(tmp_path: Path, cli, args: list[str], expected: list[str], monkeypatch: pytest.MonkeyPatch) -> None:
     head = "ply\nformat ascii 1.0\nelement vertex 2\nproperty float x\nproperty float y\nproperty float z\n"

@@ -191,3 +191,19 @@ def test_a_plant_without_leaves_is_refused() -> None:
     bare = Mesh("stick", card.vertices, card.faces, card.materials, card.face_material, card.uvs)
     with pytest.raises(UserError, match="no leaves"):
         plant_traits(Plant("stick", bare, LEAF))
+
+
+def test_leaves_are_clustered_apart_where_a_gap_parts_them_and_together_where_they_touch() -> None:
+    """Instance-free counting (DBSCAN on the leaves' points, ids dropped): two 4 cm sheets of
+    points on the 1 mm grid, 2 cm apart, are two clusters each one leaf; the same sheets meeting
+    at a fold (an L) are one cluster that mixes them; a few stray points count as nothing."""
+    from agrisim.traits.estimate import cluster_leaves
+
+    u, v = np.meshgrid(np.arange(40) * 1e-3, np.arange(40) * 1e-3)
+    flat = np.column_stack([u.ravel(), v.ravel(), np.zeros(u.size)])
+    apart = cluster_leaves({1: flat, 2: flat + [0.06, 0.0, 0.0]})
+    assert (apart.count, apart.one_leaf, apart.merged) == (2, 2, 0)
+    upright = np.column_stack([np.full(u.size, 0.04), v.ravel(), u.ravel() + 1e-3])
+    stray = np.array([[0.3, 0.3, 0.3], [-0.3, 0.2, 0.1], [0.2, -0.3, 0.0]])
+    folded = cluster_leaves({1: flat, 2: np.concatenate([upright, stray])})
+    assert (folded.count, folded.one_leaf, folded.merged) == (1, 0, 1)
