@@ -201,9 +201,7 @@ class Episode:
                 self.step(k)
                 if progress:
                     progress(k + 1, steps)
-            if self._session is not None and self.recon_spec is not None:
-                with self._stage("metrics"), blame("reconstructor", self.recon_spec, " to finish"):
-                    run.reconstruction, run.metrics = self._session.finish(self._metrics_meta())
+            self.finish_reconstruction()
         except KeyboardInterrupt:
             status, error = "interrupted", "interrupted by the user"
             raise
@@ -303,6 +301,7 @@ class Episode:
                 merged_every=self.config.recon.merged_every,
             )
         self._physics, self._planner, self._run = physics, planner, run
+        self._views: list[View] = []  # the last step's views (visit returns them)
         self._rng = np.random.default_rng(self.config.seed)
         try:
             self._sinks = self._register_sinks(run)
@@ -323,6 +322,36 @@ class Episode:
     def step(self, k: int) -> None:
         """The ``k``-th setpoint of every arm that has one."""
         self._step({r: sps[k] for r, sps in self.setpoints.items() if k < len(sps)})
+
+    def visit(self, targets: dict[str, Setpoint]) -> tuple[list[SetpointResult], list[View]]:
+        """Move each arm of ``targets`` to its setpoint and take the view there, as a routine's
+        step does (IK, planning, timing, physics, render, reconstruction), for setpoints chosen
+        on the way rather than planned: a target not yet among the run's setpoints joins them
+        (its ``index`` must be the arm's next). Returns the step's results and the views taken
+        (an arm that did not reach its target takes none)."""
+        for robot, sp in targets.items():
+            planned = self.setpoints.setdefault(robot, [])
+            if sp not in planned:
+                if sp.index != len(planned):
+                    raise ValueError(f"setpoint {sp.frame} is not {robot}'s next ({len(planned)})")
+                planned.append(sp)
+        before = len(self._run.results)
+        self._step(targets)
+        return self._run.results[before:], self._views
+
+    def finish_reconstruction(self) -> dict[str, Any] | None:
+        """The reconstruction of the views so far, finished and measured against the truth
+        (the run's ``metrics.json`` content; None without a reconstructor)."""
+        run = self._run
+        if self._session is None or self.recon_spec is None:
+            return None
+        with self._stage("metrics"), blame("reconstructor", self.recon_spec, " to finish"):
+            run.reconstruction, run.metrics = self._session.finish(self._metrics_meta())
+        return run.metrics
+
+    def joint_positions(self, robot: str) -> np.ndarray:
+        """Where ``robot``'s joints are now, as the physics has them."""
+        return self._physics.joint_positions(robot)
 
     def close(self, status: str, error: str = "") -> RunSummary:
         """Announce the end (``agrisim_run_finished``: the run's files are completed) and close
@@ -467,6 +496,7 @@ class Episode:
         return True
 
     def _step(self, targets: dict[str, Setpoint]) -> None:
+        self._views = []
         results = {r: SetpointResult(r, sp.index, sp.frame, reached=False) for r, sp in targets.items()}
         moves: dict[str, tuple[np.ndarray, TimedPath]] = {}
         for robot, sp in targets.items():
@@ -591,6 +621,8 @@ class Episode:
         if self._session is not None and view is not None and self.recon_spec is not None:
             with self._stage("recon"), blame("reconstructor", self.recon_spec, f" integrating {capture.frame}"):
                 self._session.add(view)
+        if view is not None:
+            self._views.append(view)
         return capture
 
     def _shoot(self, capture: Capture) -> None:

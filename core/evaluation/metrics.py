@@ -51,6 +51,8 @@ class GroundTruth:
     points: np.ndarray  # (K, 3)
     labels: np.ndarray  # (K,) uint8 label ids of the run's table
     area_m2: float | None  # opaque area of the plant, estimated from the samples (None: points only)
+    normals: np.ndarray | None = None  # (K, 3) unit normals of the samples' triangles (None: points only)
+    instances: np.ndarray | None = None  # (K,) leaf instance of each sample, 0 off the leaves
 
     @classmethod
     def sample(cls, mesh: Mesh, count: int, seed: int = 0) -> GroundTruth:
@@ -59,7 +61,15 @@ class GroundTruth:
         keep = opaque_samples(mesh, faces, bary)
         labels = labels_at_samples(mesh, faces[keep], bary[keep])
         area = float(mesh.areas.sum()) * float(keep.mean())
-        return cls(mesh, points[keep], labels, area)
+        v = mesh.vertices[mesh.faces[faces[keep]]]
+        normals = np.cross(v[:, 1] - v[:, 0], v[:, 2] - v[:, 0])
+        normals /= np.maximum(np.linalg.norm(normals, axis=1, keepdims=True), 1e-300)
+        instances = (
+            np.zeros(len(normals), np.int64)
+            if mesh.face_instance is None
+            else mesh.face_instance[faces[keep]].astype(np.int64)
+        )
+        return cls(mesh, points[keep], labels, area, normals, instances)
 
     @classmethod
     def of_points(cls, points: PointSet, count: int, seed: int = 0) -> GroundTruth:
