@@ -349,6 +349,15 @@ class Episode:
             run.reconstruction, run.metrics = self._session.finish(self._metrics_meta())
         return run.metrics
 
+    def look_from(self, world_T_camera: np.ndarray) -> View:
+        """What the camera would see from ``world_T_camera`` with the arms left out, nothing
+        moved, announced or written: a look ahead for planners that may use the truth."""
+        if self._renderer is None:
+            raise ConfigError("look_from needs a renderer")
+        T = np.asarray(world_T_camera, float)
+        images = self._renderer.render(self.camera, T, {})
+        return View("look-ahead", self.camera, T, images.stored(self.config.render.depth_format != "png16"))
+
     def joint_positions(self, robot: str) -> np.ndarray:
         """Where ``robot``'s joints are now, as the physics has them."""
         return self._physics.joint_positions(robot)

@@ -116,6 +116,27 @@ def build_parser() -> argparse.ArgumentParser:
         default="sensor",
         help="with --measure: the run's depth sensor (its exact depth where it had none; default) or the exact depth",
     )
+    nextview = sub.add_parser(
+        "nextview",
+        help="which views to take: policies compared on agrisim/PlantView-v0 (coverage against views and motion)",
+        description="Run each policy's episode on each plant in agrisim/PlantView-v0 (the paper's 100 views first: "
+        "the coverage the others must reach), and write OUT/nextview.json (coverage and motion after every view), "
+        "OUT/nextview.png and a run directory per episode; print the table.",
+    )
+    nextview.add_argument(
+        "--plant", nargs="+", default=["coltsfoot"], metavar="NAME", help="species or plant files, or 'all' (coltsfoot)"
+    )
+    nextview.add_argument(
+        "--policies",
+        default="paper,random,oracle,volumetric,volumetric-motion",
+        help="comma-separated: paper, random, oracle, volumetric, volumetric-motion (all)",
+    )
+    nextview.add_argument("--views", type=int, default=30, metavar="N", help="views each policy but paper takes (30)")
+    nextview.add_argument("--resolution", default="480x270", metavar="WxH", help="the camera's images (480x270)")
+    nextview.add_argument("--seed", type=int, default=0, metavar="N", help="plant and policy seed (0)")
+    nextview.add_argument("--out", type=Path, default=Path("nextview"), help="output directory (./nextview)")
+    nextview.add_argument("--overwrite", action="store_true", help="replace a benchmark already in --out")
+    _set_flag(nextview, "any setting of the episodes by its dotted name, e.g. physics.backend=kinematic")
     plugins = sub.add_parser("plugins", help="list every backend of every kind and where it comes from")
     plugins.add_argument("--options", action="store_true", help="also list each backend's options")
     doctor = sub.add_parser(

@@ -529,6 +529,33 @@ def _cmd_compare(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_nextview(args: argparse.Namespace) -> int:
+    from pathlib import Path
+
+    from agrisim.app.nextview import check_candidates, check_request, plot, prepare_out, run_benchmark, table
+    from agrisim.app.progress import EpisodeProgress
+    from agrisim.registry import Registry, make_plugin_manager
+
+    # "all": the paper's ten species (the built-in species; Helios crops are named one by one)
+    species = [name for name in Registry(make_plugin_manager()).specs("plant") if ":" not in name]
+    plants = species if args.plant == ["all"] else list(args.plant)
+    policies = [p.strip() for p in args.policies.split(",") if p.strip()]
+    check_request(plants, policies, args.views)
+    overrides: dict[str, Any] = {}
+    apply_sets(overrides, args.set)
+    options = {"resolution": args.resolution, "config": overrides}
+    for plant in plants:  # a bad plant or setting, or views out of reach, before anything is written
+        check_candidates(plant, options)
+    out = Path(args.out)
+    prepare_out(out, args.overwrite)
+    with EpisodeProgress("views") as progress:
+        episodes = run_benchmark(plants, policies, args.views, out, options, args.seed, progress.stage)
+    print(table(episodes))
+    plot(episodes, out / "nextview.png")
+    print(f"wrote {out / 'nextview.json'} and {out / 'nextview.png'}")
+    return 0
+
+
 def _cmd_sweep(args: argparse.Namespace) -> int:
     from agrisim.app.progress import SweepProgress
     from agrisim.app.sweep import plan_sweep, read_spec
@@ -571,6 +598,8 @@ def main(argv: Sequence[str] | None = None) -> int:
             return _cmd_plants(args)
         if args.command == "traits":
             return _cmd_traits(args)
+        if args.command == "nextview":
+            return _cmd_nextview(args)
         if args.command == "recon":
             return _cmd_recon(args)
         if args.command == "export":

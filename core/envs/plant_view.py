@@ -33,10 +33,12 @@ from agrisim.evaluation.views import View
 from agrisim.lab.room import soil_pose
 from agrisim.nextview.coverage import SurfaceCoverage
 from agrisim.nextview.occupancy import VoxelMap
+from agrisim.registry import Registry, make_plugin_manager
 from agrisim.robot.kinematics import ArmKinematics
 from agrisim.robot.setpoints import Setpoint, hemisphere
 from agrisim.scene.camera_choice import camera_of
 from agrisim.scene.cell import build_cell
+from agrisim.scene.plant_choice import check_plant_name
 from agrisim.scene.transforms import look_at
 
 #: the continuous action's radius range, m
@@ -106,11 +108,13 @@ class PlantViewEnv(gym.Env[dict[str, np.ndarray], Any]):
             "routine": {"setpoints": candidates},
         }
         self._base = merge(base, config or {})
-        self._config = build_config(self._base)  # every input checked here, before any episode
-        cell = build_cell(self._config.cell)
+        #: the settings every episode starts from (checked here, before any episode)
+        self.config = build_config(self._base)
+        check_plant_name(Registry(make_plugin_manager()), self.config)
+        cell = build_cell(self.config.cell)
         self.arms = [arm.name for arm in cell.arms]
-        self.camera = camera_of(self._config.camera)
-        routine = self._config.routine
+        self.camera = camera_of(self.config.camera)
+        routine = self.config.routine
         self.candidates: list[Setpoint] = [
             sp for pair in zip(*hemisphere(cell, routine).values(), strict=True) for sp in pair
         ]  # the paper's order: each step's setpoint of every arm in turn
@@ -225,8 +229,15 @@ class PlantViewEnv(gym.Env[dict[str, np.ndarray], Any]):
             return sp.robot, sp.world_T_camera
         azimuth, polar, radius, arm = (float(a) for a in np.asarray(action, np.float64))
         direction = np.array([np.sin(polar) * np.cos(azimuth), np.sin(polar) * np.sin(azimuth), np.cos(polar)])
-        position = self._sphere_centre - np.array([0.0, 0.0, self._config.routine.aim_height]) + radius * direction
+        position = self._sphere_centre - np.array([0.0, 0.0, self.config.routine.aim_height]) + radius * direction
         return self.arms[min(int(arm >= 0.5), len(self.arms) - 1)], look_at(position, self._sphere_centre)
+
+    def look_from(self, world_T_camera: np.ndarray) -> View:
+        """The view from ``world_T_camera`` with the arms left out, taken without moving or
+        writing anything (:meth:`agrisim.episode.Episode.look_from`): for policies that may
+        look ahead at the truth, such as the oracle."""
+        assert self._episode is not None, "call reset() first"
+        return self._episode.look_from(world_T_camera)
 
     def camera_position(self, robot: str) -> np.ndarray:
         """Where ``robot``'s camera is now (world frame)."""

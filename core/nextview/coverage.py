@@ -36,16 +36,26 @@ class SurfaceCoverage:
         halves = self.seen[self.sheet].sum()
         return float(whole + 0.5 * halves) / n
 
-    def add(self, view: View) -> float:
-        """Add ``view``; returns the share of the surface it saw first."""
-        before = self.value
+    def visible(self, view: View) -> tuple[np.ndarray, np.ndarray]:
+        """The samples ``view`` sees that are not yet fully seen, and the side it sees each
+        from (0 front, 1 back; 0 for a closed organ's)."""
         idx = np.flatnonzero(~self.seen.all(axis=1) & (self.sheet | ~self.seen[:, 0]))
         seen = idx[visible_samples(self.truth, view, idx)]
         if self.truth.normals is None:
-            side = np.zeros(len(seen), np.int64)
-        else:
-            towards = view.world_T_camera[:3, 3] - self.truth.points[seen]
-            side = ((towards * self.truth.normals[seen]).sum(axis=1) < 0).astype(np.int64)
-            side[~self.sheet[seen]] = 0
+            return seen, np.zeros(len(seen), np.int64)
+        towards = view.world_T_camera[:3, 3] - self.truth.points[seen]
+        side = ((towards * self.truth.normals[seen]).sum(axis=1) < 0).astype(np.int64)
+        side[~self.sheet[seen]] = 0
+        return seen, side
+
+    def gain(self, seen: np.ndarray, side: np.ndarray) -> float:
+        """The share of the surface that samples ``seen`` from ``side`` would add."""
+        new = ~self.seen[seen, side]
+        return float(np.where(self.sheet[seen[new]], 0.5, 1.0).sum()) / max(len(self.seen), 1)
+
+    def add(self, view: View) -> float:
+        """Add ``view``; returns the share of the surface it saw first."""
+        seen, side = self.visible(view)
+        gained = self.gain(seen, side)
         self.seen[seen, side] = True
-        return self.value - before
+        return gained

@@ -1,0 +1,203 @@
+"""``agrisim nextview``: the view-choosing benchmark. Each plant, each policy
+(:mod:`agrisim.nextview.policies`) runs one episode of ``agrisim/PlantView-v0``; every step's
+coverage and motion time go to ``OUT/nextview.json``, each episode's views to its own run
+directory (``OUT/<plant>/<policy>/episode_0000``), the curves to ``OUT/nextview.png``, and a
+table says how many views and how much motion each policy needs to see what the paper's 100
+views see."""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from agrisim.errors import OutputError, UserError
+
+#: the paper's policy always takes every candidate: its final coverage is the others' target
+PAPER = "paper"
+
+
+@dataclass
+class Episode:
+    """One policy's episode on one plant: after each step, the coverage and the motion so far."""
+
+    plant: str
+    policy: str
+    coverage: list[float] = field(default_factory=list)
+    motion_s: list[float] = field(default_factory=list)
+    reach_failures: int = 0
+    run_dir: str = ""
+
+    def views_to(self, target: float) -> int | None:
+        """The views after which the coverage first reaches ``target`` (None: never)."""
+        hit = np.flatnonzero(np.asarray(self.coverage) >= target - 1e-12)
+        return int(hit[0]) + 1 if len(hit) else None
+
+
+def check_request(plants: Sequence[str], policies: Sequence[str], views: int) -> None:
+    """Refuse an unknown policy or too few views (plants are checked when their env is built)."""
+    from agrisim.nextview.policies import POLICIES
+
+    unknown = [p for p in policies if p not in POLICIES]
+    if unknown:
+        raise UserError(f"unknown policy {unknown[0]!r}; policies are {', '.join(POLICIES)}")
+    if views < 1:
+        raise UserError(f"--views must be 1 or more, got {views}")
+    if not plants:
+        raise UserError("--plant names no plant")
+
+
+def reachable_candidates(env: Any) -> int:
+    """How many of ``env``'s candidates an arm's IK reaches (collisions aside): a set none of
+    them reaches is refused before any episode runs."""
+    from agrisim.robot.kinematics import ArmKinematics
+    from agrisim.scene.cell import build_cell
+
+    cell = build_cell(env.config.cell)
+    kins = {arm.name: (ArmKinematics(arm), np.array(arm.home)) for arm in cell.arms}
+    rng = np.random.default_rng(0)
+    count = 0
+    for sp in env.candidates:
+        kin, home = kins[sp.robot]
+        count += kin.ik(sp.world_T_camera, home, rng=rng, restarts=4, max_restarts=16).q is not None
+    return count
+
+
+def check_candidates(plant: str, env_options: dict[str, Any]) -> None:
+    """Refuse a candidate set that no arm reaches at all, before anything runs or is written."""
+    from agrisim.envs.plant_view import PlantViewEnv
+
+    env = PlantViewEnv(plant=plant, **env_options)
+    try:
+        if not reachable_candidates(env):
+            raise UserError(
+                f"none of the {len(env.candidates)} candidate views is within the arms' reach "
+                f"(routine radius {env.config.routine.radius} m): nothing to choose from"
+            )
+    finally:
+        env.close()
+
+
+def run_benchmark(
+    plants: Sequence[str],
+    policies: Sequence[str],
+    views: int,
+    out: Path,
+    env_options: dict[str, Any],
+    seed: int = 0,
+    progress: Callable[[str, int, int], None] | None = None,
+) -> list[Episode]:
+    """Every plant x policy episode (the paper's first on each plant: the others' target)."""
+    from agrisim.envs.plant_view import PlantViewEnv
+    from agrisim.nextview.policies import POLICIES
+
+    order = [PAPER] + [p for p in policies if p != PAPER]
+    episodes: list[Episode] = []
+    for plant in plants:
+        for name in order:
+            env = PlantViewEnv(plant=plant, out=out / _slug(plant) / name, **env_options)
+            steps = len(env.candidates) if name == PAPER else min(views, len(env.candidates))
+            env.max_views = steps
+            policy = POLICIES[name](seed)
+            obs, info = env.reset(seed=seed, options={"plant_seed": seed, "pcg_seed": 42})
+            policy.reset(env)
+            record = Episode(plant, name)
+            done = False
+            while not done:
+                action = policy.act(env, obs)
+                obs, _, terminated, truncated, info = env.step(action)
+                policy.observe(action, info)
+                record.coverage.append(info["coverage"])
+                record.motion_s.append(info["motion_total_s"])
+                done = terminated or truncated
+                if progress is not None:
+                    progress(f"{plant} {name}", len(record.coverage), steps)
+            record.reach_failures, record.run_dir = info["reach_failures"], info["run_dir"]
+            env.close()
+            episodes.append(record)
+            _write(out, episodes)
+    return episodes
+
+
+def _slug(plant: str) -> str:
+    return Path(plant).stem if plant.endswith((".glb", ".gltf", ".obj")) else plant
+
+
+def _write(out: Path, episodes: list[Episode]) -> None:
+    from agrisim.files.atomic import write_json
+
+    doc: dict[str, dict[str, Any]] = {}
+    for e in episodes:
+        doc.setdefault(e.plant, {})[e.policy] = {
+            "coverage": e.coverage,
+            "motion_s": e.motion_s,
+            "reach_failures": e.reach_failures,
+            "run_dir": e.run_dir,
+        }
+    write_json(
+        out / "nextview.json", {"plants": doc, "coverage": "share of the true surface seen (both sides of leaves)"}
+    )
+
+
+def table(episodes: list[Episode]) -> str:
+    """A Markdown row a plant and policy: coverage after 10 and 30 views, the views and motion
+    it takes to reach the paper's 100-view coverage, reach failures."""
+    paper = {e.plant: e for e in episodes if e.policy == PAPER}
+    lines = [
+        "| plant | policy | coverage @10 / @30 views | views to the paper's coverage | motion then, s | of the paper's | reach failures |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    for e in episodes:
+        ref = paper.get(e.plant)
+        target = ref.coverage[-1] if ref is not None and ref.coverage else float("nan")
+        k = e.views_to(target)
+        at = [f"{e.coverage[n - 1]:.3f}" if len(e.coverage) >= n else "-" for n in (10, 30)]
+        motion = e.motion_s[k - 1] if k is not None else None
+        share = f"{100 * motion / ref.motion_s[-1]:.0f}%" if motion is not None and ref and ref.motion_s[-1] else "-"
+        lines.append(
+            f"| {e.plant.replace('_', ' ')} | {e.policy} | {' / '.join(at)} | {k if k is not None else 'not reached'} "
+            f"| {f'{motion:.0f}' if motion is not None else '-'} | {share} | {e.reach_failures} |"
+        )
+    return "\n".join(lines)
+
+
+def plot(episodes: list[Episode], path: Path) -> None:
+    """Coverage against views and against motion time, a row a plant."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    plants = list(dict.fromkeys(e.plant for e in episodes))
+    fig, axes = plt.subplots(len(plants), 2, figsize=(10, 3.2 * len(plants)), squeeze=False)
+    for row, plant in zip(axes, plants, strict=True):
+        for e in (e for e in episodes if e.plant == plant):
+            views = np.arange(1, len(e.coverage) + 1)
+            row[0].plot(views, e.coverage, label=e.policy)
+            row[1].plot(e.motion_s, e.coverage, label=e.policy)
+        row[0].set_title(f"{plant.replace('_', ' ')}: coverage against views", fontsize=9)
+        row[1].set_title("against the arms' motion time", fontsize=9)
+        row[0].set_xscale("log")
+        row[0].set_xlabel("views")
+        row[1].set_xlabel("motion, s")
+        for ax in row:
+            ax.set_ylabel("true surface seen")
+            ax.grid(alpha=0.3)
+        row[0].legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+
+
+def prepare_out(out: Path, overwrite: bool) -> None:
+    """``out`` made ready: a finished benchmark there is kept unless ``overwrite``."""
+    import shutil
+
+    if (out / "nextview.json").exists() and not overwrite:
+        raise OutputError(f"{out} holds a benchmark already (nextview.json); pass --overwrite to replace it")
+    if out.exists() and overwrite:
+        shutil.rmtree(out)
+    out.mkdir(parents=True, exist_ok=True)
