@@ -127,3 +127,27 @@ def test_a_leaf_card_is_covered_one_side_at_a_time(tmp_path: Path) -> None:
     assert back["reached"]
     assert back["coverage"] > 0.9 and coverage.seen[:, 1].mean() > 0.8
     env.close()
+
+
+def test_it_runs_as_a_vector_of_processes_and_records_to_rerun(tmp_path: Path) -> None:
+    """Two environments in their own processes (Gymnasium's AsyncVectorEnv), each episode
+    recorded to Rerun in its run directory."""
+    from gymnasium.vector import AsyncVectorEnv
+
+    def make(k: int):  # noqa: ANN202
+        return lambda: small_env(max_views=2, record=True, out=tmp_path / f"env{k}")
+
+    envs = AsyncVectorEnv([make(0), make(1)])
+    try:
+        obs, _ = envs.reset(seed=[1, 2])
+        assert obs["rgb"].shape == (2, 90, 160, 3)
+        for actions in ([0, 1], [2, 3]):
+            obs, rewards, terminated, truncated, infos = envs.step(np.array(actions))
+        assert truncated.all() and (rewards > 0).all()
+        assert (infos["coverage"] > 0).all()
+    finally:
+        envs.close()
+    for k in range(2):
+        run = tmp_path / f"env{k}" / "episode_0000"
+        assert (run / layout.RECORDING).stat().st_size > 0
+        assert len(list((run / "rgb").glob("*.png"))) == 2
