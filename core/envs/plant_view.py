@@ -13,7 +13,7 @@ Actions are an index into a candidate set (``candidates="5x10"``: the paper's he
 ``(azimuth, polar angle, radius, arm)`` around the plant (radians from +x and from the zenith,
 metres from the hemisphere's centre; arm < 0.5 is the first). Observations: the new view's RGB,
 depth (m) and labels, every arm's joints, and the voxel map of what the views saw
-(:mod:`agrisim.nextview.occupancy`: unknown, free, occupied).
+(:mod:`agrisim.nextview.occupancy`: unknown, free, occupied, plant).
 """
 
 from __future__ import annotations
@@ -131,7 +131,7 @@ class PlantViewEnv(gym.Env[dict[str, np.ndarray], Any]):
                 "joints": spaces.Box(
                     np.stack([k.lower for k in kins]) - 1e-3, np.stack([k.upper for k in kins]) + 1e-3, dtype=np.float64
                 ),
-                "occupancy": spaces.Box(0, 2, (grid_cells,) * 3, np.uint8),
+                "occupancy": spaces.Box(0, 3, (grid_cells,) * 3, np.uint8),
             }
         )
         if actions == "discrete":
@@ -259,7 +259,7 @@ class PlantViewEnv(gym.Env[dict[str, np.ndarray], Any]):
         self._obs["rgb"] = np.ascontiguousarray(images.rgb, np.uint8)
         self._obs["depth"] = np.asarray(images.depth, np.float32)
         self._obs["labels"] = np.asarray(images.labels, np.uint8)
-        self.voxels.integrate(view.camera, view.world_T_camera, images.depth)
+        self.voxels.integrate(view.camera, view.world_T_camera, images.depth, images.labels)
         self._obs["occupancy"] = self.voxels.cells.copy()
 
     def _info(self, gained: float, moved: float, reached: bool, reason: str, frame: str) -> dict[str, Any]:

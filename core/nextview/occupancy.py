@@ -1,8 +1,9 @@
 """What the camera has seen so far, as a voxel map around the plant: each voxel unknown, free
-(a view's ray passed through it) or occupied (a ray ended in it), and the volumetric
-information gain of a candidate view: the unknown voxels its rays would reach before they meet
-an occupied one (Isler et al. 2016's "unobserved voxels"; Delmerico et al. 2018 compare this
-family). Built from what the views measured only: their depth and poses, never the truth.
+(a view's ray passed through it), occupied (a ray ended in it) or plant (a ray ended in it on a
+pixel the camera's segmentation calls plant), and the volumetric information gain of a
+candidate view: the unknown voxels its rays would reach before they meet an occupied one
+(Isler et al. 2016's "unobserved voxels"; Delmerico et al. 2018 compare this family).
+Built from what the views measured only: depth, segmentation and poses, never the truth.
 
 Rays are marched in steps of half a voxel, every ``stride``-th pixel of a view: a plain NumPy
 traversal, exact enough for a map whose voxels are a centimetre across, and free of a C++
@@ -17,12 +18,12 @@ import numpy as np
 
 from agrisim.scene.camera import CameraModel
 
-UNKNOWN, FREE, OCCUPIED = 0, 1, 2
+UNKNOWN, FREE, OCCUPIED, PLANT = 0, 1, 2, 3
 
 
 @dataclass
 class VoxelMap:
-    """``cells`` (G x G x G uint8: :data:`UNKNOWN`, :data:`FREE`, :data:`OCCUPIED`) over the cube
+    """``cells`` (G x G x G uint8: :data:`UNKNOWN`, :data:`FREE`, :data:`OCCUPIED`, :data:`PLANT`) over the cube
     of side ``size_m`` whose lowest corner is ``origin`` (world frame)."""
 
     origin: np.ndarray
@@ -59,10 +60,17 @@ class VoxelMap:
         live &= np.all((index >= 0) & (index < n), axis=2)
         return np.clip(index, 0, n - 1), live
 
-    def integrate(self, camera: CameraModel, world_T_camera: np.ndarray, depth: np.ndarray, stride: int = 4) -> None:
+    def integrate(
+        self,
+        camera: CameraModel,
+        world_T_camera: np.ndarray,
+        depth: np.ndarray,
+        labels: np.ndarray | None = None,
+        stride: int = 4,
+    ) -> None:
         """Add a view: along each sampled pixel's ray the voxels before its depth become free
-        (unless already occupied), the voxel at its depth occupied; a pixel without depth (0)
-        frees its whole ray."""
+        (unless already occupied), the voxel at its depth occupied (plant where ``labels`` is
+        above 0); a pixel without depth (0) frees its whole ray."""
         v, u = np.mgrid[stride // 2 : camera.height : stride, stride // 2 : camera.width : stride]
         u, v = u.ravel(), v.ravel()
         sx, sy = camera.rays(u.astype(np.float64), v.astype(np.float64))
@@ -77,15 +85,23 @@ class VoxelMap:
         index, live = self._march(t, directions, distance - self.voxel_m / 2.0)
         free = index[live]
         cells = self.cells
-        keep = cells[free[:, 0], free[:, 1], free[:, 2]] != OCCUPIED
+        keep = cells[free[:, 0], free[:, 1], free[:, 2]] < OCCUPIED
         cells[free[keep, 0], free[keep, 1], free[keep, 2]] = FREE
         ends = t + directions[hit] * distance[hit, None]
         at = np.floor((ends - self.origin) / self.voxel_m).astype(np.int64)
         inside = np.all((at >= 0) & (at < cells.shape[0]), axis=1)
-        cells[at[inside, 0], at[inside, 1], at[inside, 2]] = OCCUPIED
+        plant = np.zeros(int(hit.sum()), bool) if labels is None else labels[v[hit], u[hit]] > 0
+        at, plant = at[inside], plant[inside]
+        # plant wins over other occupancy: a voxel that holds a leaf's edge and the wall behind
+        cells[at[:, 0], at[:, 1], at[:, 2]] = np.maximum(cells[at[:, 0], at[:, 1], at[:, 2]], OCCUPIED)
+        cells[at[plant, 0], at[plant, 1], at[plant, 2]] = PLANT
 
     def information_gain(
-        self, camera: CameraModel, world_T_camera: np.ndarray, rays: tuple[int, int] = (32, 18), reach_m: float = 1.5
+        self,
+        camera: CameraModel,
+        world_T_camera: np.ndarray,
+        rays: tuple[int, int] = (32, 18),
+        reach_m: float = 1.5,
     ) -> int:
         """The unknown voxels a view from ``world_T_camera`` would reach: along a ``rays`` grid of
         its pixels, those met before the first occupied voxel (within ``reach_m``)."""
@@ -97,12 +113,12 @@ class VoxelMap:
         directions = (slopes / np.linalg.norm(slopes, axis=1)[:, None]) @ world_T_camera[:3, :3].T
         index, live = self._march(world_T_camera[:3, 3], directions, np.full(len(directions), reach_m))
         state = self.cells[index[..., 0], index[..., 1], index[..., 2]]
-        blocked = np.cumsum(live & (state == OCCUPIED), axis=1) > 0
+        blocked = np.cumsum(live & (state >= OCCUPIED), axis=1) > 0
         counted = live & ~blocked & (state == UNKNOWN)
         # each voxel once, however many rays (and samples of one ray) reach it
         return int(len(np.unique(np.ravel_multi_index(tuple(index[counted].T), self.cells.shape))))
 
     def counts(self) -> dict[str, int]:
-        """How many voxels are unknown, free and occupied."""
-        c = np.bincount(self.cells.ravel(), minlength=3)
-        return {"unknown": int(c[UNKNOWN]), "free": int(c[FREE]), "occupied": int(c[OCCUPIED])}
+        """How many voxels are unknown, free, occupied (not plant) and plant."""
+        c = np.bincount(self.cells.ravel(), minlength=4)
+        return {"unknown": int(c[UNKNOWN]), "free": int(c[FREE]), "occupied": int(c[OCCUPIED]), "plant": int(c[PLANT])}
