@@ -12,25 +12,26 @@ from agrisim.scene.transforms import look_at
 
 
 def test_a_wall_seen_head_on() -> None:
-    """A 1 m cube of 20 cells (5 cm) around the origin; a camera at x = -2 looks along +x at a
-    wall x = 0.12 filling its view (depth = 2.12 m on every pixel), labelled plant in its
+    """A 1 m cube of 20 cells (5 cm) around the origin; a camera at x = -1.2 looks along +x at a
+    wall x = 0.12 filling its view (depth = 1.32 m on every pixel), labelled plant in its
     left half."""
     vmap = VoxelMap.around(np.zeros(3), 1.0, 20)
     camera = from_fov(30.0, 64, 48)
-    pose = look_at(np.array([-2.0, 0.0, 0.0]), np.zeros(3))
-    depth = np.full((48, 64), 2.12, np.float32)
+    pose = look_at(np.array([-1.2, 0.0, 0.0]), np.zeros(3))
+    depth = np.full((48, 64), 1.32, np.float32)
     labels = np.zeros((48, 64), np.uint8)
     labels[:, :32] = 1
     vmap.integrate(camera, pose, depth, labels, stride=1)
     x = (np.arange(20) + 0.5) * 0.05 - 0.5  # voxel centres
-    # the view's footprint at x = 0.12 spans |y| < 0.57, |z| < 0.43: the middle rows and columns
+    # the view's footprint at x = 0.12 spans |y| < 0.35, |z| < 0.27: the middle rows and columns
     mid = vmap.cells[:, 8:12, 8:12]
     assert np.all(mid[x < 0.07] == FREE)  # in front of the wall's voxel (0.10 to 0.15)
     assert np.all(mid[(x > 0.1) & (x < 0.15)] >= OCCUPIED)
     assert np.all(mid[x > 0.16] == UNKNOWN)  # behind the wall
     wall = vmap.cells[12]
     assert PLANT in wall and OCCUPIED in wall and not np.any(wall == FREE)
-    # the same view again learns nothing; one from behind the wall reaches its unknown side
+    # the same view again learns nothing (its rays, 1.5 m long, stop at the wall); one from
+    # behind the wall reaches its unknown side
     assert vmap.information_gain(camera, pose) == 0
     behind = look_at(np.array([1.2, 0.0, 0.0]), np.zeros(3))
     gain = vmap.information_gain(camera, behind, rays=(64, 48))
