@@ -358,6 +358,11 @@ class Episode:
         images = self._renderer.render(self.camera, T, {})
         return View("look-ahead", self.camera, T, images.stored(self.config.render.depth_format != "png16"))
 
+    @property
+    def wall_s(self) -> dict[str, float]:
+        """Seconds of wall time spent so far, by stage (ik, plan, execute, render, recon ...)."""
+        return self._run.wall_s
+
     def joint_positions(self, robot: str) -> np.ndarray:
         """Where ``robot``'s joints are now, as the physics has them."""
         return self._physics.joint_positions(robot)

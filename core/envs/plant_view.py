@@ -19,6 +19,7 @@ depth (m) and labels, every arm's joints, and the voxel map of what the views sa
 from __future__ import annotations
 
 import tempfile
+import time
 from pathlib import Path
 from typing import Any
 
@@ -146,6 +147,8 @@ class PlantViewEnv(gym.Env[dict[str, np.ndarray], Any]):
         self._episode: Episode | None = None
         self._episodes = 0
         self._obs: dict[str, np.ndarray] | None = None
+        #: seconds spent on the reward's coverage and on the voxel map (bench/nextview_speed.py)
+        self.timing = {"coverage": 0.0, "map": 0.0}
 
     # ----------------------------------------------------------------------------- gym API
 
@@ -197,8 +200,12 @@ class PlantViewEnv(gym.Env[dict[str, np.ndarray], Any]):
         if not result.reached:
             self.reach_failures += 1
         for view in views:
+            t0 = time.perf_counter()
             gained += self.coverage.add(view)
+            t1 = time.perf_counter()
             self._observe(view)
+            self.timing["coverage"] += t1 - t0
+            self.timing["map"] += time.perf_counter() - t1
         self.views += 1
         self.motion_s += moved
         self._obs["joints"] = self._joints()
@@ -231,6 +238,11 @@ class PlantViewEnv(gym.Env[dict[str, np.ndarray], Any]):
         direction = np.array([np.sin(polar) * np.cos(azimuth), np.sin(polar) * np.sin(azimuth), np.cos(polar)])
         position = self._sphere_centre - np.array([0.0, 0.0, self.config.routine.aim_height]) + radius * direction
         return self.arms[min(int(arm >= 0.5), len(self.arms) - 1)], look_at(position, self._sphere_centre)
+
+    @property
+    def episode(self) -> Episode | None:
+        """The episode in progress (its run, backends and timings), None before reset()."""
+        return self._episode
 
     def look_from(self, world_T_camera: np.ndarray) -> View:
         """The view from ``world_T_camera`` with the arms left out, taken without moving or
