@@ -136,6 +136,9 @@ def build_parser() -> argparse.ArgumentParser:
     nextview.add_argument("--seed", type=int, default=0, metavar="N", help="plant and policy seed (0)")
     nextview.add_argument("--out", type=Path, default=Path("nextview"), help="output directory (./nextview)")
     nextview.add_argument("--overwrite", action="store_true", help="replace a benchmark already in --out")
+    nextview.add_argument(
+        "--report", action="store_true", help="print the table and draw the plot of the benchmark in --out again"
+    )
     _set_flag(nextview, "any setting of the episodes by its dotted name, e.g. physics.backend=kinematic")
     plugins = sub.add_parser("plugins", help="list every backend of every kind and where it comes from")
     plugins.add_argument("--options", action="store_true", help="also list each backend's options")

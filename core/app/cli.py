@@ -532,9 +532,26 @@ def _cmd_compare(args: argparse.Namespace) -> int:
 def _cmd_nextview(args: argparse.Namespace) -> int:
     from pathlib import Path
 
-    from agrisim.app.nextview import check_candidates, check_request, plot, prepare_out, run_benchmark, table
+    from agrisim.app.nextview import (
+        check_candidates,
+        check_request,
+        plot,
+        prepare_out,
+        read_episodes,
+        run_benchmark,
+        table,
+    )
     from agrisim.app.progress import EpisodeProgress
     from agrisim.registry import Registry, make_plugin_manager
+
+    out = Path(args.out)
+    if args.report:
+        if not (out / "nextview.json").is_file():
+            raise UserError(f"{out} holds no benchmark (nextview.json) to report")
+        episodes = read_episodes(out / "nextview.json")
+        print(table(episodes))
+        plot(episodes, out / "nextview.png")
+        return 0
 
     # "all": the paper's ten species (the built-in species; Helios crops are named one by one)
     species = [name for name in Registry(make_plugin_manager()).specs("plant") if ":" not in name]
@@ -546,7 +563,6 @@ def _cmd_nextview(args: argparse.Namespace) -> int:
     options = {"resolution": args.resolution, "config": overrides}
     for plant in plants:  # a bad plant or setting, or views out of reach, before anything is written
         check_candidates(plant, options)
-    out = Path(args.out)
     prepare_out(out, args.overwrite)
     with EpisodeProgress("views") as progress:
         episodes = run_benchmark(plants, policies, args.views, out, options, args.seed, progress.stage)

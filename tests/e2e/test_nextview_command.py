@@ -43,6 +43,8 @@ def test_policies_are_compared_and_the_oracle_leads(tmp_path: Path, cli) -> None
             assert oracle[k] >= c - 1e-9, f"{name} saw more than the oracle after {k + 1} views"
     assert (out / "nextview.png").stat().st_size > 0
     assert "| coltsfoot | oracle |" in stdout
+    code, again, err = cli(["nextview", "--out", str(out), "--report"])
+    assert code == 0 and again.strip() == stdout.strip().rsplit("\n", 1)[0].strip(), err
     code, _, err = cli([*args, "--views", "5", "--out", str(out), *QUICK])
     assert_one_line_error(code, err, ["nextview.json", "--overwrite"])
 
