@@ -10,6 +10,7 @@ run's scores are kept in OUT/traits_table.json and reused (``--again`` measures 
 
     python bench/traits_table.py OUT [--plants all] [--sensors exact,azure-kinect-nfov,d435,d415,d405]
         [--setpoints 5x10] [--resolution 960x540] [--plot docs/traits_area.png] [--plot-sensor d435]
+        [--plot-also OTHER/traits_table.json:TITLE]
 """
 
 from __future__ import annotations
@@ -65,6 +66,13 @@ def main() -> None:
     parser.add_argument("--resolution", default="960x540")
     parser.add_argument("--plot", type=Path)
     parser.add_argument("--plot-sensor", default="d435")
+    parser.add_argument(
+        "--plot-also",
+        action="append",
+        default=[],
+        metavar="STORE:TITLE",
+        help="another run's traits_table.json, its first sensor drawn as a panel first (say 1920x1080)",
+    )
     parser.add_argument("--again", action="store_true", help="measure every run anew")
     args = parser.parse_args()
 
@@ -123,34 +131,42 @@ def main() -> None:
             )
         print(f"| {species.replace('_', ' ')} | " + " | ".join(cells) + " |")
     if args.plot is not None:
-        _plot(args.plot, kept, plants, [first, args.plot_sensor])
+        panels = []
+        for extra in args.plot_also:
+            store_path, _, title = extra.partition(":")
+            other = json.loads(Path(store_path).read_text())
+            panels.append((title or store_path, other, first))
+        panels += [(f"{s} depth, {args.resolution}", kept, s) for s in dict.fromkeys([first, args.plot_sensor])]
+        _plot(args.plot, panels, plants)
 
 
-def _plot(path: Path, kept: dict[str, Any], plants: list[str], sensors: list[str]) -> None:
+def _plot(path: Path, panels: list[tuple[str, dict[str, Any], str]], plants: list[str]) -> None:
+    """Estimated against true leaf area, a panel each (title, scores, sensor), every species'
+    leaves; boxwood's thousands of small leaves drawn faint."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     import numpy as np
 
-    sensors = [s for s in dict.fromkeys(sensors) if all(f"{p}-{s}" in kept for p in plants)]
-    fig, axes = plt.subplots(1, len(sensors), figsize=(5.2 * len(sensors), 5.2), squeeze=False)
-    for ax, sensor in zip(axes[0], sensors, strict=True):
+    panels = [(t, k, s) for t, k, s in panels if all(f"{p}-{s}" in k for p in plants)]
+    fig, axes = plt.subplots(1, len(panels), figsize=(4.6 * len(panels), 4.8), squeeze=False)
+    for ax, (title, kept, sensor) in zip(axes[0], panels, strict=True):
         pairs = {p: np.array(kept[f"{p}-{sensor}"]["areas"]).reshape(-1, 2) * 1e4 for p in plants}
-        top = max(float(a.max(initial=1.0)) for a in pairs.values())
-        low = min(float(a[a > 0].min(initial=top)) for a in pairs.values())
+        low, top = 0.1, 400.0
         for species, a in pairs.items():
-            ax.scatter(a[:, 0], np.maximum(a[:, 1], low), s=9, label=species.replace("_", " "))
+            many = len(a) > 1000
+            ax.scatter(a[:, 0], np.clip(a[:, 1], low, top), s=3 if many else 10, alpha=0.25 if many else 0.9,
+                       label=species.replace("_", " "), rasterized=True)  # fmt: skip
         ax.plot([low, top], [low, top], "k-", lw=0.8)
         for band in (0.95, 1.05):
             ax.plot([low, top], [low * band, top * band], "k:", lw=0.6)
-        ax.set_xscale("log")
-        ax.set_yscale("log")
+        ax.set(xscale="log", yscale="log", xlim=(low, top), ylim=(low, top), title=title)
         ax.set_xlabel("true leaf area, cm² (agrisim traits)")
         ax.set_ylabel("estimated leaf area, cm²")
-        ax.set_title("exact depth" if sensor == "exact" else sensor, fontsize=10)
-    axes[0][0].legend(fontsize=7)
-    fig.savefig(path, dpi=110, bbox_inches="tight")
+    axes[0][0].legend(fontsize=7, markerscale=1.5)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
     print(f"wrote {path}")
 
 
