@@ -10,11 +10,11 @@ setup:
 run: setup
 	$(VENV)/bin/agrisim run $(ARGS)
 
+# The suite: one worker a core (at most 4: each holds Open3D, Dr.Jit and a Ray cluster), a test
+# module's tests together (their fixtures are built once); the slowest tests listed at the end.
 test: setup
 	bash scripts/test-deps.sh
 	VENV=$(VENV) bash scripts/lint.sh
-	# one worker a core (at most 4: each holds Open3D, Dr.Jit and a Ray cluster), a test module's
-	# tests together (their fixtures are built once); the slowest tests listed at the end
 	$(VENV)/bin/python -m pytest -q -n auto --maxprocesses=4 --dist loadfile --durations=15 tests
 
 # Debian's ROS 1, for agrisim ros --ros 1 (make test installs it too)
