@@ -128,8 +128,8 @@ def build_parser() -> argparse.ArgumentParser:
     )
     nextview.add_argument(
         "--policies",
-        default="paper,random,oracle,volumetric,volumetric-motion",
-        help="comma-separated: paper, random, oracle, volumetric, volumetric-motion (all)",
+        default="paper,random,oracle,volumetric,volumetric-motion,surface,surface-motion",
+        help="comma-separated: paper, random, oracle, volumetric, volumetric-motion, surface, surface-motion (all)",
     )
     nextview.add_argument("--views", type=int, default=30, metavar="N", help="views each policy but paper takes (30)")
     nextview.add_argument("--resolution", default="480x270", metavar="WxH", help="the camera's images (480x270)")

@@ -84,7 +84,7 @@ class PlantViewEnv(gym.Env[dict[str, np.ndarray], Any]):
         motion_weight: float = 0.01,
         unreachable_penalty: float = 0.05,
         truth_samples: int = 100_000,
-        grid_cells: int = 40,
+        grid_cells: int = 80,
         grid_size_m: float = 0.5,
         out: str | Path | None = None,
         record: bool = False,

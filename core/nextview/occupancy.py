@@ -29,12 +29,23 @@ class VoxelMap:
     origin: np.ndarray
     size_m: float
     cells: np.ndarray
+    #: each plant voxel's surface normal as the first view to hit it measured it (G x G x G x 3)
+    normals: np.ndarray | None = None
+    #: the sides of each plant voxel's surface seen so far: 1 its normal's side, 2 the other
+    sides: np.ndarray | None = None
 
     @classmethod
     def around(cls, centre: np.ndarray, size_m: float = 0.5, cells: int = 40) -> VoxelMap:
         """An all-unknown map: a cube of ``size_m`` centred on ``centre``, ``cells`` a side."""
         origin = np.asarray(centre, float) - size_m / 2.0
-        return cls(origin, float(size_m), np.zeros((cells, cells, cells), np.uint8))
+        shape = (cells, cells, cells)
+        return cls(
+            origin,
+            float(size_m),
+            np.zeros(shape, np.uint8),
+            np.zeros((*shape, 3), np.float32),
+            np.zeros(shape, np.uint8),
+        )
 
     @property
     def voxel_m(self) -> float:
@@ -95,6 +106,16 @@ class VoxelMap:
         # plant wins over other occupancy: a voxel that holds a leaf's edge and the wall behind
         cells[at[:, 0], at[:, 1], at[:, 2]] = np.maximum(cells[at[:, 0], at[:, 1], at[:, 2]], OCCUPIED)
         cells[at[plant, 0], at[plant, 1], at[plant, 2]] = PLANT
+        if self.normals is not None and self.sides is not None and plant.any():
+            # the surface's side this view saw, against the normal its voxel first got: a leaf
+            # seen from below is its other side, whichever way the views measured its normal
+            measured = _depth_normals(camera, depth, u[hit][inside][plant], v[hit][inside][plant]) @ R.T
+            i, j, k = at[plant].T
+            new = ~self.normals[i, j, k].any(axis=1)
+            self.normals[i[new], j[new], k[new]] = measured[new]
+            towards = t - ends[inside][plant]
+            front = (self.normals[i, j, k] * towards).sum(axis=1) >= 0
+            self.sides[i, j, k] |= np.where(front, 1, 2).astype(np.uint8)
 
     def information_gain(
         self,
@@ -102,9 +123,11 @@ class VoxelMap:
         world_T_camera: np.ndarray,
         rays: tuple[int, int] = (32, 18),
         reach_m: float = 1.5,
+        surface: bool = False,
     ) -> int:
         """The unknown voxels a view from ``world_T_camera`` would reach: along a ``rays`` grid of
-        its pixels, those met before the first occupied voxel (within ``reach_m``)."""
+        its pixels, those met before the first occupied voxel (within ``reach_m``); with
+        ``surface``, also the plant voxels first met whose side facing the view is unseen."""
         u = (np.arange(rays[0]) + 0.5) * camera.width / rays[0]
         v = (np.arange(rays[1]) + 0.5) * camera.height / rays[1]
         uu, vv = np.meshgrid(u, v)
@@ -113,12 +136,49 @@ class VoxelMap:
         directions = (slopes / np.linalg.norm(slopes, axis=1)[:, None]) @ world_T_camera[:3, :3].T
         index, live = self._march(world_T_camera[:3, 3], directions, np.full(len(directions), reach_m))
         state = self.cells[index[..., 0], index[..., 1], index[..., 2]]
-        blocked = np.cumsum(live & (state >= OCCUPIED), axis=1) > 0
+        solid = live & (state >= OCCUPIED)
+        blocked = np.cumsum(solid, axis=1) > 0
         counted = live & ~blocked & (state == UNKNOWN)
         # each voxel once, however many rays (and samples of one ray) reach it
-        return int(len(np.unique(np.ravel_multi_index(tuple(index[counted].T), self.cells.shape))))
+        gain = len(np.unique(np.ravel_multi_index(tuple(index[counted].T), self.cells.shape)))
+        if surface and self.normals is not None and self.sides is not None:
+            gain += self._unseen_sides(world_T_camera[:3, 3], index, solid)
+        return int(gain)
+
+    def _unseen_sides(self, eye: np.ndarray, index: np.ndarray, solid: np.ndarray) -> int:
+        """The plant voxels first met by the rays (``index``, ``solid``: R x K) whose side facing
+        ``eye`` no view has seen, each once."""
+        assert self.normals is not None and self.sides is not None
+        ends = solid.any(axis=1)
+        first = index[ends, np.argmax(solid[ends], axis=1)]
+        i, j, k = first.T
+        plant = self.cells[i, j, k] == PLANT
+        i, j, k = i[plant], j[plant], k[plant]
+        centres = self.origin + (np.column_stack([i, j, k]) + 0.5) * self.voxel_m
+        front = (self.normals[i, j, k] * (eye - centres)).sum(axis=1) >= 0
+        unseen = (self.sides[i, j, k] & np.where(front, 1, 2)) == 0
+        return len(np.unique(np.ravel_multi_index((i[unseen], j[unseen], k[unseen]), self.cells.shape)))
 
     def counts(self) -> dict[str, int]:
         """How many voxels are unknown, free, occupied (not plant) and plant."""
         c = np.bincount(self.cells.ravel(), minlength=4)
         return {"unknown": int(c[UNKNOWN]), "free": int(c[FREE]), "occupied": int(c[OCCUPIED]), "plant": int(c[PLANT])}
+
+
+def _depth_normals(camera: CameraModel, depth: np.ndarray, u: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Unit surface normals (camera frame, facing the camera) at pixels (u, v) of ``depth``,
+    from the points of the pixel and its right and lower neighbours (the left and upper ones at
+    the image's edge)."""
+    h, w = depth.shape
+
+    def point(uu: np.ndarray, vv: np.ndarray) -> np.ndarray:
+        sx, sy = camera.rays(uu.astype(np.float64), vv.astype(np.float64))
+        z = depth[vv, uu].astype(np.float64)
+        return np.column_stack([sx * z, sy * z, z])
+
+    du = np.where(u + 1 < w, 1, -1)
+    dv = np.where(v + 1 < h, 1, -1)
+    p = point(u, v)
+    n = np.cross((point(u + du, v) - p) * du[:, None], (point(u, v + dv) - p) * dv[:, None])
+    n *= np.where((n * p).sum(axis=1) > 0, -1.0, 1.0)[:, None]  # towards the camera (at the origin)
+    return n / np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-12)

@@ -11,7 +11,10 @@ candidates (discrete actions), for ``agrisim nextview``'s benchmark:
   2018), the voxel map of :mod:`agrisim.nextview.occupancy`;
 - ``volumetric-motion``: the same gain discounted by the move, ``gain * exp(-distance /
   MOTION_SCALE_M)`` with ``distance`` from where that arm's camera is now (Bircher et al.
-  2016's discount), so that near views win ties and the arms travel less.
+  2016's discount), so that near views win ties and the arms travel less;
+- ``surface``, ``surface-motion``: the volumetric gain plus the plant voxels the view would
+  meet whose facing side no view has seen yet (the map keeps each plant voxel's measured normal
+  and the sides seen): a leaf's underside counts, as in the reward.
 
 Every policy skips candidates already taken or found out of reach.
 """
@@ -93,15 +96,34 @@ class Volumetric(Policy):
         return max(self.open(env), key=lambda i: self.score(env, i))
 
 
+def _discount(env: PlantViewEnv, i: int) -> float:
+    """``exp(-d / MOTION_SCALE_M)``, ``d`` the candidate's distance from its arm's camera now."""
+    sp = env.candidates[i]
+    distance = float(np.linalg.norm(sp.world_T_camera[:3, 3] - env.camera_position(sp.robot)))
+    return float(np.exp(-distance / MOTION_SCALE_M))
+
+
 class VolumetricMotion(Volumetric):
     name = "volumetric-motion"
 
     def score(self, env: PlantViewEnv, i: int) -> float:
-        sp = env.candidates[i]
-        distance = float(np.linalg.norm(sp.world_T_camera[:3, 3] - env.camera_position(sp.robot)))
-        return super().score(env, i) * float(np.exp(-distance / MOTION_SCALE_M))
+        return super().score(env, i) * _discount(env, i)
+
+
+class Surface(Volumetric):
+    name = "surface"
+
+    def score(self, env: PlantViewEnv, i: int) -> float:
+        return float(env.voxels.information_gain(env.camera, env.candidates[i].world_T_camera, surface=True))
+
+
+class SurfaceMotion(Surface):
+    name = "surface-motion"
+
+    def score(self, env: PlantViewEnv, i: int) -> float:
+        return super().score(env, i) * _discount(env, i)
 
 
 POLICIES: dict[str, Callable[[int], Policy]] = {
-    p.name: p for p in (Paper, Random, Oracle, Volumetric, VolumetricMotion)
+    p.name: p for p in (Paper, Random, Oracle, Volumetric, VolumetricMotion, Surface, SurfaceMotion)
 }

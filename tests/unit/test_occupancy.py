@@ -37,3 +37,21 @@ def test_a_wall_seen_head_on() -> None:
     gain = vmap.information_gain(camera, behind, rays=(64, 48))
     unknown_behind = int(np.sum(vmap.cells[13:, 6:14, 7:13] == UNKNOWN))
     assert gain >= unknown_behind > 0
+
+
+def test_a_plant_surface_has_two_sides() -> None:
+    """The wall as plant, seen from its front: every voxel of it has its front side seen (the
+    normal the depth gives points back at the camera), so a second look from the front finds no
+    unseen side; a look from behind finds its back sides, on top of the unknown voxels."""
+    vmap = VoxelMap.around(np.zeros(3), 1.0, 20)
+    camera = from_fov(30.0, 64, 48)
+    front = look_at(np.array([-1.2, 0.0, 0.0]), np.zeros(3))
+    vmap.integrate(camera, front, np.full((48, 64), 1.32, np.float32), np.ones((48, 64), np.uint8), stride=1)
+    assert vmap.normals is not None and vmap.sides is not None
+    wall = vmap.cells == PLANT
+    assert wall.any() and np.all(vmap.sides[wall] == 1)
+    assert np.allclose(vmap.normals[wall], [-1.0, 0.0, 0.0], atol=1e-6)
+    assert vmap.information_gain(camera, front, surface=True) == 0
+    behind = look_at(np.array([1.2, 0.0, 0.0]), np.zeros(3))
+    volume, surface = vmap.information_gain(camera, behind), vmap.information_gain(camera, behind, surface=True)
+    assert surface - volume > 0.5 * int(wall.sum())
