@@ -535,6 +535,7 @@ def _cmd_nextview(args: argparse.Namespace) -> int:
     from agrisim.app.nextview import (
         check_candidates,
         check_request,
+        pivot,
         plot,
         prepare_out,
         read_episodes,
@@ -549,7 +550,7 @@ def _cmd_nextview(args: argparse.Namespace) -> int:
         if not (out / "nextview.json").is_file():
             raise UserError(f"{out} holds no benchmark (nextview.json) to report")
         episodes = read_episodes(out / "nextview.json")
-        print(table(episodes))
+        print(table(episodes) + "\n\n" + pivot(episodes))
         plot(episodes, out / "nextview.png")
         return 0
 
@@ -566,7 +567,7 @@ def _cmd_nextview(args: argparse.Namespace) -> int:
     prepare_out(out, args.overwrite)
     with EpisodeProgress("views") as progress:
         episodes = run_benchmark(plants, policies, args.views, out, options, args.seed, progress.stage)
-    print(table(episodes))
+    print(table(episodes) + "\n\n" + pivot(episodes))
     plot(episodes, out / "nextview.png")
     print(f"wrote {out / 'nextview.json'} and {out / 'nextview.png'}")
     return 0

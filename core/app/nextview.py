@@ -175,6 +175,26 @@ def table(episodes: list[Episode]) -> str:
     return "\n".join(lines)
 
 
+def pivot(episodes: list[Episode]) -> str:
+    """The same, a row a plant and a column a policy: coverage after the last view (30 by
+    default) and, in brackets, the views to 99% of the paper's 100-view coverage."""
+    paper = {e.plant: e for e in episodes if e.policy == PAPER}
+    policies = list(dict.fromkeys(e.policy for e in episodes if e.policy != PAPER))
+    cell = {(e.plant, e.policy): e for e in episodes}
+    lines = ["| plant | paper, 100 views | " + " | ".join(policies) + " |", "|---" * (len(policies) + 2) + "|"]
+    for plant, ref in paper.items():
+        row = [f"{ref.coverage[-1]:.3f}" if ref.coverage else "-"]
+        for name in policies:
+            e = cell.get((plant, name))
+            if e is None or not e.coverage:
+                row.append("-")
+                continue
+            k = e.views_to(NEAR * ref.coverage[-1]) if ref.coverage else None
+            row.append(f"{e.coverage[-1]:.3f} ({k if k is not None else '-'})")
+        lines.append(f"| {plant.replace('_', ' ')} | " + " | ".join(row) + " |")
+    return "\n".join(lines)
+
+
 def read_episodes(path: Path) -> list[Episode]:
     """The episodes of a nextview.json (to print its table again)."""
     import json
