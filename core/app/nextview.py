@@ -215,7 +215,7 @@ def plot(episodes: list[Episode], path: Path) -> None:
     import matplotlib.pyplot as plt
 
     plants = list(dict.fromkeys(e.plant for e in episodes))
-    fig, axes = plt.subplots(len(plants), 2, figsize=(10, 3.2 * len(plants)), squeeze=False)
+    fig, axes = plt.subplots(len(plants), 2, figsize=(10, 2.4 * len(plants)), squeeze=False)
     for row, plant in zip(axes, plants, strict=True):
         for e in (e for e in episodes if e.plant == plant):
             views = np.arange(1, len(e.coverage) + 1)
@@ -231,7 +231,7 @@ def plot(episodes: list[Episode], path: Path) -> None:
             ax.grid(alpha=0.3)
         row[0].legend(fontsize=7)
     fig.tight_layout()
-    fig.savefig(path, dpi=100)
+    fig.savefig(path, dpi=80)
     plt.close(fig)
 
 
