@@ -21,7 +21,7 @@ PAPER = "paper"
 
 
 @dataclass
-class Episode:
+class PolicyRun:
     """One policy's episode on one plant: after each step, the coverage and the motion so far."""
 
     plant: str
@@ -89,13 +89,13 @@ def run_benchmark(
     env_options: dict[str, Any],
     seed: int = 0,
     progress: Callable[[str, int, int], None] | None = None,
-) -> list[Episode]:
+) -> list[PolicyRun]:
     """Every plant x policy episode (the paper's first on each plant: the others' target)."""
     from agrisim.envs.plant_view import PlantViewEnv
     from agrisim.nextview.policies import POLICIES
 
     order = [PAPER] + [p for p in policies if p != PAPER]
-    episodes: list[Episode] = []
+    episodes: list[PolicyRun] = []
     for plant in plants:
         for name in order:
             env = PlantViewEnv(plant=plant, out=out / _slug(plant) / name, **env_options)
@@ -104,7 +104,7 @@ def run_benchmark(
             policy = POLICIES[name](seed)
             obs, info = env.reset(seed=seed, options={"plant_seed": seed, "pcg_seed": 42})
             policy.reset(env)
-            record = Episode(plant, name)
+            record = PolicyRun(plant, name)
             done = False
             while not done:
                 action = policy.act(env, obs)
@@ -126,7 +126,7 @@ def _slug(plant: str) -> str:
     return Path(plant).stem if plant.endswith((".glb", ".gltf", ".obj")) else plant
 
 
-def _write(out: Path, episodes: list[Episode]) -> None:
+def _write(out: Path, episodes: list[PolicyRun]) -> None:
     from agrisim.files.atomic import write_json
 
     doc: dict[str, dict[str, Any]] = {}
@@ -146,7 +146,7 @@ def _write(out: Path, episodes: list[Episode]) -> None:
 NEAR = 0.99
 
 
-def table(episodes: list[Episode]) -> str:
+def table(episodes: list[PolicyRun]) -> str:
     """A Markdown row a plant and policy: coverage after 10 and 30 views; the views each policy
     takes to reach the paper's 100-view coverage, and 99% of it, with the arms' motion time
     then (and its share of the paper's whole routine); reach failures."""
@@ -175,7 +175,7 @@ def table(episodes: list[Episode]) -> str:
     return "\n".join(lines)
 
 
-def pivot(episodes: list[Episode]) -> str:
+def pivot(episodes: list[PolicyRun]) -> str:
     """The same, a row a plant and a column a policy: coverage after the last view (30 by
     default) and, in brackets, the views to 99% of the paper's 100-view coverage."""
     paper = {e.plant: e for e in episodes if e.policy == PAPER}
@@ -195,19 +195,19 @@ def pivot(episodes: list[Episode]) -> str:
     return "\n".join(lines)
 
 
-def read_episodes(path: Path) -> list[Episode]:
+def read_episodes(path: Path) -> list[PolicyRun]:
     """The episodes of a nextview.json (to print its table again)."""
     import json
 
     doc = json.loads(path.read_text())["plants"]
     return [
-        Episode(plant, policy, e["coverage"], e["motion_s"], e["reach_failures"], e["run_dir"])
+        PolicyRun(plant, policy, e["coverage"], e["motion_s"], e["reach_failures"], e["run_dir"])
         for plant, policies in doc.items()
         for policy, e in policies.items()
     ]
 
 
-def plot(episodes: list[Episode], path: Path) -> None:
+def plot(episodes: list[PolicyRun], path: Path) -> None:
     """Coverage against views and against motion time, a row a plant."""
     import matplotlib
 
