@@ -2,7 +2,7 @@
 VENV ?= .venv
 ARGS ?=
 
-.PHONY: setup run test lint bench lock clean ros
+.PHONY: setup run test lint bench lock clean ros docs docs-serve wheel
 
 setup:
 	bash scripts/setup.sh
@@ -25,6 +25,19 @@ ros:
 lint: setup
 	VENV=$(VENV) bash scripts/lint.sh
 
+# The documentation site (mkdocs.yml): built strictly into site/ (a broken link or reference
+# fails), or served on loopback while you edit docs/
+DOCS_ENV = NO_MKDOCS_2_WARNING=1 DISABLE_MKDOCS_2_WARNING=true
+docs: setup
+	$(DOCS_ENV) $(VENV)/bin/mkdocs build --strict --site-dir site
+
+docs-serve: setup
+	$(DOCS_ENV) $(VENV)/bin/mkdocs serve --dev-addr 127.0.0.1:8000
+
+# The sdist, and the wheel built from it, into dist/ (with the lock's setuptools: no download)
+wheel: setup
+	$(VENV)/bin/python -m build --no-isolation --outdir dist .
+
 bench: setup
 	$(VENV)/bin/python bench/robot_episode.py
 
@@ -38,4 +51,4 @@ lock: setup
 		--universal --python-version 3.10 --custom-compile-command "make lock" -o requirements.lock
 
 clean:
-	rm -rf $(VENV) runs .pytest_cache
+	rm -rf $(VENV) runs .pytest_cache site dist

@@ -17,8 +17,8 @@ from machine import cpu_model  # noqa: E402
 
 from agrisim.config import build_config  # noqa: E402
 from agrisim.episode import Episode  # noqa: E402
-from agrisim.files.coco import COCO_JSON, write_coco  # noqa: E402
-from agrisim.files.rosbag import write_rosbag  # noqa: E402
+from agrisim.plugins.exporters.coco import COCO_JSON, write_coco  # noqa: E402
+from agrisim.plugins.exporters.rosbag import write_rosbag  # noqa: E402
 
 
 def size_mb(paths: list[Path]) -> float:

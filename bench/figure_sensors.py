@@ -21,7 +21,7 @@ from PIL import Image  # noqa: E402
 
 from agrisim.evaluation.metrics import SurfaceDistance  # noqa: E402
 from agrisim.evaluation.session import truth_from_run  # noqa: E402
-from agrisim.files.rosbag import read_cloud  # noqa: E402
+from agrisim.plugins.exporters.rosbag import read_cloud  # noqa: E402
 
 MAX_MM = 10.0  # colour scale of the clouds: distances beyond this are drawn as this
 

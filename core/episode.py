@@ -10,9 +10,11 @@ from __future__ import annotations
 
 import dataclasses
 import datetime as _dt
+import functools
 import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -27,6 +29,7 @@ from agrisim.evaluation.session import ReconSession, summary_metrics
 from agrisim.evaluation.views import View, load_frame, view_from_capture, view_of
 from agrisim.files.atomic import remove_partial
 from agrisim.files.dataset import DatasetWriter
+from agrisim.files.exports import RUN_EXPORTS, build_exporter, run_export
 from agrisim.files.rundir import prepare_out_dir, resolve_out_dir, saved_frames, saved_run
 from agrisim.interfaces import (
     Capture,
@@ -395,7 +398,7 @@ class Episode:
 
     def _register_sinks(self, run: Run) -> list[object]:
         # The run directory's writer first, always: resume, recon, export and compare need its files.
-        writer = DatasetWriter(run)
+        writer = DatasetWriter(run, self._run_exports())
         self.pm.register(writer, name=f"dataset:{run.run_id}")
         sinks: list[object] = [writer]
         try:
@@ -410,6 +413,18 @@ class Episode:
                 self.pm.unregister(sink)
             raise
         return sinks
+
+    def _run_exports(self) -> list[Callable[[Path], object]]:
+        """The exports a rendered run writes itself at its end (:data:`RUN_EXPORTS`, those
+        installed), built now with their default options."""
+        installed = self.registry.specs("exporter")
+        exports: list[Callable[[Path], object]] = []
+        for name in RUN_EXPORTS:
+            if name in installed:
+                spec, exporter = build_exporter(self.registry, name)
+                # the run's own directory: its earlier export (--resume, --overwrite) is replaced
+                exports.append(functools.partial(run_export, spec, exporter, overwrite=True))
+        return exports
 
     @contextmanager
     def _stage(self, name: str) -> Iterator[None]:

@@ -3,7 +3,8 @@
 Two families:
 
 * **Providers** (``agrisim_physics``, ``agrisim_renderers``, ``agrisim_sensors``, ``agrisim_planners``,
-  ``agrisim_reconstructors``, ``agrisim_plants``, ``agrisim_sinks``, ``agrisim_bridges``) return a list of
+  ``agrisim_reconstructors``, ``agrisim_plants``, ``agrisim_sinks``, ``agrisim_bridges``,
+  ``agrisim_exporters``) return a list of
   :class:`agrisim.BackendSpec`. Results of all plugins are concatenated; a name provided twice is
   an error naming both distributions. They are called once per run, never in the inner loop.
 * **Events** (``agrisim_run_started`` ... ``agrisim_run_finished``) announce what an episode does.
@@ -99,6 +100,19 @@ def agrisim_bridges() -> list[BackendSpec]:
     opened :class:`agrisim.live.LiveSession` and the bridge's validated options; the bridge
     registers its own event hook implementations (``agrisim_capture``, to publish views) on
     ``session.pm``."""
+
+
+@hookspec
+def agrisim_exporters() -> list[BackendSpec]:
+    """Exporters of a finished run directory to another tool's format (``agrisim export NAME
+    RUN_DIR [OUT]``: the spec's name is the command's NAME). The core calls ``factory(options)
+    -> Exporter`` with the exporter's validated options (``--set exporter.NAME.KEY=VALUE``) and
+    then ``export(run_dir, out, overwrite, progress)``; the result must be an
+    :class:`agrisim.interfaces.Exporter`, whose docstring is the contract (check everything
+    first; bad input is a one-line :class:`agrisim.errors.UserError` with nothing written; no
+    earlier export replaced without ``overwrite``). Importing the provider's module should stay
+    light: give the format's library to the factory (``lazy("pkg.module:MyExporter")``) or import
+    it inside :meth:`~agrisim.interfaces.Exporter.export`."""
 
 
 # ---------------------------------------------------------------- episode events

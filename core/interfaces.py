@@ -9,6 +9,7 @@ from __future__ import annotations
 from abc import ABC, abstractmethod
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -430,3 +431,60 @@ class Bridge(ABC):
     def describe(self) -> list[str]:
         """One line per topic or service served, for the command line to print."""
         return []
+
+
+class Exporter(ABC):
+    """Writes a finished run directory in another tool's format: ``agrisim export NAME RUN_DIR
+    [OUT]`` (and a sweep's follow-ups, and every rendered run's own ``transforms.json``).
+
+    Built as ``factory(options)`` with the exporter's validated options (its spec's
+    ``options_model``; ``--set exporter.NAME.KEY=VALUE`` on the command line), then
+    :meth:`export` is called once with:
+
+    * ``run_dir``: the run directory as the user named it: anything, until checked;
+    * ``out``: where the export goes: the user's ``OUT``, else ``run_dir /``
+      :attr:`default_out`; a file or a folder, as the exporter documents;
+    * ``overwrite``: whether an earlier export in ``out`` may be replaced (``--overwrite``);
+    * ``progress``: ``progress(done, total)`` for a progress bar, or None.
+
+    It must:
+
+    * read and check everything it needs before writing anything: bad input (not a run
+      directory, a run not complete, a missing or unreadable file, an ``OUT`` it cannot honour)
+      raises :class:`agrisim.errors.UserError` with a one-line message naming the file or the
+      setting, and leaves the disk as it was (the CLI prints it and exits 2);
+    * never replace finished work silently: an existing ``out`` without ``overwrite`` is refused
+      with :class:`agrisim.errors.OutputError` naming ``--overwrite`` (an exporter whose files
+      are a pure function of the run's and that every run writes itself, as nerfstudio's, may
+      rewrite them identically);
+    * write atomically (:mod:`agrisim.files.atomic`: a file through a temporary file, a folder
+      staged beside ``out``), so that an interrupted export leaves the old one or none;
+    * never change the run's own files; and return the path it wrote (``out``, usually).
+    """
+
+    #: what :meth:`export` counts in ``progress(done, total)`` (the bar's name); None: it
+    #: reports no progress
+    progress_unit: str | None = None
+
+    def __init__(self, options: Any) -> None:
+        self.options = options
+
+    @property
+    @abstractmethod
+    def default_out(self) -> str:
+        """Where the export goes when the user names no ``OUT``: a path relative to the run
+        directory (``coco/annotations.json``, ``rosbag``), inside it."""
+
+    @abstractmethod
+    def export(
+        self,
+        run_dir: Path,
+        out: Path,
+        overwrite: bool = False,
+        progress: Callable[[int, int], None] | None = None,
+    ) -> Path:
+        """Write the export of the run in ``run_dir`` to ``out``; returns the path written."""
+
+    def summary(self, written: Path) -> str:
+        """The line the user is told once :meth:`export` wrote ``written``."""
+        return f"wrote {written}"

@@ -13,10 +13,19 @@ from typing import Any, Literal
 
 from pydantic import BaseModel
 
-from agrisim.interfaces import Bridge, DepthSensor, PhysicsBackend, Planner, PlantSpecies, Reconstructor, Renderer
+from agrisim.interfaces import (
+    Bridge,
+    DepthSensor,
+    Exporter,
+    PhysicsBackend,
+    Planner,
+    PlantSpecies,
+    Reconstructor,
+    Renderer,
+)
 from agrisim.options import Options
 
-Kind = Literal["physics", "renderer", "sensor", "planner", "reconstructor", "plant", "sink", "bridge"]
+Kind = Literal["physics", "renderer", "sensor", "planner", "reconstructor", "plant", "sink", "bridge", "exporter"]
 
 
 @dataclass(frozen=True)
@@ -27,7 +36,8 @@ class KindInfo:
     """The provider hook returning its :class:`BackendSpec` list."""
     section: str | None
     """The configuration section choosing one (``[physics] backend = ...``); None: not chosen
-    by a setting (every plant is selectable by name, every sink is on)."""
+    by a setting (every plant is selectable by name, every sink is on, an exporter is named
+    on the command line: ``agrisim export NAME``)."""
     abc: type | None
     """The ABC every factory result must be an instance of (None: any object, as a sink is a
     plugin object with event hooks)."""
@@ -53,6 +63,8 @@ KINDS: dict[str, KindInfo] = {
                      "factory(run: Run, options) -> a plugin object with event hooks, or None"),
     "bridge": KindInfo("agrisim_bridges", None, Bridge,
                        "factory(session: LiveSession, options) -> Bridge"),
+    "exporter": KindInfo("agrisim_exporters", None, Exporter,
+                         "factory(options) -> Exporter"),
 }  # fmt: skip
 
 #: kind -> provider hook name

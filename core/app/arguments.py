@@ -39,7 +39,10 @@ def fail(message: str, status: int = 2) -> NoReturn:
 # Long but flat: one declaration per flag, the CLI's reference in one place.
 def build_parser() -> argparse.ArgumentParser:
     """The parser of every subcommand."""
+    from agrisim.version import __version__
+
     p = _Parser(prog=PROG, description="Robot arms photographing plants: simulate, annotate, reconstruct.")
+    p.add_argument("--version", action="version", version=f"{PROG} {__version__}")
     sub = p.add_subparsers(dest="command", metavar="COMMAND")
     sub.required = True
 
@@ -126,10 +129,10 @@ def build_parser() -> argparse.ArgumentParser:
     nextview.add_argument(
         "--plant", nargs="+", default=["coltsfoot"], metavar="NAME", help="species or plant files, or 'all' (coltsfoot)"
     )
+    from agrisim.nextview.policies import POLICIES
+
     nextview.add_argument(
-        "--policies",
-        default="paper,random,oracle,volumetric,volumetric-motion,surface,surface-motion",
-        help="comma-separated: paper, random, oracle, volumetric, volumetric-motion, surface, surface-motion (all)",
+        "--policies", default=",".join(POLICIES), help=f"comma-separated: {', '.join(POLICIES)} (all)"
     )
     nextview.add_argument("--views", type=int, default=30, metavar="N", help="views each policy but paper takes (30)")
     nextview.add_argument("--resolution", default="480x270", metavar="WxH", help="the camera's images (480x270)")
@@ -194,18 +197,24 @@ def build_parser() -> argparse.ArgumentParser:
     _set_flag(render, "renderer.* settings, e.g. renderer.mitsuba.spp=64")
     export = sub.add_parser(
         "export",
-        help="export a run directory to another tool's format",
-        description="Export a run directory: nerfstudio writes RUN_DIR/transforms.json and RUN_DIR/masks/; "
+        help="export a run directory to another tool's format (an exporter: agrisim plugins lists them)",
+        description="Export a run directory with an exporter (agrisim plugins lists the installed ones, with "
+        "their options): nerfstudio writes RUN_DIR/transforms.json and RUN_DIR/masks/; "
         "coco writes RUN_DIR/coco/annotations.json (COCO instance masks); rosbag writes RUN_DIR/rosbag/ "
-        "(a ROS 2 bag in MCAP: TF, joint states, planned trajectories, camera images, depth, labels, clouds).",
+        "(a ROS 2 bag in MCAP: TF, joint states, planned trajectories, camera images, depth, labels, clouds). "
+        "OUT puts the export elsewhere (coco: the JSON file; rosbag: the bag's folder; nerfstudio takes none).",
     )
     export.add_argument(
         "format",
-        choices=["nerfstudio", "coco", "rosbag"],
-        help="the format: nerfstudio (transforms.json), coco or rosbag",
+        metavar="NAME",
+        help="the exporter: nerfstudio (transforms.json), coco, rosbag, or one a plugin adds",
     )
     export.add_argument("run_dir", type=Path, metavar="RUN_DIR", help="a run's output directory (agrisim run --out)")
+    export.add_argument(
+        "out", type=Path, nargs="?", default=None, metavar="OUT", help="where the export goes (default: in RUN_DIR)"
+    )
     export.add_argument("--overwrite", action="store_true", help="replace an existing export (coco, rosbag)")
+    _set_flag(export, "an option of the exporter by its dotted name, exporter.NAME.KEY=VALUE")
     colmap = sub.add_parser(
         "colmap",
         help="COLMAP's structure from motion on a run's views, scored against the true cameras",

@@ -22,6 +22,7 @@ from agrisim.app.arguments import (
     build_parser,
     fail,
     overrides_from_args,
+    parse_value,
     set_dotted,
     web_address,
 )
@@ -402,25 +403,37 @@ def _cmd_traits(args: argparse.Namespace) -> int:
 
 
 def _cmd_export(args: argparse.Namespace) -> int:
-    if args.format == "rosbag":
-        from agrisim.app.progress import EpisodeProgress
-        from agrisim.files.rosbag import write_rosbag
+    from agrisim.app.progress import EpisodeProgress
+    from agrisim.files.exports import build_exporter, run_export
+    from agrisim.registry import Registry, make_plugin_manager
 
-        with EpisodeProgress("stamps and frames") as progress:
-            out = write_rosbag(args.run_dir, args.overwrite, progress.update)
-        print(f"wrote {out} (ros2 bag info {out}; open {out / 'rosbag.mcap'} in Foxglove)")
-        return 0
-    if args.format == "coco":
-        from agrisim.files.coco import write_coco
-
-        out = write_coco(args.run_dir, args.overwrite)
-        print(f"wrote {out}")
-        return 0
-    from agrisim.files.nerfstudio import write_nerfstudio
-
-    out = write_nerfstudio(args.run_dir)
-    print(f"wrote {out}")
+    registry = Registry(make_plugin_manager())
+    installed = registry.specs("exporter")
+    if args.format not in installed:
+        choices = ", ".join(installed) or "none: no exporter is installed"
+        raise UserError(f"argument NAME: invalid choice: {args.format!r} (choose from {choices})")
+    spec, exporter = build_exporter(registry, args.format, _export_options(args.format, args.set))
+    with EpisodeProgress(exporter.progress_unit or "export") as progress:
+        report = progress.update if exporter.progress_unit else None
+        written = run_export(spec, exporter, args.run_dir, args.out, args.overwrite, report)
+    print(exporter.summary(written))
     return 0
+
+
+def _export_options(name: str, items: Sequence[str]) -> dict[str, Any]:
+    """``--set exporter.NAME.KEY=VALUE`` items: the options of exporter ``name``."""
+    options: dict[str, Any] = {}
+    prefix = f"exporter.{name}."
+    for item in items:
+        key, sep, value = item.partition("=")
+        key = key.strip()
+        if not sep or not key.startswith(prefix) or key == prefix:
+            raise UserError(
+                f"--set {item!r}: agrisim export {name} takes its exporter's options, {prefix}KEY=VALUE "
+                "(agrisim plugins --options lists them)"
+            )
+        set_dotted(options, key[len(prefix) :], parse_value(value.strip()))
+    return options
 
 
 def _cmd_colmap(args: argparse.Namespace) -> int:

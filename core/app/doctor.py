@@ -4,7 +4,7 @@ It gathers facts (the Python, the CPU and its vector instruction sets, the libLL
 loaded, CUDA for Mitsuba and for PyTorch, ROS 1, Cyclone DDS, the browser of the browser tests),
 asks every installed backend of every kind whether it can run here, checks the default
 ``agrisim run`` exactly as the run itself does (:class:`agrisim.episode.Episode` validates it and
-writes nothing), and times one 1080p ``raycast`` view and the IK against the README's figures.
+writes nothing), and times one 1080p ``raycast`` view and the IK against the figures of the documentation's Performance page.
 
 Backends are asked only through what their providers declare (:class:`agrisim.kinds.BackendSpec`:
 ``preflight``, capabilities, lazy factories): the core imports no backend. Every probe reports a
@@ -36,7 +36,7 @@ from agrisim.version import __version__
 
 @dataclass(frozen=True)
 class Reference:
-    """A figure of the README's "Measured performance" that doctor measures again here."""
+    """A figure of the Performance page's "Measured performance" (docs/performance.md) that doctor measures again here."""
 
     what: str
     value: float
@@ -45,7 +45,7 @@ class Reference:
     """The script in ``bench/`` that measured it."""
 
 
-#: the machine the reference figures below were measured on (README, "Measured performance":
+#: the machine the reference figures below were measured on (docs/performance.md, "Measured performance":
 #: its rows name it; its vector instruction sets were not recorded)
 REFERENCE_MACHINE = "AMD EPYC (AVX-512), 2 cores, no GPU, 2026-11-24"
 #: one 1080p view of indian cress in the lab, RGB + labels + depth, 4 lights, 1 shadow sample,
@@ -475,7 +475,7 @@ def _time_ik() -> dict[str, Any]:
         home = np.array(cell.arms[0].home)
         targets = random_views(cell.plant_center, rng)[:2]  # the bench's 50 targets (the first two used)
         solved = [k.ik(T, home, rng=rng).q for T in targets]
-        # The README's cold figure is of the solver loop itself (no restarts): the same call here.
+        # The Performance page's cold figure is of the solver loop itself (no restarts): the same call here.
         target = k._base.actInv(pin.SE3(targets[0]))
         out["cold_ms"] = _per_call_ms(lambda: k._solve(target, home, 200, 1e-7), 50)
         q = solved[1]
@@ -528,7 +528,7 @@ def render_text(report: dict[str, Any]) -> Iterator[str]:
     speed = report["speed"]
     if speed is not None:
         yield ""
-        yield f"speed here, against the README's figures (measured on {speed['reference_machine']})"
+        yield f"speed here, against docs/performance.md (measured on {speed['reference_machine']})"
         yield from _speed_lines(speed)
         load, cores = speed["load_average"], report["cpu"]["cores"]
         if load is not None and cores and load > cores / 2:
@@ -628,4 +628,4 @@ def _speed_lines(speed: dict[str, Any]) -> Iterator[str]:
 
 def _compare(here: float, ref: Reference) -> str:
     digits = 3 if ref.value < 0.1 else 2
-    return f"{here:.{digits}f} {ref.unit}, README {ref.value:g} {ref.unit}: {here / ref.value:.1f}x its time"
+    return f"{here:.{digits}f} {ref.unit}, ours {ref.value:g} {ref.unit}: {here / ref.value:.1f}x its time"

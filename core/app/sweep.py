@@ -37,7 +37,8 @@ from agrisim.errors import ConfigError, OutputError, UserError
 from agrisim.files import layout
 
 #: the follow-ups a spec's ``[sweep] after`` may name: what ``agrisim colmap``, ``agrisim export
-#: coco`` and ``agrisim export nerfstudio`` do, on each complete run
+#: coco`` and ``agrisim export nerfstudio`` do (the last two through their installed exporters),
+#: on each complete run
 FOLLOW_UPS: tuple[str, ...] = ("colmap", "coco", "nerfstudio")
 #: the keyword arguments of the colmap follow-up (``[sweep.colmap]``): ``agrisim colmap``'s flags
 COLMAP_OPTIONS: tuple[str, ...] = (
@@ -308,6 +309,13 @@ def plan_sweep(
     registry = registry if registry is not None else Registry(make_plugin_manager())
     out = Path(out).expanduser().absolute()  # absolute: Ray workers need not share our cwd
     base = _base(spec, registry)
+    exporters = registry.specs("exporter")
+    absent = [a for a in spec.after if a != "colmap" and a not in exporters]
+    if absent:
+        raise UserError(
+            f"{spec.path}: [sweep] after names {absent[0]!r}, but no such exporter is installed "
+            f"(installed: {', '.join(exporters) or 'none'})"
+        )
     axes = list(spec.axes)
     grid = list(itertools.product(*(spec.axes[a] for a in axes)))
     names = cell_names(axes, grid)

@@ -85,14 +85,12 @@ def _follow_up(run_dir: Path, name: str, colmap: Mapping[str, Any]) -> str:
     if follow_up_done(run_dir, name):
         return "kept"
     try:
-        if name == "coco":
-            from agrisim.files.coco import write_coco
+        if name in ("coco", "nerfstudio"):  # agrisim export NAME, through the installed exporter
+            from agrisim.files.exports import build_exporter, run_export
+            from agrisim.registry import Registry, make_plugin_manager
 
-            write_coco(run_dir, overwrite=True)  # (a half-made one of a lost worker is replaced)
-        elif name == "nerfstudio":
-            from agrisim.files.nerfstudio import write_nerfstudio
-
-            write_nerfstudio(run_dir)
+            spec, exporter = build_exporter(Registry(make_plugin_manager()), name)
+            run_export(spec, exporter, run_dir, overwrite=True)  # (a half-made one of a lost worker is replaced)
         else:
             from agrisim.evaluation.photogrammetry import run_colmap
 

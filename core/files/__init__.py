@@ -1,1 +1,1 @@
-"""File formats and the run directory: plant assets (glTF, OBJ), the GLB writer, atomic writes, image encodings, run-directory readers and exports."""
+"""File formats and the run directory: plant assets (glTF, OBJ), the GLB writer, atomic writes, image encodings, the run directory's writer and readers (the exports are plugins: agrisim.plugins.exporters)."""

@@ -1,7 +1,9 @@
 """The run directory's writer: the run's files on disk (DESIGN.md's output layout).
 
 Core code, always on, not a plugin: ``--resume``, ``agrisim recon``, the exports and
-``agrisim compare`` read what it writes. The episode registers it for every run before any
+``agrisim compare`` read what it writes. A run that rendered frames ends with the exports it
+writes itself (nerfstudio's ``transforms.json``: :data:`agrisim.files.exports.RUN_EXPORTS`),
+through the exporters installed. The episode registers it for every run before any
 sink plugin; it observes the run through the same event hooks.
 
 ``run.json`` is rewritten atomically after every setpoint, so at any moment it tells how far the
@@ -22,6 +24,7 @@ from __future__ import annotations
 
 import platform
 import sys
+from collections.abc import Callable, Sequence
 from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import fields
 from importlib import metadata
@@ -36,7 +39,6 @@ from agrisim.files.atomic import to_json, write_bytes, write_json
 from agrisim.files.encoding import depth_to_mm
 from agrisim.files.exr import write_exr
 from agrisim.files.glb import export_glb
-from agrisim.files.nerfstudio import write_nerfstudio
 from agrisim.files.png import encode_png
 from agrisim.files.point_cloud import write_points_ply
 from agrisim.files.rundir import camera_to_json
@@ -105,8 +107,11 @@ class DatasetWriter:
     ``frames_complete`` only once all its files are on disk.
     """
 
-    def __init__(self, run: Run) -> None:
+    def __init__(self, run: Run, exports: Sequence[Callable[[Path], object]] = ()) -> None:
         self.out = run.out_dir
+        #: what writes the exports the run makes itself (:data:`agrisim.files.exports.RUN_EXPORTS`)
+        #: into the run directory it is given, once run.json is final
+        self.exports = tuple(exports)
         self.frames: dict[str, dict[str, Any]] = {}
         self.status = "running"
         self.summary: dict[str, Any] | None = None
@@ -266,8 +271,9 @@ class DatasetWriter:
             self.summary = summary.to_dict()
             _write_pretty(self.out / layout.RUN_JSON, self._run_json(run))
         if self.frames and run.labels is not None:
-            # after run.json: the export reads the frames it lists as complete
-            write_nerfstudio(self.out)
+            # after run.json: the exports read the frames it lists as complete
+            for export in self.exports:
+                export(self.out)
 
 
 def _joint_trajectory(jt: JointTrajectory) -> dict[str, Any]:

@@ -18,3 +18,11 @@ def mm_to_depth(mm: np.ndarray) -> np.ndarray:
     """uint16 millimetres back to float32 metres, exactly as Open3D reads a depth PNG with
     ``depth_scale = 1000``; :func:`depth_to_mm` of the result gives ``mm`` back."""
     return np.asarray(mm).astype(np.float32) / np.float32(1000.0)
+
+
+def rep118(depth: np.ndarray) -> np.ndarray:
+    """Planar depth in metres as ROS's REP 118 wants it: float32, +Inf where nothing was hit
+    (0 here; REP 117's "no return"). The ROS 2 bag export and the live ROS bridges publish it."""
+    depth = np.asarray(depth, np.float32).copy()
+    depth[depth == 0] = np.inf
+    return depth

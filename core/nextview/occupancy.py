@@ -55,21 +55,41 @@ class VoxelMap:
         """Voxel indices (R x K x 3, int) along rays from ``origin`` along unit ``directions``
         (R x 3), sampled every half voxel from where each enters the cube up to ``lengths`` (R)
         or its exit, and which samples are live (R x K: inside the cube and before the end)."""
+        near, far = self._span(origin, directions, lengths)
+        step = self.voxel_m / 2.0
+        count = int(np.ceil(max(float((far - near).max(initial=0.0)), 0.0) / step)) + 1
+        t = near[:, None] + step * np.arange(count)[None, :]
+        live = t <= far[:, None]
+        points = origin + directions[:, None, :] * t[..., None]
+        index = np.floor((points - self.origin) / self.voxel_m).astype(np.int64)
+        n = self.cells.shape[0]
+        live &= np.all((index >= 0) & (index < n), axis=2)
+        return np.clip(index, 0, n - 1), live
+
+    def _span(self, origin: np.ndarray, directions: np.ndarray, lengths: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Where each ray enters the cube and where it leaves it or ends (``lengths``), m."""
         lo, hi = self.origin, self.origin + self.size_m
         with np.errstate(divide="ignore", invalid="ignore"):
             t0 = (lo - origin) / directions
             t1 = (hi - origin) / directions
         near = np.nanmax(np.minimum(t0, t1), axis=1).clip(min=0.0)
         far = np.minimum(np.nanmin(np.maximum(t0, t1), axis=1), lengths)
+        return near, far
+
+    def _march_flat(self, origin: np.ndarray, directions: np.ndarray, lengths: np.ndarray) -> np.ndarray:
+        """The flat voxel indices (into ``cells.ravel()``) :meth:`_march` gives for its live
+        samples, in no order: each ray only as long as it is (a ray that hits the plant early
+        does not pay for the longest)."""
+        near, far = self._span(origin, directions, lengths)
         step = self.voxel_m / 2.0
-        count = int(np.ceil(max(float((far - near).max(initial=0.0)), 0.0) / step)) + 1
-        t = near[:, None] + step * np.arange(count)[None, :]
-        live = t <= far[:, None]
-        points = origin + directions[:, None, :] * t[..., None]
-        index = np.floor((points - lo) / self.voxel_m).astype(np.int64)
+        counts = np.where(far >= near, np.floor((far - near) / step).astype(np.int64) + 1, 0)
+        ray = np.repeat(np.arange(len(counts)), counts)
+        k = np.arange(len(ray)) - np.repeat(np.cumsum(counts) - counts, counts)
+        points = origin + directions[ray] * (near[ray] + step * k)[:, None]
+        index = np.floor((points - self.origin) / self.voxel_m).astype(np.int64)
         n = self.cells.shape[0]
-        live &= np.all((index >= 0) & (index < n), axis=2)
-        return np.clip(index, 0, n - 1), live
+        index = index[np.all((index >= 0) & (index < n), axis=1)]
+        return (index[:, 0] * n + index[:, 1]) * n + index[:, 2]
 
     def integrate(
         self,
@@ -93,11 +113,10 @@ class VoxelMap:
         hit = z > 0
         distance = np.where(hit, z * norm, np.inf)  # depth is along the axis; the ray is longer
         # free up to half a voxel short of the surface, so the surface's own voxel stays occupied
-        index, live = self._march(t, directions, distance - self.voxel_m / 2.0)
-        free = index[live]
+        free = self._march_flat(t, directions, distance - self.voxel_m / 2.0)
         cells = self.cells
-        keep = cells[free[:, 0], free[:, 1], free[:, 2]] < OCCUPIED
-        cells[free[keep, 0], free[keep, 1], free[keep, 2]] = FREE
+        flat = cells.reshape(-1)  # a view: writes land in cells
+        flat[free[flat[free] < OCCUPIED]] = FREE
         ends = t + directions[hit] * distance[hit, None]
         at = np.floor((ends - self.origin) / self.voxel_m).astype(np.int64)
         inside = np.all((at >= 0) & (at < cells.shape[0]), axis=1)

@@ -16,12 +16,16 @@ drives it on a small situation whose right answer is known from geometry, and ra
 
 from __future__ import annotations
 
+import json
+import tempfile
 from collections.abc import Callable
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from agrisim.config import CellConfig, RenderConfig
+from agrisim.errors import UserError
 from agrisim.interfaces import ALL, Frame, JointTrajectory, PlanningFailed, View
 from agrisim.kinds import KINDS, BackendSpec
 from agrisim.registry import Registry
@@ -33,6 +37,7 @@ from agrisim.scene.transforms import look_at
 
 __all__ = [
     "check",
+    "check_exporter",
     "check_physics",
     "check_planner",
     "check_plant",
@@ -329,6 +334,58 @@ def check_plant(registry: Registry, spec: BackendSpec, options: Any) -> None:
     assert np.array_equal(again.vertices, mesh.vertices), "the same seed grew another plant"
 
 
+# ------------------------------------------------------------------------------- exporters
+
+
+def _tree(root: Path) -> dict[str, bytes]:
+    """Every file under ``root`` (relative path -> contents), folders as empty entries."""
+    return {p.relative_to(root).as_posix(): (p.read_bytes() if p.is_file() else b"") for p in root.rglob("*")}
+
+
+def check_exporter(registry: Registry, spec: BackendSpec, options: Any) -> None:
+    """Its default output lies inside the run directory, and what is not a complete run is
+    refused before anything is written, with a one-line :class:`UserError`: a path that does
+    not exist, a folder that holds no run, a run still running."""
+    exporter = registry.build("exporter", spec, options)
+    default = Path(exporter.default_out)
+    assert default.parts and not default.is_absolute() and ".." not in default.parts, (
+        f"default_out {exporter.default_out!r} must be a path inside the run directory"
+    )
+    with tempfile.TemporaryDirectory(prefix="agrisim-exporter-") as tmp:
+        root = Path(tmp)
+        (root / "empty").mkdir()
+        running = root / "running"
+        running.mkdir()
+        labels = [{"id": 0, "name": "background", "color": [0, 0, 0]}, {"id": 1, "name": "plant", "color": [0, 200, 0]}]
+        run = {"status": "running", "frames_complete": [], "labels": labels, "config": {}, "results": []}
+        (running / "run.json").write_text(json.dumps(run))
+        K = [[100.0, 0.0, 31.5], [0.0, 100.0, 23.5], [0.0, 0.0, 1.0]]
+        (running / "cameras.json").write_text(
+            json.dumps({"intrinsics": {"K": K, "width": 64, "height": 48}, "frames": {}})
+        )
+        cases = {
+            "a path that does not exist": root / "nowhere",
+            "a folder without a run": root / "empty",
+            "a run still running": running,
+        }
+        for what, run_dir in cases.items():
+            before = _tree(root)
+            try:
+                exporter.export(run_dir, run_dir / default, False, None)
+            except UserError as exc:
+                message = str(exc)
+                assert message.strip() and "\n" not in message.strip(), (
+                    f"{what}: the refusal is not one line: {message!r}"
+                )
+            except Exception as exc:
+                raise AssertionError(f"{what}: raised {type(exc).__name__} ({exc}), not a UserError") from exc
+            else:
+                raise AssertionError(f"{what}: exported it instead of refusing")
+            after = _tree(root)
+            changed = sorted(k for k in set(before) | set(after) if before.get(k) != after.get(k))
+            assert not changed, f"{what}: refused, but wrote {changed}"
+
+
 CHECKS: dict[str, Callable[[Registry, BackendSpec, Any], None]] = {
     "physics": check_physics,
     "planner": check_planner,
@@ -336,5 +393,6 @@ CHECKS: dict[str, Callable[[Registry, BackendSpec, Any], None]] = {
     "sensor": check_sensor,
     "reconstructor": check_reconstructor,
     "plant": check_plant,
+    "exporter": check_exporter,
 }
 assert set(CHECKS) <= set(KINDS)

@@ -14,7 +14,7 @@ import numpy as np
 
 from agrisim import hookimpl
 from agrisim.files.calibration import ros_distortion
-from agrisim.files.rosbag import rep118
+from agrisim.files.encoding import rep118
 from agrisim.interfaces import Bridge, Capture
 from agrisim.live import LiveSession, Refused
 from agrisim.records import Run

@@ -105,3 +105,31 @@ def test_a_reconstructor_in_camera_coordinates_breaks_its_contract() -> None:
 
     with pytest.raises(AssertionError, match="off the plane"):
         _broken("reconstructor", "pointcloud", wrap)
+
+
+def test_an_exporter_that_writes_before_it_checks_breaks_its_contract() -> None:
+    def wrap(exporter):
+        export = exporter.export
+
+        def eager(run_dir, out, *rest):
+            out.parent.mkdir(parents=True, exist_ok=True)
+            out.write_text("{}")  # a half-made export left behind by a refusal
+            return export(run_dir, out, *rest)
+
+        exporter.export = eager
+        return exporter
+
+    with pytest.raises(AssertionError, match="refused, but wrote"):
+        _broken("exporter", "coco", wrap)
+
+
+def test_an_exporter_that_refuses_with_a_traceback_breaks_its_contract() -> None:
+    def wrap(exporter):
+        def crash(run_dir, *rest):
+            return (run_dir / "run.json").read_text()  # FileNotFoundError, not a one-line refusal
+
+        exporter.export = crash
+        return exporter
+
+    with pytest.raises(AssertionError, match="not a UserError"):
+        _broken("exporter", "rosbag", wrap)

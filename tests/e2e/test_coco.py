@@ -15,7 +15,7 @@ from PIL import Image
 from pycocotools.coco import COCO
 from skimage.measure import label as connected
 
-from agrisim.files.coco import COCO_JSON
+from agrisim.plugins.exporters.coco import COCO_JSON
 
 
 @pytest.fixture(scope="module")

@@ -129,7 +129,7 @@ def test_doctor_tells_the_truth_about_this_machine(tmp_path: Path) -> None:
     assert splat["usable"] == can_splat, splat
     assert splat["usable"] or splat["reason"]
 
-    # timed, beside the README's figures (the figures themselves are not checked: machines differ)
+    # timed, beside the Performance page's figures (the figures themselves are not checked: machines differ)
     speed = report["speed"]
     assert speed["reference_machine"] == REFERENCE_MACHINE
     view, ik = speed["raycast_view"], speed["ik"]
@@ -144,7 +144,7 @@ def test_doctor_tells_the_truth_about_this_machine(tmp_path: Path) -> None:
     assert f"{model}, {cpu['cores']} cores" in text
     assert ("AVX-512," in text) == cpu["avx512"]
     assert "default run (agrisim run): can run here" in text
-    assert f"README {RAYCAST_VIEW.value:g} s" in text and f"README {IK_COLD.value:g} ms" in text
+    assert f"ours {RAYCAST_VIEW.value:g} s" in text and f"ours {IK_COLD.value:g} ms" in text
 
 
 def test_doctor_prints_a_report_and_exits_0(cli, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
@@ -247,13 +247,12 @@ def test_an_avx2_only_cpu_is_told_apart(tmp_path: Path) -> None:
 
 
 def test_the_reference_figures_are_the_readmes() -> None:
-    """doctor's reference figures are the README's "Measured performance" rows, on the machine
-    that section names for them; the README points new users at the command."""
+    """doctor's reference figures are the "Measured performance" rows of the docs, on the
+    machine that page names for them; the README points new users at the command."""
     readme = (REPO / "README.md").read_text()
-    perf = readme[readme.index("## Measured performance") :]
-    perf = perf[: perf.index("\n## ")]
+    perf = (REPO / "docs" / "performance.md").read_text()
     view = next(line for line in perf.splitlines() if line.startswith("| one 1080p view, RGB + labels + depth"))
-    cpu = REFERENCE_MACHINE.split(", ")[0]  # its model and vector ISA, as the README names them
+    cpu = REFERENCE_MACHINE.split(", ")[0]  # its model and vector ISA, as that page names them
     assert f"| {RAYCAST_VIEW.value:g} s / " in view and cpu in view and RAYCAST_VIEW.bench in view
     ik = next(line for line in perf.splitlines() if line.startswith("| IK, one cold solve / warm"))
     assert f"| {IK_COLD.value:g} ms / {IK_WARM.value:g} ms" in ik and "(same)" in ik

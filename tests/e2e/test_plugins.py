@@ -275,7 +275,11 @@ def test_duplicate_of_a_builtin_name_is_an_error(site: Path) -> None:
     with pytest.raises(PluginError) as exc:
         Registry(make_plugin_manager()).specs("planner")
     message = str(exc.value)
-    assert "'direct'" in message and "agrisim 0.1.0" in message and "agrisim-direct-clone 0.1.0" in message
+    assert (
+        "'direct'" in message
+        and f"agrisim {agrisim.__version__}" in message
+        and "agrisim-direct-clone 0.1.0" in message
+    )
 
 
 def test_entry_point_name_clash_is_not_silent(site: Path) -> None:
@@ -287,7 +291,9 @@ def test_entry_point_name_clash_is_not_silent(site: Path) -> None:
         make_plugin_manager()
     message = str(exc.value)
     assert "'planner-direct'" in message and "declared by both" in message
-    assert sum(dist in message for dist in ("shadow-one 0.1.0", "shadow-two 0.1.0", "agrisim 0.1.0")) == 2
+    assert (
+        sum(dist in message for dist in ("shadow-one 0.1.0", "shadow-two 0.1.0", f"agrisim {agrisim.__version__}")) == 2
+    )
 
 
 def test_misspelt_hook_is_an_error(site: Path, capsys) -> None:
@@ -374,7 +380,10 @@ def test_trace_plugins_reports_hook_calls(site: Path, monkeypatch, capsys, tmp_p
 
     Episode(build_config(layer)).run()
     err = capsys.readouterr().err
-    assert "agrisim_planners [agrisim 0.1.0] -> direct" in err and "agrisim_planners [agrisim 0.1.0] -> ompl" in err
+    assert (
+        f"agrisim_planners [agrisim {agrisim.__version__}] -> direct" in err
+        and f"agrisim_planners [agrisim {agrisim.__version__}] -> ompl" in err
+    )
     assert "agrisim_run_started" in err and "agrisim_setpoint" in err and "agrisim_run_finished" in err
 
 

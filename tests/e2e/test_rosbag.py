@@ -265,7 +265,7 @@ def test_depth_is_rep118_metres_with_inf_for_no_hit(tmp_path: Path) -> None:
     """A room hides the sky, so the runs above hit something everywhere: the no-hit rule on
     hand-made depth, from a PNG (millimetres) and from an EXR (exact metres)."""
     from agrisim.files.exr import write_exr
-    from agrisim.files.rosbag import frame_depth
+    from agrisim.plugins.exporters.rosbag import frame_depth
 
     rng = np.random.default_rng(0)
     metres = rng.uniform(0.2, 3.0, (6, 8)).astype(np.float32)

@@ -123,15 +123,64 @@ def test_contracts_and_discovery_import_no_heavy_library(code: str) -> None:
         assert not {"agrisim.config", "agrisim.robot.urdf", "agrisim.scene.cell", "agrisim.episode"} & loaded
 
 
+#: the file formats' libraries of the exporters (plugins/exporters), which the core must not load
+FORMAT_LIBRARIES = ("rosbags", "pycocotools")
+
+
+def core_modules() -> list[str]:
+    """Every module of the core (agrisim, not agrisim.plugins), but ``agrisim.__main__``."""
+    return sorted(name for name in modules() if not name.startswith("agrisim.plugins") and name != "agrisim.__main__")
+
+
+def test_the_core_imports_no_plugin() -> None:
+    """Backends, exporters included, are plugins reached through the registry: no core module
+    imports one, at its top or inside a function."""
+    graph = import_graph()
+    core = core_modules()
+    assert len(core) > 60 and "agrisim.files.dataset" in core
+    reached = {name: sorted(d for d in graph[name] if d.startswith("agrisim.plugins")) for name in core}
+    assert {name: deps for name, deps in reached.items() if deps} == {}
+
+
+def test_the_plugin_check_catches_a_core_module_importing_a_plugin() -> None:
+    graph = import_graph()
+    graph["agrisim.files.dataset"] = graph["agrisim.files.dataset"] | {"agrisim.plugins.exporters.nerfstudio"}
+    assert [d for d in graph["agrisim.files.dataset"] if d.startswith("agrisim.plugins")]
+
+
+@pytest.mark.parametrize(
+    "code",
+    [
+        "import agrisim, agrisim.app.cli",
+        "import importlib\nfor name in {core}:\n    importlib.import_module(name)",
+        "from agrisim.app.cli import main\nwith contextlib.redirect_stdout(io.StringIO()): main(['plugins', '--options'])",
+    ],
+    ids=["cli", "every-core-module", "agrisim-plugins"],
+)
+def test_the_core_loads_no_export_format_library(code: str) -> None:
+    """The exporters' format libraries (the ROS 2 bag's rosbags, COCO's pycocotools) load only
+    when an export runs: not with the core, every module of it, nor while ``agrisim plugins``
+    lists the exporters."""
+    loaded = _loaded_after(code.format(core=core_modules()))
+    assert {m for m in loaded if m.split(".")[0] in FORMAT_LIBRARIES} == set()
+    if "{core}" in code:
+        assert set(core_modules()) <= loaded  # the probe imported them all
+
+
+def test_the_format_library_check_sees_a_library_loaded() -> None:
+    loaded = _loaded_after("import agrisim.app.cli\nimport rosbags.typesys")
+    assert {m for m in loaded if m.split(".")[0] in FORMAT_LIBRARIES}
+
+
 def _architecture_block() -> str:
-    readme = (REPO / "README.md").read_text()
-    section = readme[readme.index("## Architecture") :]
+    page = (REPO / "docs" / "concepts" / "architecture.md").read_text()
+    section = page[page.index("# Architecture") :]
     start = section.index("```\n") + 4
     return section[start : section.index("```", start)]
 
 
-def test_the_readme_architecture_matches_the_tree() -> None:
-    """Every folder and top-level module the README's map names exists, and every one that
+def test_the_architecture_page_matches_the_tree() -> None:
+    """Every folder and top-level module the architecture page's map names exists, and every one that
     exists is in the map: core's modules and subpackages, each plugin kind and backend package."""
     block = _architecture_block()
     listed: dict[str, set[str]] = {"core": set(), "plugins": set(), "tests": set()}
@@ -144,7 +193,7 @@ def test_the_readme_architecture_matches_the_tree() -> None:
     core = {p.name for p in (REPO / "core").glob("*.py") if p.name != "__init__.py" and p.name != "__main__.py"}
     core |= {f"{p.name}/" for p in (REPO / "core").iterdir() if (p / "__init__.py").exists()}
     assert listed["core"] == core, (
-        f"README lists {sorted(listed['core'] - core)}, misses {sorted(core - listed['core'])}"
+        f"the map lists {sorted(listed['core'] - core)}, misses {sorted(core - listed['core'])}"
     )
     kinds = {f"{p.name}/" for p in (REPO / "plugins").iterdir() if (p / "__init__.py").exists()}
     assert listed["plugins"] == kinds
@@ -155,7 +204,9 @@ def test_the_readme_architecture_matches_the_tree() -> None:
     for kind in (REPO / "plugins").iterdir():
         for pkg in kind.iterdir() if kind.is_dir() else ():
             if (pkg / "__init__.py").exists():
-                assert f"{pkg.name}/" in block, f"plugins/{kind.name}/{pkg.name}/ is missing from the README's map"
+                assert f"{pkg.name}/" in block, (
+                    f"plugins/{kind.name}/{pkg.name}/ is missing from the architecture page's map"
+                )
 
 
 def test_no_renderer_imports_open3d() -> None:

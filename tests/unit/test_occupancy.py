@@ -55,3 +55,20 @@ def test_a_plant_surface_has_two_sides() -> None:
     behind = look_at(np.array([1.2, 0.0, 0.0]), np.zeros(3))
     volume, surface = vmap.information_gain(camera, behind), vmap.information_gain(camera, behind, surface=True)
     assert surface - volume > 0.5 * int(wall.sum())
+
+
+def test_each_ray_marched_to_its_own_length_meets_the_same_voxels() -> None:
+    """The marching that frees a view's voxels samples each ray only as far as it goes; it meets
+    the same voxels as marching every ray to the longest one's length and keeping the samples
+    before each ray's end (rays from outside and inside the cube, short, long and endless)."""
+    rng = np.random.default_rng(3)
+    vmap = VoxelMap.around(np.array([0.1, -0.2, 0.3]), 0.5, 40)
+    for origin in (np.array([0.1, -0.2, 0.3]), np.array([0.9, 0.4, 0.8])):
+        directions = rng.normal(size=(500, 3))
+        directions /= np.linalg.norm(directions, axis=1, keepdims=True)
+        lengths = np.where(rng.random(500) < 0.2, np.inf, rng.uniform(0.0, 1.5, 500))
+        index, live = vmap._march(origin, directions, lengths)
+        dense = np.ravel_multi_index(tuple(index[live].T), vmap.cells.shape)
+        flat = vmap._march_flat(origin, directions, lengths)
+        assert len(dense) > 100
+        np.testing.assert_array_equal(np.sort(flat), np.sort(dense))

@@ -1,5 +1,6 @@
-"""The ROS 2 bag export: ``RUN_DIR/rosbag/`` (rosbag2 format 9: ``rosbag.mcap`` and the
-``metadata.yaml`` that ``ros2 bag info`` reads), written without ROS by the ``rosbags`` library.
+"""The ``rosbag`` exporter: ``RUN_DIR/rosbag/`` or the ``OUT`` folder named (rosbag2 format 9:
+``rosbag.mcap`` and the ``metadata.yaml`` that ``ros2 bag info`` reads), written without ROS by
+the ``rosbags`` library.
 
 Why ``rosbags``: it writes the rosbag2 directory (MCAP storage, zstd-compressed chunks, the
 metadata file with per-topic QoS) and serialises messages with the ROS 2 message definitions it
@@ -47,11 +48,14 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike
 
+from agrisim import BackendSpec, hookimpl
 from agrisim.errors import OutputError, UserError
 from agrisim.files import layout
 from agrisim.files.atomic import staged_dir
 from agrisim.files.calibration import ros_distortion
+from agrisim.files.encoding import rep118
 from agrisim.files.rundir import read_json, read_run
+from agrisim.interfaces import Exporter
 from agrisim.robot.tf_tree import WORLD, ArmFrames, quaternions
 
 ROSBAG_DIR = layout.ROSBAG
@@ -270,13 +274,6 @@ class BagMessages:
         )
 
 
-def rep118(depth: np.ndarray) -> np.ndarray:
-    """Planar depth in metres as REP 118 wants it: float32, +Inf where nothing was hit."""
-    depth = np.asarray(depth, np.float32).copy()
-    depth[depth == 0] = np.inf
-    return depth
-
-
 def frame_depth(run_dir: Path, frame: str) -> np.ndarray:
     """A saved frame's depth for the bag (the exact EXR when the run kept one)."""
     from agrisim.evaluation.views import load_depth
@@ -482,15 +479,22 @@ def bag_messages(export: RosbagExport, msgs: BagMessages) -> Iterator[tuple[str,
             )
 
 
-def write_rosbag(run_dir: Path, overwrite: bool = False, progress: Callable[[int, int], None] | None = None) -> Path:
-    """Write ``run_dir/rosbag/``; an existing one needs ``overwrite`` and is replaced only once
-    the new bag is complete. Returns the bag's directory."""
+def write_rosbag(
+    run_dir: Path,
+    overwrite: bool = False,
+    progress: Callable[[int, int], None] | None = None,
+    out: Path | None = None,
+) -> Path:
+    """Write the bag's folder ``out`` (default ``run_dir/rosbag/``); an existing one needs
+    ``overwrite`` and is replaced only once the new bag is complete. Returns the bag's folder."""
     from rosbags.rosbag2 import CompressionFormat, CompressionMode, StoragePlugin, Writer
 
     run_dir = Path(run_dir)
-    out = run_dir / ROSBAG_DIR
+    out = run_dir / ROSBAG_DIR if out is None else Path(out)
     if out.exists() and not overwrite:
         raise OutputError(f"{out} already exists; pass --overwrite to replace it")
+    if out.exists() and not out.is_dir():
+        raise OutputError(f"{out} is not a directory; the ROS 2 bag export is a folder")
     export = RosbagExport(run_dir)
     msgs = BagMessages()
     with staged_dir(out) as staging:
@@ -519,3 +523,35 @@ def write_rosbag(run_dir: Path, overwrite: bool = False, progress: Callable[[int
             os.replace(item, staging / item.name)
         (staging / ROSBAG_DIR).rmdir()
     return out
+
+
+class RosbagExporter(Exporter):
+    """``agrisim export rosbag RUN_DIR [OUT]``: OUT is the bag's folder (default ``RUN_DIR/rosbag``)."""
+
+    default_out = ROSBAG_DIR
+    progress_unit = "stamps and frames"
+
+    def export(
+        self,
+        run_dir: Path,
+        out: Path,
+        overwrite: bool = False,
+        progress: Callable[[int, int], None] | None = None,
+    ) -> Path:
+        return write_rosbag(run_dir, overwrite, progress, out)
+
+    def summary(self, written: Path) -> str:
+        return f"wrote {written} (ros2 bag info {written}; open {written / 'rosbag.mcap'} in Foxglove)"
+
+
+@hookimpl
+def agrisim_exporters() -> list[BackendSpec]:
+    return [
+        BackendSpec(
+            name="rosbag",
+            factory=RosbagExporter,
+            description="a ROS 2 bag (rosbag2, MCAP, without ROS): TF, joint states, planned trajectories, camera "
+            "images, depth (REP 118), labels, instances, camera_info and the reconstructed clouds, in simulated time",
+            limits="ROS 2 (Jazzy's message definitions) only, no ROS 1 bag",
+        )
+    ]

@@ -1,5 +1,5 @@
-"""The COCO export: ``RUN_DIR/coco/annotations.json`` in COCO's instance format, which
-pycocotools, Detectron2, MMDetection and Ultralytics' converters read.
+"""The ``coco`` exporter: ``RUN_DIR/coco/annotations.json`` (or the ``OUT`` file named) in COCO's
+instance format, which pycocotools, Detectron2, MMDetection and Ultralytics' converters read.
 
 - ``images``: one per complete frame, ``file_name`` ``rgb/<frame>.png`` relative to the run
   directory (the image root to give a loader), ``width``, ``height``.
@@ -17,16 +17,19 @@ The semantic masks are the run's ``labels/<frame>.png`` themselves (uint8 label 
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 from PIL import Image
 
+from agrisim import BackendSpec, hookimpl
 from agrisim.errors import OutputError, UserError
 from agrisim.files import layout
 from agrisim.files.atomic import write_json
 from agrisim.files.rundir import read_run
+from agrisim.interfaces import Exporter
 
 COCO_JSON = Path("coco") / "annotations.json"
 #: 8-connectivity: diagonal neighbours belong to one region (thin stems stay whole)
@@ -97,11 +100,43 @@ def coco_document(run_dir: Path) -> dict[str, Any]:
     }
 
 
-def write_coco(run_dir: Path, overwrite: bool = False) -> Path:
-    """Write ``run_dir/coco/annotations.json``; an existing one needs ``overwrite``."""
+def write_coco(run_dir: Path, overwrite: bool = False, out: Path | None = None) -> Path:
+    """Write ``out`` (default ``run_dir/coco/annotations.json``); an existing one needs
+    ``overwrite``. Its images' ``file_name`` stay relative to the run directory."""
     run_dir = Path(run_dir)
-    out = run_dir / COCO_JSON
+    out = run_dir / COCO_JSON if out is None else Path(out)
     if out.exists() and not overwrite:
         raise OutputError(f"{out} already exists; pass --overwrite to replace it")
+    if out.is_dir():
+        raise OutputError(f"{out} is a directory; the COCO export is one JSON file (e.g. {out / 'annotations.json'})")
     write_json(out, coco_document(run_dir))
     return out
+
+
+class CocoExporter(Exporter):
+    """``agrisim export coco RUN_DIR [OUT]``: OUT is the annotations file (default
+    ``RUN_DIR/coco/annotations.json``)."""
+
+    default_out = COCO_JSON.as_posix()
+
+    def export(
+        self,
+        run_dir: Path,
+        out: Path,
+        overwrite: bool = False,
+        progress: Callable[[int, int], None] | None = None,
+    ) -> Path:
+        return write_coco(run_dir, overwrite, out)
+
+
+@hookimpl
+def agrisim_exporters() -> list[BackendSpec]:
+    return [
+        BackendSpec(
+            name="coco",
+            factory=CocoExporter,
+            description="COCO instance annotations (RUN_DIR/coco/annotations.json): each leaf instance and each "
+            "8-connected region of every other label an RLE mask (pycocotools), area and box",
+            limits="instance segmentation only (no keypoints, captions or panoptic segments)",
+        )
+    ]

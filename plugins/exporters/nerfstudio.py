@@ -1,7 +1,7 @@
-"""Exports of a finished run directory to other tools' formats.
-
-``nerfstudio``: ``OUT/transforms.json`` plus ``OUT/masks/<frame>.png``, readable by nerfstudio's
-``nerfstudio-data`` parser (``ns-train nerfacto --data OUT``; ``depth-nerfacto`` uses the depth).
+"""The ``nerfstudio`` exporter: ``RUN_DIR/transforms.json`` plus ``RUN_DIR/masks/<frame>.png``,
+readable by nerfstudio's ``nerfstudio-data`` parser (``ns-train nerfacto --data RUN_DIR``;
+``depth-nerfacto`` uses the depth). Every run with rendered frames writes it itself at its end
+(:data:`agrisim.files.dataset.RUN_EXPORTS`); ``agrisim export nerfstudio RUN_DIR`` writes it again.
 
 - Poses: ``transform_matrix`` is camera-to-world in the OpenGL/Blender convention nerfstudio uses
   (x right, y up, z back: the camera looks along -z), i.e. our OpenCV ``world_T_camera`` with
@@ -20,23 +20,28 @@
 - Only frames listed in ``run.json``'s ``frames_complete`` are exported, in name order.
 
 Bad input (not a run directory, missing ``run.json``/``cameras.json``/frame images, a run still
-marked ``running``) raises :class:`ExportError` before anything is written.
+marked ``running``) raises :class:`ExportError` before anything is written. The files name the
+run's images relative to themselves, so they go into the run directory: an ``OUT`` elsewhere is
+refused. They are a pure function of the run's files, so an earlier export is rewritten (with
+the same bytes) without ``--overwrite``.
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any, TypeGuard
 
 import numpy as np
 from PIL import Image
 
+from agrisim import BackendSpec, hookimpl
 from agrisim.errors import UserError
 from agrisim.files import layout
 from agrisim.files.atomic import write_bytes, write_json
 from agrisim.files.png import encode_png
 from agrisim.files.rundir import read_json
-from agrisim.interfaces import ALL
+from agrisim.interfaces import ALL, Exporter
 
 #: OpenCV optical frame -> OpenGL camera frame (negate y and z), as a right factor on camera-to-world
 CV_TO_GL = np.diag([1.0, -1.0, -1.0, 1.0])
@@ -176,3 +181,37 @@ def write_nerfstudio(run_dir: Path) -> Path:
     out = run_dir / layout.TRANSFORMS_JSON
     write_json(out, doc)
     return out
+
+
+class NerfstudioExporter(Exporter):
+    """``agrisim export nerfstudio RUN_DIR``: ``RUN_DIR/transforms.json`` and ``RUN_DIR/masks/``."""
+
+    default_out = layout.TRANSFORMS_JSON
+
+    def export(
+        self,
+        run_dir: Path,
+        out: Path,
+        overwrite: bool = False,
+        progress: Callable[[int, int], None] | None = None,
+    ) -> Path:
+        run_dir = Path(run_dir)
+        if Path(out).absolute() != (run_dir / layout.TRANSFORMS_JSON).absolute():
+            raise ExportError(
+                f"the nerfstudio export goes into the run directory ({run_dir / layout.TRANSFORMS_JSON}): its "
+                f"transforms.json names the run's images relative to itself; give no OUT"
+            )
+        return write_nerfstudio(run_dir)
+
+
+@hookimpl
+def agrisim_exporters() -> list[BackendSpec]:
+    return [
+        BackendSpec(
+            name="nerfstudio",
+            factory=NerfstudioExporter,
+            description="nerfstudio's transforms.json (camera-to-world poses in OpenGL axes, OpenCV lens, depth) "
+            "and plant masks (RUN_DIR/masks/), for ns-train --data RUN_DIR; every rendered run writes it itself",
+            limits="into the run directory only (its paths are relative to it)",
+        )
+    ]
