@@ -5,6 +5,13 @@ and the PNG; the renderer's own steps with ``freeze`` off, then on (``dr.freeze`
 recorded and replayed), and whether the frozen images are the traced ones bit for bit. Prints figures; asserts nothing. Runs from a minimal install (no Open3D).
 
     python bench/mitsuba_frame_cost.py RUN_DIR [--variant cuda] [--spp 16] [--frames 10] [--denoise off] [--max-depth 8]
+        [--loops symbolic|evaluated]
+
+``--loops`` chooses how Dr.Jit runs the integrator's loops (issue 50's first lever): ``symbolic``
+(the default: one megakernel, every lane waiting for the longest path and cut-out walk) or
+``evaluated`` (a kernel an iteration, the loop state in memory). Dr.Jit's ``CompressLoops``
+(finished lanes dropped after each iteration) refuses the integrator: its cut-out walks are loops
+inside the path's loop, and a compressed inner loop changes its state's size.
 """
 
 from __future__ import annotations
@@ -12,7 +19,9 @@ from __future__ import annotations
 import argparse
 import sys
 import time
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -52,6 +61,7 @@ def main() -> None:
     parser.add_argument("--integrator", default=MitsubaOptions().integrator, choices=["cutout_path", "path", "volpath"])
     parser.add_argument("--sampler", default=MitsubaOptions().sampler, choices=["multijitter", "independent"])
     parser.add_argument("--max-depth", type=int, default=MitsubaOptions().max_depth)
+    parser.add_argument("--loops", default="symbolic", choices=["symbolic", "evaluated"])
     args = parser.parse_args()
     saved = saved_run(args.run_dir)
     cameras, settings, scene, camera = saved.cameras, saved.settings, saved.scene, saved.camera
@@ -65,6 +75,8 @@ def main() -> None:
     )
     import drjit as dr
 
+    if args.loops == "evaluated":
+        dr.set_flag(dr.JitFlag.SymbolicLoops, False)
     frames = sorted(cameras["frames"])[: args.frames + 1]  # the first compiles: reported apart
     poses = {f: np.asarray(cameras["frames"][f]["world_T_camera"], np.float64) for f in frames}
     links = {f: _link_poses(args.run_dir, f) for f in frames}
@@ -110,7 +122,8 @@ def main() -> None:
     print(f"CPU: {cpu_model()}; GPU: {gpu_name()}; variant {traced.mi.variant()}")
     print(
         f"{camera.width}x{camera.height}, {args.integrator}, max depth {args.max_depth}, {args.spp} spp, "
-        f"{args.sampler}, denoise {'on' if traced.denoise else 'off'}, {len(frames) - 1} frames after the first"
+        f"{args.sampler}, denoise {'on' if traced.denoise else 'off'}, {args.loops} loops, "
+        f"{len(frames) - 1} frames after the first"
     )
     first, clock, plain = frames_of(traced)
     report("traced anew", first, clock, len(frames) - 1)
@@ -121,7 +134,54 @@ def main() -> None:
     same = sum(int(np.array_equal(replayed[f], plain[f])) for f in frames)
     recordings = frozen._frozen["image"].n_recordings
     print(f"frozen images equal to traced ones bit for bit: {same} of {len(frames)}; recordings made: {recordings}")
+    if not frozen.denoise:
+        per, overlapped = pipelined(frozen, camera, frames, poses, links)
+        same = sum(int(np.array_equal(overlapped[f], plain[f])) for f in frames)
+        print(
+            f"frozen, the next view launched before this one is read back: {1e3 * per:.1f} ms a view "
+            f"({1 / per:.2f} views/s); images equal to the traced ones: {same} of {len(frames)}"
+        )
     frozen.close()
+
+
+def pipelined(
+    renderer: MitsubaRenderer,
+    camera: Any,
+    frames: list[str],
+    poses: dict[str, np.ndarray],
+    links: dict[str, Any],
+) -> tuple[float, dict[str, np.ndarray]]:
+    """Seconds a view when each view's kernels are launched before the previous view is copied
+    to the host, encoded and (in a writer thread, as ``agrisim render`` does) written as PNG:
+    the host's per-view work overlaps the GPU's instead of waiting for it."""
+    import drjit as dr
+
+    o = renderer.options
+    images: dict[str, np.ndarray] = {}
+
+    def finish(frame: str, image: object) -> None:
+        linear = np.asarray(image, np.float32)[..., :3]
+        rgb = np.empty((linear.shape[0] * linear.shape[1], 3), np.uint8)
+        encode_srgb8(np.array(linear, np.float32).reshape(-1, 3), rgb, o.exposure, o.tonemap)
+        writer.submit(encode_png, rgb.reshape(camera.height, camera.width, 3))
+        images[frame] = linear
+
+    start = 0.0
+    with ThreadPoolExecutor(1) as writer:
+        previous: tuple[str, object] | None = None
+        for i, f in enumerate(frames):
+            if i == 1:
+                start = time.perf_counter()
+            renderer._place_arms(links[f])
+            sensor = renderer._placed_sensor(camera, poses[f])
+            image = renderer._render("image", sensor, view_seed(camera, poses[f], o.seed) & 0xFFFFFFFF)
+            dr.eval(image)  # launched; not waited for
+            if previous is not None:
+                finish(*previous)
+            previous = (f, image)
+        assert previous is not None
+        finish(*previous)
+    return (time.perf_counter() - start) / max(len(frames) - 1, 1), images
 
 
 def report(what: str, first: Clock, clock: Clock, n: int) -> None:

@@ -7,7 +7,7 @@ plain dataclasses of numpy arrays (metres, radians, seconds; poses are 4x4 ``a_T
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterable, Iterator, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -269,6 +269,18 @@ class Renderer(ABC):
         that declare the ``rerender`` capability implement it; ``cell`` may then be None, the
         arms coming with the scene (:attr:`Scene.arms`)."""
         raise NotImplementedError(f"{type(self).__name__} does not render RGB alone")
+
+    def render_rgb_stream(
+        self,
+        camera: CameraModel,
+        views: Iterable[tuple[np.ndarray, Mapping[str, Mapping[str, np.ndarray]]]],
+    ) -> Iterator[tuple[np.ndarray, np.ndarray | None]]:
+        """:meth:`render_rgb` of each ``(world_T_camera, link_poses)`` of ``views``, in order,
+        as each is ready. A renderer on a GPU may start the next view before handing over this
+        one (the host's read-back and encoding then overlap the GPU's work); the images are
+        :meth:`render_rgb`'s, byte for byte. ``views`` is read one view ahead at most."""
+        for world_T_camera, link_poses in views:
+            yield self.render_rgb(camera, world_T_camera, link_poses)
 
     def arm_meshes(self) -> dict[str, list[tuple[str, Mesh]]]:
         """The arms' visual meshes as this renderer draws them (robot -> (link, mesh in the

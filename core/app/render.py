@@ -26,7 +26,7 @@ from __future__ import annotations
 
 import os
 import shutil
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from concurrent.futures import Future, ThreadPoolExecutor
 from pathlib import Path
 from typing import Any
@@ -284,15 +284,18 @@ class RenderPlan:
             if progress is not None:
                 progress(len(record["frames_done"]), len(self.frames))
 
+        def views() -> Iterator[tuple[np.ndarray, dict[str, dict[str, np.ndarray]]]]:
+            for frame in todo:
+                T = np.asarray(self.cameras["frames"][frame]["world_T_camera"], np.float64)
+                yield T, ({} if settings.hide_robots else _link_poses(self.run_dir, frame))
+
         # The PNG of one frame is encoded while the next renders (on a GPU, encoding a 1080p
-        # PNG takes about as long as path tracing it).
+        # PNG takes about as long as path tracing it), and a GPU renderer starts the next
+        # frame before handing over this one (render_rgb_stream).
         with ThreadPoolExecutor(1) as writer:
             pending: list[Future[None]] = []
             try:
-                for frame in todo:
-                    T = np.asarray(self.cameras["frames"][frame]["world_T_camera"], np.float64)
-                    poses = {} if settings.hide_robots else _link_poses(self.run_dir, frame)
-                    rgb, radiance = renderer.render_rgb(camera, T, poses)
+                for frame, (rgb, radiance) in zip(todo, renderer.render_rgb_stream(camera, views()), strict=True):
                     raw = None
                     if imaging:
                         rgb, raw = self._shoot(frame, radiance)

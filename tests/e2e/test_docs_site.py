@@ -124,6 +124,10 @@ def test_searching_coco_lands_on_the_export_guide(served: str) -> None:
         assert first, "the search listed nothing for COCO"
         _js(page, "document.querySelector('.md-search-result__item a').click()")
         landed = _until(page, "location.pathname.includes('/guides/') ? location.pathname : ''")
-        title = _js(page, "document.querySelector('h1') && document.querySelector('h1').textContent")
+        # the new page's heading, once it has loaded (the path changes first)
+        title = _until(
+            page,
+            "document.readyState === 'complete' && document.querySelector('h1') ? document.querySelector('h1').textContent : ''",
+        )
     assert landed == "/guides/exports/", (first, landed, title)
-    assert title is not None and "Exports" in str(title)
+    assert "Exports" in str(title)

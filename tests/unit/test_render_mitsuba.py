@@ -268,3 +268,22 @@ def test_a_frozen_render_replays_as_the_camera_moves(lab_scene):
     for k in range(5):
         r.render_rgb(camera, look_at(target + np.array([0.9 - 0.3 * k, -0.9, 0.6]), target), {})
     assert r._frozen["image"].n_recordings == 2  # type: ignore[attr-defined]
+
+
+@pytest.mark.parametrize("denoise", ["off", "on"])
+def test_a_stream_of_views_gives_each_views_own_bytes(cell, kin, lab_scene, denoise):
+    """``render_rgb_stream`` launches the next view before reading this one back (the camera and
+    both arms moving in between): each image is, byte for byte, what ``render_rgb`` draws of that
+    view alone, frozen as the defaults are; denoised too (the guides ride in the image)."""
+    camera = CameraModel(48, 36, 40.0, 40.0, 23.5, 17.5)
+    target = lab_scene.mesh("plant").vertices.mean(axis=0)
+    offsets = ((0.9, -0.9, 0.6), (-0.8, -0.7, 0.8), (0.2, 1.0, 0.5), (0.7, 0.6, 0.9))
+    views = [look_at(target + np.array(o), target) for o in offsets]
+    arms = [{a.name: kin[a.name].link_poses(np.array(a.home) + s) for a in cell.arms} for s in (0.0, 0.15, -0.2, 0.1)]
+    streamed = renderer(lab_scene, cell, spp=2, denoise=denoise, freeze="on")
+    alone = renderer(lab_scene, cell, spp=2, denoise=denoise, freeze="on")
+    images = [rgb for rgb, _ in streamed.render_rgb_stream(camera, zip(views, arms, strict=True))]
+    assert len(images) == len(views)
+    for rgb, T, poses in zip(images, views, arms, strict=True):
+        np.testing.assert_array_equal(rgb, alone.render_rgb(camera, T, poses)[0])
+    assert all((a != b).any() for a, b in itertools.pairwise(images))

@@ -7,7 +7,7 @@ built on the first full :meth:`render`.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Iterable, Iterator, Mapping
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -164,7 +164,10 @@ class MitsubaRenderer(Renderer):
         o = self.options
         sensor = self._placed_sensor(camera, world_T_camera)
         seed = view_seed(camera, world_T_camera, o.seed) & 0xFFFFFFFF
-        image = self._render("image", sensor, seed)
+        return self._read_back(self._render("image", sensor, seed), sensor, seed)
+
+    def _read_back(self, image, sensor, seed: int) -> np.ndarray:  # noqa: ANN001 - a Dr.Jit tensor, Mitsuba's sensor
+        """A rendered ``image``'s linear RGB on the host, denoised when the options say so."""
         if not self.denoise:
             return np.asarray(image, F32)[..., :3]
         # (on the GPU when the image is there and PyTorch can pass it to OIDN)
@@ -183,9 +186,44 @@ class MitsubaRenderer(Renderer):
         world_T_camera: np.ndarray,
         link_poses: Mapping[str, Mapping[str, np.ndarray]],
     ) -> tuple[np.ndarray, np.ndarray | None]:
-        H, W = camera.height, camera.width
         self._place_arms(link_poses)
-        radiance = np.ascontiguousarray(self.radiance(camera, world_T_camera), F32)
+        return self._encoded(camera, self.radiance(camera, world_T_camera))
+
+    def render_rgb_stream(
+        self,
+        camera: CameraModel,
+        views: Iterable[tuple[np.ndarray, Mapping[str, Mapping[str, np.ndarray]]]],
+    ) -> Iterator[tuple[np.ndarray, np.ndarray | None]]:
+        """:meth:`render_rgb` of each view, the next view's kernels launched before this one is
+        read back, denoised and encoded: on a GPU the host's part of a view overlaps the next
+        one's path tracing (agrisim render at 1080p, 8 spp, on an H100: 4.20 -> 4.29-4.40 views/s,
+        the same PNGs; bench/mitsuba_frame_cost.py: 3.45-3.58 -> 3.98-4.14 views/s). Moving the
+        arms and the sensor for the next view is safe while this one's kernels run: Dr.Jit
+        queues both on one stream, and the new vertex buffers are new arrays. Views whose
+        denoiser needs a guide pass of their own (an integrator without guide channels) are
+        drawn one at a time: that pass needs the sensor where the view was."""
+        if self.denoise and not self.guided:
+            yield from super().render_rgb_stream(camera, views)
+            return
+        import drjit as dr
+
+        pending = None
+        for world_T_camera, link_poses in views:
+            self._place_arms(link_poses)
+            sensor = self._placed_sensor(camera, world_T_camera)
+            seed = view_seed(camera, world_T_camera, self.options.seed) & 0xFFFFFFFF
+            image = self._render("image", sensor, seed)
+            dr.eval(image)  # launched, not waited for
+            if pending is not None:
+                yield self._encoded(camera, self._read_back(*pending))
+            pending = (image, sensor, seed)
+        if pending is not None:
+            yield self._encoded(camera, self._read_back(*pending))
+
+    def _encoded(self, camera: CameraModel, radiance: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
+        """(sRGB, radiance kept or None) of a view's linear radiance."""
+        H, W = camera.height, camera.width
+        radiance = np.ascontiguousarray(radiance, F32)
         rgb = np.empty((H * W, 3), np.uint8)
         linear = radiance.reshape(-1, 3)
         encode_srgb8(
