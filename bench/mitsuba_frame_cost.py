@@ -5,7 +5,7 @@ and the PNG; the renderer's own steps with ``freeze`` off, then on (``dr.freeze`
 recorded and replayed), and whether the frozen images are the traced ones bit for bit. Prints figures; asserts nothing. Runs from a minimal install (no Open3D).
 
     python bench/mitsuba_frame_cost.py RUN_DIR [--variant cuda] [--spp 16] [--frames 10] [--denoise off] [--max-depth 8]
-        [--loops symbolic|evaluated]
+        [--loops symbolic|evaluated] [--jit-flag NAME=0|1 ...]
 
 ``--loops`` chooses how Dr.Jit runs the integrator's loops (issue 50's first lever): ``symbolic``
 (the default: one megakernel, every lane waiting for the longest path and cut-out walk) or
@@ -62,6 +62,9 @@ def main() -> None:
     parser.add_argument("--sampler", default=MitsubaOptions().sampler, choices=["multijitter", "independent"])
     parser.add_argument("--max-depth", type=int, default=MitsubaOptions().max_depth)
     parser.add_argument("--loops", default="symbolic", choices=["symbolic", "evaluated"])
+    parser.add_argument(
+        "--jit-flag", action="append", default=[], metavar="NAME=0|1", help="a Dr.Jit flag set (dr.JitFlag.NAME)"
+    )
     args = parser.parse_args()
     saved = saved_run(args.run_dir)
     cameras, settings, scene, camera = saved.cameras, saved.settings, saved.scene, saved.camera
@@ -77,6 +80,9 @@ def main() -> None:
 
     if args.loops == "evaluated":
         dr.set_flag(dr.JitFlag.SymbolicLoops, False)
+    for item in args.jit_flag:
+        name, _, value = item.partition("=")
+        dr.set_flag(getattr(dr.JitFlag, name), value not in ("0", "false", "False"))
     frames = sorted(cameras["frames"])[: args.frames + 1]  # the first compiles: reported apart
     poses = {f: np.asarray(cameras["frames"][f]["world_T_camera"], np.float64) for f in frames}
     links = {f: _link_poses(args.run_dir, f) for f in frames}
@@ -122,7 +128,8 @@ def main() -> None:
     print(f"CPU: {cpu_model()}; GPU: {gpu_name()}; variant {traced.mi.variant()}")
     print(
         f"{camera.width}x{camera.height}, {args.integrator}, max depth {args.max_depth}, {args.spp} spp, "
-        f"{args.sampler}, denoise {'on' if traced.denoise else 'off'}, {args.loops} loops, "
+        f"{args.sampler}, denoise {'on' if traced.denoise else 'off'}, {args.loops} loops, {args.jit_flag or 'default'} "
+        "Dr.Jit flags, "
         f"{len(frames) - 1} frames after the first"
     )
     first, clock, plain = frames_of(traced)
