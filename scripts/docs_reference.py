@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import re
 from pathlib import Path
 
 import mkdocs_gen_files
@@ -117,7 +118,9 @@ def kinds_page() -> str:
         out.append(f"| {kind} | {hook} | {section} | {abc} | `{info.factory}` |")
     for kind, info in KINDS.items():
         doc = inspect.getdoc(getattr(hookspecs, info.hook)) or ""
-        out += ["", f"## {kind}", "", doc.replace("``", "`"), ""]
+        # the docstrings' reST roles as Markdown code (:class:`~a.B` -> `a.B`)
+        doc = re.sub(r":(?:class|meth|func|mod|attr|data):`~?([^`]+)`", r"`\1`", doc).replace("``", "`")
+        out += ["", f"## {kind}", "", doc, ""]
         specs = registry.specs(kind)
         if specs:
             out += ["| built-in or installed | what it is |", "|---|---|"]

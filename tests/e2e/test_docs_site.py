@@ -73,6 +73,9 @@ def test_the_api_reference_renders_the_docstrings(site: Path) -> None:
     text = html.unescape(re.sub(r"<[^>]+>", "", (site / "reference" / "api" / "agrisim" / "index.html").read_text()))
     first = (Episode.__doc__ or "").strip().splitlines()[0]
     assert first and first in text
+    # the docstrings' reST (roles, double backticks) arrives as Markdown code, not raw
+    pages = [p.read_text() for p in (site / "reference" / "api").rglob("index.html")]
+    assert len(pages) >= 11 and not [p for p in pages if ":class:`" in p or ":meth:`" in p or "``" in p]
 
 
 @pytest.fixture
