@@ -14,8 +14,10 @@ LITERAL = re.compile(r"``([^`]+)``")
 
 
 def markdown(text: str) -> str:
-    """``text`` with reST roles and double-backtick literals as Markdown code."""
-    return LITERAL.sub(r"`\1`", ROLE.sub(r"`\1`", text))
+    """``text`` with reST roles and double-backtick literals as Markdown code, and a
+    paragraph's closing ``::`` as one colon."""
+    text = LITERAL.sub(r"`\1`", ROLE.sub(r"`\1`", text))
+    return re.sub(r"(?<=\S)::$", ":", text, flags=re.M)  # reST's "::" before a literal block
 
 
 class RolesToMarkdown(Extension):
