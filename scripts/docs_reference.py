@@ -12,10 +12,13 @@ from __future__ import annotations
 
 import argparse
 import os
-import re
+import sys
 from pathlib import Path
 
 import mkdocs_gen_files
+
+sys.path.insert(0, str(Path(__file__).parent))
+from griffe_roles import markdown  # noqa: E402 - beside this script, as mkdocs.yml names it
 
 REPO = Path(__file__).resolve().parents[1]
 #: the width the CLI page's help is formatted at (argparse reads $COLUMNS)
@@ -118,8 +121,7 @@ def kinds_page() -> str:
         out.append(f"| {kind} | {hook} | {section} | {abc} | `{info.factory}` |")
     for kind, info in KINDS.items():
         doc = inspect.getdoc(getattr(hookspecs, info.hook)) or ""
-        # the docstrings' reST roles as Markdown code (:class:`~a.B` -> `a.B`)
-        doc = re.sub(r":(?:class|meth|func|mod|attr|data):`~?([^`]+)`", r"`\1`", doc).replace("``", "`")
+        doc = markdown(doc)  # the docstring's reST as the API pages show it
         out += ["", f"## {kind}", "", doc, ""]
         specs = registry.specs(kind)
         if specs:

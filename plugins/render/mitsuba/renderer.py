@@ -161,10 +161,14 @@ class MitsubaRenderer(Renderer):
 
     def radiance(self, camera: CameraModel, world_T_camera: np.ndarray) -> np.ndarray:
         """Linear RGB radiance, H x W x 3 float32, of one view (arms where last placed)."""
-        o = self.options
+        return self._read_back(*self._launch(camera, world_T_camera))
+
+    def _launch(self, camera: CameraModel, world_T_camera: np.ndarray) -> tuple:
+        """(image, sensor, seed) of one view: the sensor placed, the render traced or replayed;
+        its kernels run when the image is evaluated."""
         sensor = self._placed_sensor(camera, world_T_camera)
-        seed = view_seed(camera, world_T_camera, o.seed) & 0xFFFFFFFF
-        return self._read_back(self._render("image", sensor, seed), sensor, seed)
+        seed = view_seed(camera, world_T_camera, self.options.seed) & 0xFFFFFFFF
+        return self._render("image", sensor, seed), sensor, seed
 
     def _read_back(self, image, sensor, seed: int) -> np.ndarray:  # noqa: ANN001 - a Dr.Jit tensor, Mitsuba's sensor
         """A rendered ``image``'s linear RGB on the host, denoised when the options say so."""
@@ -207,16 +211,14 @@ class MitsubaRenderer(Renderer):
             return
         import drjit as dr
 
-        pending = None
+        pending: tuple | None = None
         for world_T_camera, link_poses in views:
             self._place_arms(link_poses)
-            sensor = self._placed_sensor(camera, world_T_camera)
-            seed = view_seed(camera, world_T_camera, self.options.seed) & 0xFFFFFFFF
-            image = self._render("image", sensor, seed)
-            dr.eval(image)  # launched, not waited for
+            launched = self._launch(camera, world_T_camera)
+            dr.eval(launched[0])  # launched, not waited for
             if pending is not None:
                 yield self._encoded(camera, self._read_back(*pending))
-            pending = (image, sensor, seed)
+            pending = launched
         if pending is not None:
             yield self._encoded(camera, self._read_back(*pending))
 
