@@ -109,10 +109,12 @@ def pytest_report_header(config: pytest.Config) -> list[str]:
 def isolated_env(**extra: str) -> dict[str, str]:
     """The environment for an agrisim subprocess that must not see the caller's ``AGRISIM_``
     settings: ``os.environ`` without them, except the emulated CPU (``AGRISIM_LLVM_TARGET``, set
-    by ``AGRISIM_TEST_CPU``: the child computes as this process does); ``extra`` on top."""
+    by ``AGRISIM_TEST_CPU``: the child computes as this process does) and the session's plant
+    cache (which changes no result); ``extra`` on top."""
+    from agrisim.scene.plant_cache import PLANT_CACHE_ENV
     from agrisim.util.cpu import LLVM_TARGET_ENV
 
-    env = {k: v for k, v in os.environ.items() if not k.startswith("AGRISIM_")}
+    env = {k: v for k, v in os.environ.items() if not k.startswith("AGRISIM_") or k == PLANT_CACHE_ENV}
     if _emulated:  # from the session, not os.environ: a test's monkeypatch may have cleared it
         env[LLVM_TARGET_ENV] = _emulated
     env.update(extra)
@@ -153,6 +155,23 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
         skip = pytest.mark.skip(reason="needs an NVIDIA GPU usable by Mitsuba (run on the GPU machine)")
         for item in gpu:
             item.add_marker(skip)
+
+
+@pytest.fixture(scope="session", autouse=True)
+def plant_cache(tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
+    """One grown plant per species, options and seed for the whole session, kept on disk
+    (``AGRISIM_PLANT_CACHE``) in a folder every xdist worker of this run shares, and the
+    processes tests start (runs, Ray's workers) inherit. Fresh each session: a change to a
+    species' code is never hidden. Tests of growing itself call the growers directly, or
+    turn the cache off."""
+    from agrisim.scene.plant_cache import PLANT_CACHE_ENV
+
+    base = tmp_path_factory.getbasetemp()
+    folder = (base.parent if os.environ.get("PYTEST_XDIST_WORKER") else base) / "plant-cache"
+    folder.mkdir(exist_ok=True)
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setenv(PLANT_CACHE_ENV, str(folder))
+        yield str(folder)
 
 
 @pytest.fixture(scope="session")

@@ -12,6 +12,7 @@ from agrisim.files.plant_asset import FORMATS, load_plant
 from agrisim.files.point_cloud import POINT_FORMATS, load_point_plant
 from agrisim.registry import Registry, blame
 from agrisim.scene.model import Plant
+from agrisim.scene.plant_cache import grown
 from agrisim.scene.points import as_points, check_count, check_size
 
 
@@ -103,7 +104,7 @@ def resolve_plant(registry: Registry, config: RunConfig) -> Plant:
         seed = plant_seed(name, table.pop("seed", config.seed))
         options = backend_options(spec.options_model, table, f"plant {name!r}")
         with blame("plant", spec, f" growing {name!r}"):
-            plant: Plant = registry.build("plant", spec, options).build(seed)
+            plant: Plant = grown(name, options, seed, registry.build("plant", spec, options).build)
     elif Path(name).suffix.lower() in FORMATS + POINT_FORMATS or Path(name).exists():
         plant = _read_file(config)
     else:

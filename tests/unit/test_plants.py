@@ -103,9 +103,13 @@ def test_same_seed_same_plant_other_seed_other_plant(name, plants):
     assert a.vertices.shape != c.vertices.shape or not np.allclose(a.vertices, c.vertices)
 
 
-def test_the_plant_seed_grows_another_individual_and_the_same_seed_the_same_bytes(tmp_path, cli):
+def test_the_plant_seed_grows_another_individual_and_the_same_seed_the_same_bytes(tmp_path, cli, monkeypatch):
     """``[plants.NAME] seed`` and ``--plant-seed``: another individual of the species (its own
-    scene file), the same file byte for byte for the same seed, whatever the run's seed."""
+    scene file), the same file byte for byte for the same seed, whatever the run's seed (each
+    grown anew: the session's plant cache is off here)."""
+    from agrisim.scene.plant_cache import PLANT_CACHE_ENV
+
+    monkeypatch.delenv(PLANT_CACHE_ENV, raising=False)
     from agrisim.app.arguments import build_parser, overrides_from_args
     from agrisim.config import build_config
     from agrisim.files.glb import export_glb

@@ -1,0 +1,54 @@
+"""The pytest side of ``bench/suite_profile.py`` (``-p suite_profile_plugin``, in every xdist
+worker): names the running test and phase in ``$SUITE_PROFILE_TEST`` (children inherit it), and
+records each phase's seconds and the Dr.Jit kernels it compiled."""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Iterator
+
+import pytest
+import sitecustomize as counters
+
+_config: pytest.Config | None = None
+
+
+def pytest_configure(config: pytest.Config) -> None:
+    global _config
+    _config = config
+
+
+@pytest.hookimpl(wrapper=True)
+def pytest_runtest_setup(item: pytest.Item) -> Iterator[None]:
+    os.environ[counters.TEST_ENV] = f"{item.nodeid}::setup"
+    try:
+        return (yield)
+    finally:
+        counters.drain_kernels()
+
+
+@pytest.hookimpl(wrapper=True)
+def pytest_runtest_call(item: pytest.Item) -> Iterator[None]:
+    os.environ[counters.TEST_ENV] = f"{item.nodeid}::call"
+    try:
+        return (yield)
+    finally:
+        counters.drain_kernels()
+
+
+@pytest.hookimpl(wrapper=True)
+def pytest_runtest_teardown(item: pytest.Item, nextitem: pytest.Item | None) -> Iterator[None]:
+    os.environ[counters.TEST_ENV] = f"{item.nodeid}::teardown"
+    try:
+        return (yield)
+    finally:
+        counters.drain_kernels()
+
+
+def pytest_runtest_logreport(report: pytest.TestReport) -> None:
+    if _config is None or _config.pluginmanager.has_plugin("dsession"):
+        return  # xdist's controller: the worker that ran the test recorded it
+    worker = getattr(_config, "workerinput", {}).get("workerid", "main")
+    counters.record(
+        "phase", node=report.nodeid, when=report.when, secs=report.duration, outcome=report.outcome, worker=worker
+    )
