@@ -2,7 +2,7 @@
 VENV ?= .venv
 ARGS ?=
 
-.PHONY: setup run test lint bench lock clean ros docs docs-serve wheel
+.PHONY: setup run test test-fast lint bench lock clean ros docs docs-serve wheel
 
 setup:
 	bash scripts/setup.sh
@@ -16,6 +16,13 @@ test: setup
 	bash scripts/test-deps.sh
 	VENV=$(VENV) bash scripts/lint.sh
 	$(VENV)/bin/python -m pytest -q -n auto --maxprocesses=4 --dist loadfile --durations=15 tests
+
+# The edit-test loop: the unit and contract tests and one small run, without the path tracer's
+# module (Mitsuba's kernels take minutes to compile); no lint, no browser or ROS set-up. It does
+# not replace `make test`, which CI runs.
+test-fast: setup
+	$(VENV)/bin/python -m pytest -q -n auto --maxprocesses=4 --dist loadfile --durations=5 \
+		--ignore=tests/unit/test_render_mitsuba.py tests/unit tests/contracts tests/e2e/test_episode.py
 
 # Debian's ROS 1, for agrisim ros --ros 1 (make test installs it too)
 ros:

@@ -301,6 +301,7 @@ def _cmd_doctor(args: argparse.Namespace) -> int:
 
 def _cmd_plants(args: argparse.Namespace) -> int:
     from agrisim.registry import Registry, make_plugin_manager
+    from agrisim.scene.plant_cache import grown
     from agrisim.scene.texturing import surface_summary
 
     if args.seed < 0:
@@ -315,7 +316,8 @@ def _cmd_plants(args: argparse.Namespace) -> int:
         f"{'species':<{width}}  {'triangles':>9}  {'cut away':>8}  {'leaves':>6}  {'leaf cm^2':>9}  labels  [distribution]"
     )
     for name, spec in specs.items():
-        plant = registry.build("plant", spec, spec.options_model()).build(args.seed)
+        options = spec.options_model()
+        plant = grown(name, options, args.seed, registry.build("plant", spec, options).build)
         organs = ", ".join(lab.name for lab in plant.labels.labels if lab.id)
         cut, leaves, leaf_area = surface_summary(plant.mesh, samples=100_000)
         print(

@@ -189,10 +189,15 @@ def test_denoising_brings_few_samples_closer_to_the_reference(lab_scene, referen
 
 @pytest.mark.parametrize("species", ["boston_fern", "hydrangea"])
 def test_the_defaults_come_within_30_db_of_a_converged_render(cell, species):
-    """The plant filling a small view, at the renderer's defaults (denoised), against 1,024
+    """The plant filling a small view, at the renderer's defaults (denoised), against 256
     samples of another seed: at least 30 dB PSNR between the 8-bit images, the bar the defaults
     were chosen to clear at 480x270 and 1080p (bench/mitsuba_quality_curve.py). The boston
-    fern's cut-out fronds and the hydrangea's bright, translucent florets are the hardest."""
+    fern's cut-out fronds and the hydrangea's bright, translucent florets are the hardest.
+
+    The reference's own noise only lowers the PSNR (its error adds to the image's: the seeds
+    are independent), so 256 samples ask more of the defaults than a converged reference would:
+    measured 33.6 / 31.6 dB against 256 samples, 34.1 / 32.2 dB against 1,024 (fern /
+    hydrangea, Intel Xeon AVX-512), for a quarter of the tracing."""
     from agrisim.scene.colour import encode_srgb8
 
     scene = build_scene(cell, grow(species, 0), labels="plant")
@@ -205,7 +210,7 @@ def test_the_defaults_come_within_30_db_of_a_converged_render(cell, species):
         encode_srgb8(np.array(radiance, np.float32).reshape(-1, 3), out, 1.0, "clip")
         return out.astype(np.float64)
 
-    reference = shown(renderer(scene, spp=1024, seed=9, denoise="off").radiance(camera, T))
+    reference = shown(renderer(scene, spp=256, seed=9, denoise="off").radiance(camera, T))
     image = shown(renderer(scene).radiance(camera, T))
     psnr = 10 * np.log10(255.0**2 / ((image - reference) ** 2).mean())
     assert psnr >= 30.0, f"{species}: {psnr:.1f} dB"
@@ -248,14 +253,14 @@ def test_frozen_views_are_the_traced_views_bit_for_bit(cell, kin, lab_scene):
     views = [look_at(target + np.array(o), target) for o in ((0.9, -0.9, 0.6), (-0.8, -0.7, 0.8), (0.2, 1.0, 0.5))]
     arms = [{a.name: kin[a.name].link_poses(np.array(a.home) + s) for a in cell.arms} for s in (0.0, 0.15, -0.2)]
     frozen = renderer(lab_scene, cell, spp=2, denoise=denoise, freeze="on")
+    images = [frozen.render_rgb(camera, T, poses)[0] for T, poses in zip(views, arms, strict=True)]
+    assert "image" in frozen._frozen  # it took the frozen path
+    del frozen  # one renderer alive at a time: Dr.Jit's kernels name the live instances
     traced = renderer(lab_scene, cell, spp=2, denoise=denoise, freeze="off")
-    images = []
-    for T, poses in zip(views, arms, strict=True):
-        rgb, _ = frozen.render_rgb(camera, T, poses)
+    for rgb, T, poses in zip(images, views, arms, strict=True):
         np.testing.assert_array_equal(rgb, traced.render_rgb(camera, T, poses)[0])
-        images.append(rgb)
+    assert not traced._frozen  # and this one the traced path
     assert all((a != b).any() for a, b in itertools.pairwise(images))  # the views differ
-    assert "image" in frozen._frozen and not traced._frozen  # each took its own path
 
 
 def test_a_frozen_render_replays_as_the_camera_moves(lab_scene):
@@ -281,9 +286,10 @@ def test_a_stream_of_views_gives_each_views_own_bytes(cell, kin, lab_scene, deno
     views = [look_at(target + np.array(o), target) for o in offsets]
     arms = [{a.name: kin[a.name].link_poses(np.array(a.home) + s) for a in cell.arms} for s in (0.0, 0.15, -0.2, 0.1)]
     streamed = renderer(lab_scene, cell, spp=2, denoise=denoise, freeze="on")
-    alone = renderer(lab_scene, cell, spp=2, denoise=denoise, freeze="on")
     images = [rgb for rgb, _ in streamed.render_rgb_stream(camera, zip(views, arms, strict=True))]
     assert len(images) == len(views)
+    del streamed  # one renderer alive at a time: Dr.Jit's kernels name the live instances
+    alone = renderer(lab_scene, cell, spp=2, denoise=denoise, freeze="on")
     for rgb, T, poses in zip(images, views, arms, strict=True):
         np.testing.assert_array_equal(rgb, alone.render_rgb(camera, T, poses)[0])
     assert all((a != b).any() for a, b in itertools.pairwise(images))
