@@ -23,7 +23,9 @@ from __future__ import annotations
 
 import contextlib
 import os
+import shutil
 from collections.abc import Iterator
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -201,6 +203,62 @@ def small_run(out, **sections):  # noqa: ANN001, ANN201
     _, summary = Episode(build_config(merge(base, sections))).run()
     assert summary.status == "complete"
     return out
+
+
+def _tree(root: Path) -> dict[str, list[int]]:
+    return {str(p.relative_to(root)): [p.stat().st_size, p.stat().st_mtime_ns] for p in sorted(root.rglob("*"))}
+
+
+class SavedRuns:
+    """Runs of :func:`small_run` made once a session and shared by every test and xdist worker that
+    asks for the same settings: ``get(**sections)`` for a test that only reads the run,
+    ``copy(dest, **sections)`` for one that writes into it (an export, traits.json). What
+    ``get`` hands out must never change: each worker checks, at the session's end, that every
+    file of the runs it used is as it was made."""
+
+    def __init__(self, root: Path) -> None:
+        self.root = root
+        self.used: set[Path] = set()
+
+    def get(self, **sections: object) -> Path:
+        import hashlib
+        import json
+
+        from filelock import FileLock
+
+        key = hashlib.sha256(json.dumps(sections, sort_keys=True, default=str).encode()).hexdigest()[:16]
+        folder = self.root / key
+        manifest = folder / "manifest.json"
+        with FileLock(str(self.root / f"{key}.lock")):
+            if not manifest.is_file():
+                shutil.rmtree(folder, ignore_errors=True)  # a worker that died half-way
+                small_run(folder / "run", **sections)
+                manifest.write_text(json.dumps(_tree(folder / "run")))
+        self.used.add(folder)
+        return folder / "run"
+
+    def copy(self, dest: Path, **sections: object) -> Path:
+        shutil.copytree(self.get(**sections), dest)
+        return dest
+
+    def check_untouched(self) -> None:
+        import json
+
+        for folder in sorted(self.used):
+            before, after = json.loads((folder / "manifest.json").read_text()), _tree(folder / "run")
+            changed = sorted(k for k in before.keys() | after.keys() if before.get(k) != after.get(k))
+            assert not changed, f"a test wrote into the shared run {folder / 'run'}: {changed[:5]}"
+
+
+@pytest.fixture(scope="session")
+def saved_runs(tmp_path_factory: pytest.TempPathFactory) -> Iterator[SavedRuns]:
+    """The session's :class:`SavedRuns`, in a folder all xdist workers of this run share."""
+    base = tmp_path_factory.getbasetemp()
+    root = (base.parent if os.environ.get("PYTEST_XDIST_WORKER") else base) / "saved-runs"
+    root.mkdir(exist_ok=True)
+    runs = SavedRuns(root)
+    yield runs
+    runs.check_untouched()
 
 
 def _run_cli(args: list[str], capsys: pytest.CaptureFixture[str]) -> tuple[int, str, str]:

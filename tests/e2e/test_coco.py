@@ -10,7 +10,6 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import small_run
 from PIL import Image
 from pycocotools.coco import COCO
 from skimage.measure import label as connected
@@ -19,10 +18,11 @@ from agrisim.plugins.exporters.coco import COCO_JSON
 
 
 @pytest.fixture(scope="module")
-def run_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    """Hydrangea with organ labels and leaf instances, the arms in view."""
+def run_dir(tmp_path_factory: pytest.TempPathFactory, saved_runs) -> Path:  # noqa: ANN001
+    """Hydrangea with organ labels and leaf instances, the arms in view (a copy of the
+    session's: the exports are written into it)."""
     out = tmp_path_factory.mktemp("coco") / "run"
-    return small_run(out, plant="hydrangea", render={"labels": "organs"}, recon={"backend": "none"})
+    return saved_runs.copy(out, plant="hydrangea", render={"labels": "organs"}, recon={"backend": "none"})
 
 
 def png(path: Path) -> np.ndarray:

@@ -21,7 +21,6 @@ import cv2
 import numpy as np
 import pytest
 import yaml
-from conftest import small_run
 from PIL import Image
 from scipy import ndimage
 
@@ -38,10 +37,10 @@ MODULE = "agrisim_yolo_export"
 
 
 @pytest.fixture(scope="module")
-def run_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    """Hydrangea with organ labels and leaf instances, the arms in view."""
-    out = tmp_path_factory.mktemp("yolo") / "run"
-    return small_run(out, plant="hydrangea", render={"labels": "organs"}, recon={"backend": "none"})
+def run_dir(saved_runs) -> Path:  # noqa: ANN001
+    """Hydrangea with organ labels and leaf instances, the arms in view (the session's: the
+    exports here go to folders of their own)."""
+    return saved_runs.get(plant="hydrangea", render={"labels": "organs"}, recon={"backend": "none"})
 
 
 @pytest.fixture

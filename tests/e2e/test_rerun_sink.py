@@ -351,14 +351,12 @@ def test_hooks_record_motion_images_and_clouds(tmp_path: Path) -> None:
 # ---------------------------------------------------------------------- the layout a viewer opens
 
 
-def test_blueprint_shows_photographs_and_merged_clouds(tmp_path: Path) -> None:
+def test_blueprint_shows_photographs_and_merged_clouds(saved_runs) -> None:  # noqa: ANN001
     """The blueprint stored in a real run's recording: each camera panel draws the photograph,
     with labels and leaf instances held as overlays switched off; depth has a panel of its own;
     the 3D view draws the cell and the merged clouds, and holds each view's depth and cloud
     switched off (they stay in the recording, one click from showing)."""
-    from conftest import small_run
-
-    run_dir = small_run(tmp_path / "run", output={"out": str(tmp_path / "run"), "no_rrd": False})
+    run_dir = saved_runs.get(output={"no_rrd": False})
     rrd = run_dir / "recording.rrd"
     recorded = Recording(rrd)
     entities_ = set(recorded.chunks)

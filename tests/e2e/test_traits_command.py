@@ -9,7 +9,6 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import small_run
 from PIL import Image
 from test_cli_errors import assert_one_line_error, snapshot
 
@@ -41,8 +40,8 @@ def test_a_species_traits_are_written_and_not_overwritten(tmp_path: Path, cli) -
     assert json.loads(out.read_text())["plant"]["seed"] == 3
 
 
-def test_a_runs_traits_go_into_it_and_name_the_leaves_its_masks_show(tmp_path: Path, cli) -> None:
-    run = small_run(tmp_path / "run", plant="coltsfoot", seed=4)
+def test_a_runs_traits_go_into_it_and_name_the_leaves_its_masks_show(tmp_path: Path, cli, saved_runs) -> None:  # noqa: ANN001
+    run = saved_runs.copy(tmp_path / "run", plant="coltsfoot", seed=4)
     code, _, err = cli(["traits", str(run)])
     assert code == 0, err
     doc = json.loads((run / "traits.json").read_text())

@@ -24,8 +24,8 @@ from agrisim.traits.estimate import fuse_views, plant_T_world
 
 
 @pytest.fixture(scope="module")
-def run(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    return small_run(tmp_path_factory.mktemp("leaves") / "run", plant="coltsfoot", seed=4)
+def run(saved_runs) -> Path:  # noqa: ANN001
+    return saved_runs.get(plant="coltsfoot", seed=4)
 
 
 def test_each_leafs_points_lie_on_that_leaf(run: Path) -> None:
