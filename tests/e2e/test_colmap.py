@@ -6,6 +6,7 @@ pycolmap's own similarity estimate (a second implementation of the alignment); t
 from __future__ import annotations
 
 import json
+import shutil
 from pathlib import Path
 
 import numpy as np
@@ -220,8 +221,12 @@ def test_a_run_without_rgb_is_refused(tmp_path: Path, cli) -> None:  # noqa: ANN
     assert not (run / COLMAP_DIR).exists()
 
 
-def test_colmap_poses_need_agrisim_colmap_and_a_finished_run(tmp_path: Path, cli) -> None:  # noqa: ANN001
-    run = small_run(tmp_path / "run", recon={"backend": "none"})
+def test_colmap_poses_need_agrisim_colmap_and_a_finished_run(run_dir: Path, tmp_path: Path, cli) -> None:  # noqa: ANN001
+    # a finished run that agrisim colmap has not seen: the module's views, without colmap/
+    run = Path(
+        shutil.copytree(run_dir, tmp_path / "run", ignore=lambda d, _: [COLMAP_DIR] if Path(d) == run_dir else [])
+    )
+    assert not (run / COLMAP_DIR).exists() and not (run / "metrics.json").exists()
     code, _, err = cli(["recon", str(run), "--recon", "pointcloud", "--set", "recon.poses=colmap"])
     assert code == 2 and f"needs agrisim colmap {run} first" in err and err.count("\n") == 1
     assert not (run / "metrics.json").exists()
