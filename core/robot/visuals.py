@@ -8,9 +8,13 @@ else a neutral grey. A renderer places link ``L`` at ``link_poses[robot][L]`` (`
 
 from __future__ import annotations
 
+import hashlib
 import logging
+import pickle
 from dataclasses import dataclass
 from functools import lru_cache
+from importlib import metadata
+from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -18,6 +22,7 @@ import numpy as np
 from agrisim.robot import meshes as robot_meshes
 from agrisim.scene.colour import srgb_to_linear
 from agrisim.scene.model import Material, Mesh
+from agrisim.util import cache as util_cache
 
 if TYPE_CHECKING:
     import trimesh
@@ -28,6 +33,9 @@ log = logging.getLogger(__name__)
 DEFAULT_COLOR = (0.45, 0.45, 0.47, 1.0)
 #: the camera body added to the flange by agrisim.robot.urdf (linear RGBA)
 CAMERA_COLOR = (0.02, 0.02, 0.02, 1.0)
+
+#: bump when the meshes this module makes change for the same inputs (the disk cache's key)
+VISUALS_VERSION = 1
 
 #: (vertices, faces, linear RGBA) of one sub-mesh of a visual
 _Part = tuple[np.ndarray, np.ndarray, tuple[float, float, float, float]]
@@ -95,15 +103,61 @@ def _decimate(v: np.ndarray, f: np.ndarray, target: float) -> tuple[np.ndarray, 
     return np.asarray(mesh.vertices, float), np.asarray(mesh.triangles, np.int64)
 
 
+def _cache_path(urdf: str, max_triangles: int) -> Path:
+    """Where the meshes of ``urdf`` at ``max_triangles`` are kept: named by everything they are
+    made from (the URDF, each mesh file's path, size and time, the libraries that read and
+    decimate them, this module's version)."""
+    files = sorted({v.filename for vs in robot_meshes.link_visuals(urdf).values() for v in vs if v.filename})
+    stats = []
+    for name in files:
+        try:
+            st = Path(name).stat()
+            stats.append(f"{name}|{st.st_size}|{st.st_mtime_ns}")
+        except OSError:
+            stats.append(f"{name}|missing")
+    libraries = []
+    for package in ("trimesh", "open3d"):
+        try:
+            libraries.append(f"{package} {metadata.version(package)}")
+        except metadata.PackageNotFoundError:
+            libraries.append(f"{package} none")
+    ident = "\n".join([urdf, str(max_triangles), f"v{VISUALS_VERSION}", *libraries, *stats])
+    return util_cache.cache_dir("arm-visuals") / f"{hashlib.sha256(ident.encode()).hexdigest()[:24]}.pickle"
+
+
 @lru_cache(maxsize=8)
 def arm_link_meshes(urdf: str, max_triangles: int = 0) -> tuple[LinkMesh, ...]:
     """The visual meshes of every link of ``urdf`` that has any, in the link's frame (cached per
-    URDF text: both arms of a cell share the work).
+    URDF text: both arms of a cell share the work; and on disk, so that later processes read
+    them instead of loading the mesh files and decimating again, 0.5-1.7 s a process).
 
     ``max_triangles`` > 0 decimates the arm to about that many triangles in all, each part
     keeping its share (quadric edge collapse keeps the silhouette; parts stay separate, so
     colours keep their borders).
     """
+    path = _cache_path(urdf, max_triangles)
+    try:
+        kept = pickle.loads(path.read_bytes())
+        if isinstance(kept, tuple) and all(isinstance(lm, LinkMesh) for lm in kept):
+            return kept
+    except FileNotFoundError:
+        pass
+    except Exception as exc:  # noqa: BLE001 - a truncated or stale entry: made again
+        log.debug("arm meshes %s unreadable: %s", path, exc)
+    links = _link_meshes(urdf, max_triangles)
+    if all(_complete(urdf)):  # a visual that failed to load is not kept: it may load next time
+        util_cache.write_cached(path, pickle.dumps(links, protocol=pickle.HIGHEST_PROTOCOL))
+    return links
+
+
+def _complete(urdf: str) -> list[bool]:
+    return [
+        v.filename is None or Path(v.filename).is_file() for vs in robot_meshes.link_visuals(urdf).values() for v in vs
+    ]
+
+
+def _link_meshes(urdf: str, max_triangles: int) -> tuple[LinkMesh, ...]:
+    """:func:`arm_link_meshes`, made from the URDF's files."""
     loaded: list[tuple[str, robot_meshes.Visual, list[_Part]]] = []
     for link, visuals in robot_meshes.link_visuals(urdf).items():
         for visual in visuals:
