@@ -166,6 +166,9 @@ class Page:
             # viewer logs 25,000 debug lines as it starts: 14 s of CPU time a page with them)
             with contextlib.suppress(RuntimeError):  # (experimental: a browser without it is slower)
                 self.call("Runtime.setMaxCallStackSizeToCapture", {"size": 0}, self.session)
+            # focused as the page a reader types into would be: a headless tab in the background
+            # may not be, and then focus() and typed text go nowhere (the docs' search box)
+            self.call("Emulation.setFocusEmulationEnabled", {"enabled": True}, self.session)
         except BaseException:
             self.close()
             raise

@@ -121,14 +121,23 @@ def test_searching_coco_lands_on_the_export_guide(served: str) -> None:
     the exports guide."""
     with Page(served, width=1280, height=800) as page:
         assert _until(page, "document.readyState === 'complete' && !!document.querySelector('.md-search__input')")
+        # the search's worker has its index once the results' line no longer says "Initializing
+        # search" (Material's search.result.initializer): typed before that, a query is lost
+        meta = "(document.querySelector('.md-search-result__meta') || {}).textContent || 'Initializing'"
+        assert _until(page, f"!/Initializing/.test({meta})", 120.0), "the site's search never had its index"
         first: object = ""
         for _ in range(4):  # typed before the search's worker has its index, a query is lost: type again
-            _js(page, "const q = document.querySelector('.md-search__input'); q.value = ''; q.focus()")
-            page.call("Input.insertText", {"text": "COCO"}, page.session)
+            _js(page, "(q => { q.value = ''; q.focus(); })(document.querySelector('.md-search__input'))")
+            # key by key, as a reader types: Material's search reads the query on each key's
+            # release (text inserted without keys is in the box, but never searched)
+            for key in "COCO":
+                page.call("Input.dispatchKeyEvent", {"type": "keyDown", "key": key, "text": key}, page.session)
+                page.call("Input.dispatchKeyEvent", {"type": "keyUp", "key": key}, page.session)
             first = _until(page, "(document.querySelector('.md-search-result__item a') || {}).href || ''", 15.0)
             if first:
                 break
-        assert first, "the search listed nothing for COCO"
+        state = "[document.querySelector('.md-search__input').value, (document.querySelector('.md-search-result__meta') || {}).textContent].join(' | ')"
+        assert first, f"the search listed nothing for COCO (query | results: {_js(page, state)})"
         _js(page, "document.querySelector('.md-search-result__item a').click()")
         landed = _until(page, "location.pathname.includes('/guides/') ? location.pathname : ''")
         # the new page's heading, once it has loaded (the path changes first)
