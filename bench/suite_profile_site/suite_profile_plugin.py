@@ -18,31 +18,28 @@ def pytest_configure(config: pytest.Config) -> None:
     _config = config
 
 
-@pytest.hookimpl(wrapper=True)
-def pytest_runtest_setup(item: pytest.Item) -> Iterator[None]:
-    os.environ[counters.TEST_ENV] = f"{item.nodeid}::setup"
+def _phase(item: pytest.Item, when: str) -> Iterator[None]:
+    """Name the test and phase for this process and its children; drain Dr.Jit's kernels after."""
+    os.environ[counters.TEST_ENV] = f"{item.nodeid}::{when}"
     try:
         return (yield)
     finally:
         counters.drain_kernels()
+
+
+@pytest.hookimpl(wrapper=True)
+def pytest_runtest_setup(item: pytest.Item) -> Iterator[None]:
+    return (yield from _phase(item, "setup"))
 
 
 @pytest.hookimpl(wrapper=True)
 def pytest_runtest_call(item: pytest.Item) -> Iterator[None]:
-    os.environ[counters.TEST_ENV] = f"{item.nodeid}::call"
-    try:
-        return (yield)
-    finally:
-        counters.drain_kernels()
+    return (yield from _phase(item, "call"))
 
 
 @pytest.hookimpl(wrapper=True)
 def pytest_runtest_teardown(item: pytest.Item, nextitem: pytest.Item | None) -> Iterator[None]:
-    os.environ[counters.TEST_ENV] = f"{item.nodeid}::teardown"
-    try:
-        return (yield)
-    finally:
-        counters.drain_kernels()
+    return (yield from _phase(item, "teardown"))
 
 
 def pytest_runtest_logreport(report: pytest.TestReport) -> None:
