@@ -1,5 +1,6 @@
 """Where the suite's time goes, module by module: set-up, calls and teardown (seconds, as pytest
-measured them where each test ran), and what each module built: Ray clusters started, Dr.Jit
+measured them where each test ran), the CPU seconds its Python processes used (pytest's worker
+and the children that exited), and what each module built: Ray clusters started, Dr.Jit
 kernels compiled (from scratch, and loaded from Dr.Jit's disk cache) with the compilers' seconds,
 plants grown, episodes run, browsers and ``agrisim`` processes started. Counted in every Python
 process the suite starts, children included (``bench/suite_profile_site``).
@@ -37,6 +38,7 @@ COLUMNS = (
     "call",
     "teardown",
     "total",
+    "cpu s",
     "tests",
     "ray",
     "compiled",
@@ -54,11 +56,12 @@ def run_suite(pytest_args: list[str]) -> dict:
     with tempfile.TemporaryDirectory(prefix="suite-profile-") as events:
         env = dict(os.environ, SUITE_PROFILE_DIR=events)
         env["PYTHONPATH"] = os.pathsep.join(p for p in (str(SITE), env.get("PYTHONPATH", "")) if p)
-        start = time.perf_counter()
+        start, busy = time.perf_counter(), _machine_ticks()
         proc = subprocess.run(
             [sys.executable, "-m", "pytest", "-p", "suite_profile_plugin", *pytest_args], cwd=ROOT, env=env
         )
         wall = time.perf_counter() - start
+        used, total = (b - a for a, b in zip(busy, _machine_ticks(), strict=True))
         rows = []
         for path in Path(events).glob("*.jsonl"):
             for line in path.read_text().splitlines():
@@ -66,7 +69,26 @@ def run_suite(pytest_args: list[str]) -> dict:
                     rows.append(json.loads(line))
                 except json.JSONDecodeError:  # a process killed mid-line
                     pass
-    return {"wall": wall, "exit": proc.returncode, "args": pytest_args, "cpu": _cpu(), "events": rows}
+    busy_share = used / total if total else 0.0
+    return {
+        "wall": wall,
+        "exit": proc.returncode,
+        "args": pytest_args,
+        "cpu": _cpu(),
+        "busy": busy_share,
+        "events": rows,
+    }
+
+
+def _machine_ticks() -> tuple[int, int]:
+    """The whole machine's busy and total CPU ticks so far (/proc/stat), children of every kind
+    included (Chromium, Ray's C++ daemons) that the per-process counters cannot see."""
+    try:
+        fields = [int(x) for x in Path("/proc/stat").read_text().split("\n", 1)[0].split()[1:]]
+    except (OSError, ValueError):
+        return 0, 0
+    idle = fields[3] + (fields[4] if len(fields) > 4 else 0)  # idle + iowait
+    return sum(fields) - idle, sum(fields)
 
 
 def _cpu() -> str:
@@ -107,6 +129,8 @@ def summarise(profile: dict) -> tuple[dict[str, dict[str, float]], dict[str, flo
             row["compiled"] += e["compiled"]
             row["from disk"] += e["from_disk"]
             row["compile s"] += e["secs"]
+        elif kind == "cpu":
+            row["cpu s"] += e["secs"]
         elif kind == "plant":
             row["plants"] += 1
         elif kind == "run":
@@ -123,7 +147,7 @@ def render(profile: dict, top: int) -> str:
     rows = sorted(table.items(), key=lambda kv: -kv[1]["total"])
     lines = [
         f"suite profile: {profile['cpu']}; pytest {' '.join(profile['args'])}",
-        f"wall {profile['wall']:.0f} s (exit {profile['exit']}); per worker: "
+        f"wall {profile['wall']:.0f} s (exit {profile['exit']}); machine busy {profile.get('busy', 0):.0%}; per worker: "
         + ", ".join(f"{w} {s:.0f} s" for w, s in sorted(workers.items())),
         "",
         "| module | " + " | ".join(COLUMNS) + " |",
@@ -134,7 +158,7 @@ def render(profile: dict, top: int) -> str:
         for c in COLUMNS:
             totals[c] += row[c]
     for module, row in [*rows[:top], ("**all**", totals)]:
-        cells = [f"{row[c]:.0f}" if c not in ("compile s",) else f"{row[c]:.1f}" for c in COLUMNS]
+        cells = [f"{row[c]:.1f}" if c == "compile s" else f"{row[c]:.0f}" for c in COLUMNS]
         lines.append(f"| {module} | " + " | ".join(cells) + " |")
     if len(rows) > top:
         lines.insert(-1, f"| ({len(rows) - top} more modules) | " + " | ".join("" for _ in COLUMNS) + " |")

@@ -10,7 +10,9 @@ pytest plugin sets before each phase and children inherit):
 - ``plant``: a plant grown (procedural or Helios), with its seconds;
 - ``run``: an episode run (``Episode.run``), with its seconds;
 - ``process``: a program started (``subprocess.Popen``): ``browser``, ``agrisim``, ``colmap`` or
-  ``other``.
+  ``other``;
+- ``cpu``: the CPU seconds (user and system) a child process used, recorded at its exit (pytest's
+  workers record theirs per phase instead, in the plugin).
 
 Nothing here changes what a test computes; the modules are wrapped as they are imported.
 """
@@ -150,7 +152,14 @@ def _popen(self: Any, args: Any, *rest: Any, **kwargs: Any) -> None:
     _popen_init(self, args, *rest, **kwargs)
 
 
+def _record_cpu() -> None:
+    if "xdist" in sys.modules or "_pytest" in sys.modules:
+        return  # a pytest process: the plugin counts its CPU phase by phase
+    record("cpu", secs=time.process_time())
+
+
 if _DIR:
     sys.meta_path.insert(0, _Finder())
     subprocess.Popen.__init__ = _popen  # type: ignore[method-assign]
     atexit.register(drain_kernels)
+    atexit.register(_record_cpu)

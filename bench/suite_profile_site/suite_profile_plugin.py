@@ -1,10 +1,11 @@
 """The pytest side of ``bench/suite_profile.py`` (``-p suite_profile_plugin``, in every xdist
 worker): names the running test and phase in ``$SUITE_PROFILE_TEST`` (children inherit it), and
-records each phase's seconds and the Dr.Jit kernels it compiled."""
+records each phase's seconds, its CPU seconds and the Dr.Jit kernels it compiled."""
 
 from __future__ import annotations
 
 import os
+import time
 from collections.abc import Iterator
 
 import pytest
@@ -21,10 +22,12 @@ def pytest_configure(config: pytest.Config) -> None:
 def _phase(item: pytest.Item, when: str) -> Iterator[None]:
     """Name the test and phase for this process and its children; drain Dr.Jit's kernels after."""
     os.environ[counters.TEST_ENV] = f"{item.nodeid}::{when}"
+    start = time.process_time()
     try:
         return (yield)
     finally:
         counters.drain_kernels()
+        counters.record("cpu", secs=time.process_time() - start)
 
 
 @pytest.hookimpl(wrapper=True)
