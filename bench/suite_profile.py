@@ -2,7 +2,8 @@
 measured them where each test ran), the CPU seconds its Python processes used (pytest's worker
 and the children that exited), and what each module built: Ray clusters started, Dr.Jit
 kernels compiled (from scratch, and loaded from Dr.Jit's disk cache) with the compilers' seconds,
-plants grown, episodes run, browsers and ``agrisim`` processes started. Counted in every Python
+plants grown, episodes run, the seconds motion plans spent failing (a failed plan spends its
+whole budget), browsers and ``agrisim`` processes started. Counted in every Python
 process the suite starts, children included (``bench/suite_profile_site``).
 
     .venv/bin/python bench/suite_profile.py                      # the suite as `make test` runs it
@@ -46,6 +47,7 @@ COLUMNS = (
     "compile s",
     "plants",
     "runs",
+    "failed plans s",
     "browsers",
     "agrisim",
 )
@@ -135,6 +137,8 @@ def summarise(profile: dict) -> tuple[dict[str, dict[str, float]], dict[str, flo
             row["plants"] += 1
         elif kind == "run":
             row["runs"] += 1
+        elif kind == "plan" and e["detail"] == "failed":
+            row["failed plans s"] += e["secs"]
         elif kind == "process" and e["detail"] in ("browser", "agrisim"):
             row["browsers" if e["detail"] == "browser" else "agrisim"] += 1
     for module, nodes in tests.items():
@@ -158,7 +162,7 @@ def render(profile: dict, top: int) -> str:
         for c in COLUMNS:
             totals[c] += row[c]
     for module, row in [*rows[:top], ("**all**", totals)]:
-        cells = [f"{row[c]:.1f}" if c == "compile s" else f"{row[c]:.0f}" for c in COLUMNS]
+        cells = [f"{row[c]:.1f}" if c in ("compile s", "failed plans s") else f"{row[c]:.0f}" for c in COLUMNS]
         lines.append(f"| {module} | " + " | ".join(cells) + " |")
     if len(rows) > top:
         lines.insert(-1, f"| ({len(rows) - top} more modules) | " + " | ".join("" for _ in COLUMNS) + " |")

@@ -9,6 +9,8 @@ pytest plugin sets before each phase and children inherit):
   compilers' seconds (Dr.Jit's kernel history, drained after each phase and at exit);
 - ``plant``: a plant grown (procedural or Helios), with its seconds;
 - ``run``: an episode run (``Episode.run``), with its seconds;
+- ``plan``: an OMPL motion plan, with its seconds and whether it failed (a failure spends the
+  whole time budget: attempts x time);
 - ``process``: a program started (``subprocess.Popen``): ``browser``, ``agrisim``, ``colmap`` or
   ``other``;
 - ``cpu``: the CPU seconds (user and system) a child process used, recorded at its exit (pytest's
@@ -93,6 +95,22 @@ def _patch_grow(mod: Any) -> None:
         )
 
 
+def _patch_ompl(mod: Any) -> None:
+    plan = mod.OmplPlanner.plan
+
+    @functools.wraps(plan)
+    def wrapper(*args: Any, **kwargs: Any) -> Any:
+        start, failed = time.perf_counter(), True
+        try:
+            out = plan(*args, **kwargs)
+            failed = False
+            return out
+        finally:
+            record("plan", secs=time.perf_counter() - start, detail="failed" if failed else "ok")
+
+    mod.OmplPlanner.plan = wrapper
+
+
 def _patch_episode(mod: Any) -> None:
     mod.Episode.run = _timed("run", mod.Episode.run)
 
@@ -103,6 +121,7 @@ _PATCHES = {
     "agrisim.plugins.plants.procedural": _patch_grow,
     "agrisim.plugins.plants.helios": _patch_grow,
     "agrisim.episode": _patch_episode,
+    "agrisim.plugins.planners.ompl_planner.backend": _patch_ompl,
 }
 
 
