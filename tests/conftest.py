@@ -24,7 +24,7 @@ from __future__ import annotations
 import contextlib
 import os
 import shutil
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import numpy as np
@@ -321,3 +321,19 @@ def leaf_card(
     mat = Material("leaf", albedo=rgba, alpha_mode="MASK", label=1)
     faces = np.array([[0, 1, 2], [0, 2, 3]])
     return Mesh("card", v + np.asarray(at), faces, [mat], np.zeros(2, np.int32), uv, np.array([1, 1], np.uint16))
+
+
+def kernels_launched(render: Callable[[], object]) -> list[tuple[str, bool]]:
+    """The Dr.Jit kernels ``render()`` launched: (hash, compiled or read from disk rather than
+    found in this process's memory)."""
+    import drjit as dr
+
+    before = dr.flag(dr.JitFlag.KernelHistory)
+    dr.set_flag(dr.JitFlag.KernelHistory, True)
+    try:
+        dr.kernel_history()  # (drained)
+        render()
+        history = dr.kernel_history([dr.KernelType.JIT])
+    finally:
+        dr.set_flag(dr.JitFlag.KernelHistory, before)
+    return [(k["hash"], not k["cache_hit"] or bool(k.get("cache_disk"))) for k in history]

@@ -242,12 +242,13 @@ class StereoSensor(TracedSensor):
         dots_radiance = dr.zeros(mi.Float, dr.width(radiance))
         if self.device.projector and opts.projector_power > 0:
             P = np.asarray(world_T_projector, np.float64)
-            q = mi.Point3f(*(float(x) for x in P[:3, 3]))
+            # the projector's pose opaque: one kernel for every pose (as literals, one a view)
+            q = mi.Point3f(*(dr.opaque(mi.Float, float(x)) for x in P[:3, 3]))
             w = p - q
             dist2 = dr.squared_norm(w)
             # the point in the projector's frame, then its texel of the pattern
-            R = P[:3, :3]
-            local = [w[0] * float(R[0, k]) + w[1] * float(R[1, k]) + w[2] * float(R[2, k]) for k in range(3)]
+            R = [[dr.opaque(mi.Float, float(x)) for x in row] for row in P[:3, :3]]
+            local = [w[0] * R[0][k] + w[1] * R[1][k] + w[2] * R[2][k] for k in range(3)]
             pw, ph = PATTERN_SIZE
             tx, ty = (np.tan(np.radians(a) / 2) for a in PROJECTOR_FOV_DEG)
             front = local[2] > 1e-6

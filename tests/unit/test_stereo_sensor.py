@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from conftest import kernels_launched
 
 from agrisim.config import RenderConfig
 from agrisim.plugins.sensors.stereo import DEVICES, StereoOptions, StereoSensor
@@ -103,3 +104,20 @@ def test_the_nearest_depth_follows_the_image_size():
     assert (np.abs(inside - 0.35) < 0.01).mean() > 0.8
     beyond, _ = _native(_quad((-20, 20), 0.26, "plane"), device="d415")
     assert (np.abs(beyond - 0.26) < 0.01).mean() < 0.05
+
+
+def test_every_pose_reuses_the_first_views_kernels():
+    """The projector's dots drawn from other poses launch the first pose's kernels again,
+    compiling none: the pose is data, not code (as literals, every view compiled its own)."""
+    _, sensor = _native(_quad((0, 20), 0.6, "near"), _quad((-20, 20), 1.2, "far"))
+    poses = []
+    for k in (1, 2, 3):
+        T, turn = np.eye(4), np.radians(2.0 * k)  # moved, and turned about the optical axis
+        T[:2, :2] = [[np.cos(turn), -np.sin(turn)], [np.sin(turn), np.cos(turn)]]
+        T[:3, 3] = (0.01 * k, -0.02 * k, 0.005 * k)
+        poses.append(T)
+    first = kernels_launched(lambda: sensor.measure_native(poses[0], {}, 1))
+    for T in poses[1:]:
+        again = kernels_launched(lambda T=T: sensor.measure_native(T, {}, 1))
+        assert again and {h for h, _ in again} <= {h for h, _ in first}
+        assert not any(fresh for _, fresh in again)

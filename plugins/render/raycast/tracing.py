@@ -181,7 +181,9 @@ class SceneTracer:
         )  # opaque: one kernel for every batch and offset
         T = np.asarray(world_T_camera, np.float64)
         R, c = T[:3, :3], T[:3, 3]
-        d = mi.Vector3f(*(mi.Float(x * float(R[j, 0]) + y * float(R[j, 1]) + float(R[j, 2])) for j in range(3)))
+        # opaque: one kernel for every pose (as literals each view's rotation compiled its own)
+        r = [[dr.opaque(F64, float(R[j, i])) for i in range(3)] for j in range(3)]
+        d = mi.Vector3f(*(mi.Float(x * r[j][0] + y * r[j][1] + r[j][2]) for j in range(3)))
         near = dr.opaque(mi.Float, self.options.near)
         o = mi.Point3f(*(d[j] * near + dr.opaque(mi.Float, c[j]) for j in range(3)))
         return o, d
