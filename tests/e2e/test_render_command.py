@@ -196,7 +196,7 @@ def test_rerender_resumes_frame_by_frame(runs: dict[str, Path], tmp_path: Path) 
         (lambda d: None, ["--set", "renderer.mitsuba.spp=0"], ["renderer backend 'mitsuba'", "spp"]),
         (lambda d: None, ["--set", "plant=boxwood"], ["only renderer.* settings"]),
         (lambda d: None, ["--out", "{run}"], ["replaces its RGB", "--overwrite"]),
-        (lambda d: (d.parent / "taken").mkdir(), ["--out", "{parent}/taken"], []),
+        (lambda d: (d.parent / "taken").mkdir(), ["--out", "{parent}/taken", "--renderer", "raycast"], []),
         (lambda d: None, ["--gpus", "3"], ["--gpus 3: the Ray cluster has 0 GPU resources"]),
         (lambda d: None, ["--gpus", "0"], ["--gpus must be 1 or more"]),
         (lambda d: None, ["--ray-address", "127.0.0.1:9"], ["--ray-address 127.0.0.1:9"]),
@@ -224,8 +224,9 @@ def test_bad_input_writes_nothing(runs: dict[str, Path], tmp_path: Path, make, a
     before = {p: p.read_bytes() for p in sorted(tmp_path.rglob("*")) if p.is_file()}
     argv = [a.format(run=src, parent=tmp_path) for a in args]
     done = rerender(src, *argv, *(sets() if "--set" not in args else []), blocked=())
-    if not expected:  # an empty --out is not "existing work": the re-render goes ahead
+    if not expected:  # an empty --out is not "existing work": the re-render goes ahead (raycast: quick)
         assert done.returncode == 0, done.stderr
+        assert sorted(p.name for p in (tmp_path / "taken" / "rgb").glob("*.png")) == sorted(files(src, "rgb"))
         return
     assert done.returncode == 2, done.stderr
     assert done.stderr.count("\n") == 1 and "Traceback" not in done.stderr, done.stderr
