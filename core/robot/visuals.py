@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import hashlib
 import logging
-import pickle
 from dataclasses import dataclass
 from functools import lru_cache
 from importlib import metadata
@@ -103,18 +102,20 @@ def _decimate(v: np.ndarray, f: np.ndarray, target: float) -> tuple[np.ndarray, 
     return np.asarray(mesh.vertices, float), np.asarray(mesh.triangles, np.int64)
 
 
-def _cache_path(urdf: str, max_triangles: int) -> Path:
-    """Where the meshes of ``urdf`` at ``max_triangles`` are kept: named by everything they are
+def _cache_entry(urdf: str, max_triangles: int) -> tuple[Path, bool]:
+    """Where the meshes of ``urdf`` at ``max_triangles`` are kept, named by everything they are
     made from (the URDF, each mesh file's path, size and time, the libraries that read and
-    decimate them, this module's version)."""
+    decimate them, this module's version); and whether every mesh file is there (a visual that
+    fails to load is not kept: it may load next time)."""
     files = sorted({v.filename for vs in robot_meshes.link_visuals(urdf).values() for v in vs if v.filename})
-    stats = []
+    stats, complete = [], True
     for name in files:
         try:
             st = Path(name).stat()
             stats.append(f"{name}|{st.st_size}|{st.st_mtime_ns}")
         except OSError:
             stats.append(f"{name}|missing")
+            complete = False
     libraries = []
     for package in ("trimesh", "open3d"):
         try:
@@ -122,7 +123,8 @@ def _cache_path(urdf: str, max_triangles: int) -> Path:
         except metadata.PackageNotFoundError:
             libraries.append(f"{package} none")
     ident = "\n".join([urdf, str(max_triangles), f"v{VISUALS_VERSION}", *libraries, *stats])
-    return util_cache.cache_dir("arm-visuals") / f"{hashlib.sha256(ident.encode()).hexdigest()[:24]}.pickle"
+    path = util_cache.cache_dir("arm-visuals") / f"{hashlib.sha256(ident.encode()).hexdigest()[:24]}.pickle"
+    return path, complete
 
 
 @lru_cache(maxsize=8)
@@ -135,25 +137,14 @@ def arm_link_meshes(urdf: str, max_triangles: int = 0) -> tuple[LinkMesh, ...]:
     keeping its share (quadric edge collapse keeps the silhouette; parts stay separate, so
     colours keep their borders).
     """
-    path = _cache_path(urdf, max_triangles)
-    try:
-        kept = pickle.loads(path.read_bytes())
-        if isinstance(kept, tuple) and all(isinstance(lm, LinkMesh) for lm in kept):
-            return kept
-    except FileNotFoundError:
-        pass
-    except Exception as exc:  # noqa: BLE001 - a truncated or stale entry: made again
-        log.debug("arm meshes %s unreadable: %s", path, exc)
+    path, complete = _cache_entry(urdf, max_triangles)
+    kept = util_cache.read_pickle(path)
+    if isinstance(kept, tuple) and all(isinstance(lm, LinkMesh) for lm in kept):
+        return kept
     links = _link_meshes(urdf, max_triangles)
-    if all(_complete(urdf)):  # a visual that failed to load is not kept: it may load next time
-        util_cache.write_cached(path, pickle.dumps(links, protocol=pickle.HIGHEST_PROTOCOL))
+    if complete:
+        util_cache.write_pickle(path, links)
     return links
-
-
-def _complete(urdf: str) -> list[bool]:
-    return [
-        v.filename is None or Path(v.filename).is_file() for vs in robot_meshes.link_visuals(urdf).values() for v in vs
-    ]
 
 
 def _link_meshes(urdf: str, max_triangles: int) -> tuple[LinkMesh, ...]:

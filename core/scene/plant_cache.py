@@ -9,9 +9,7 @@ from __future__ import annotations
 
 import hashlib
 import json
-import logging
 import os
-import pickle
 import re
 from collections.abc import Callable
 from pathlib import Path
@@ -19,10 +17,8 @@ from pathlib import Path
 from pydantic import BaseModel
 
 from agrisim.scene.model import Plant
-from agrisim.util.cache import write_cached
+from agrisim.util.cache import read_pickle, write_pickle
 from agrisim.version import __version__
-
-log = logging.getLogger(__name__)
 
 #: the environment variable naming the cache's folder; unset or empty: no cache
 PLANT_CACHE_ENV = "AGRISIM_PLANT_CACHE"
@@ -49,14 +45,9 @@ def grown(species: str, options: BaseModel, seed: int, grow: Callable[[int], Pla
     if folder is None:
         return grow(seed)
     path = cache_path(folder, species, options, seed)
-    try:
-        kept = pickle.loads(path.read_bytes())
-        if isinstance(kept, Plant):
-            return kept
-    except FileNotFoundError:
-        pass
-    except Exception as exc:  # noqa: BLE001 - a truncated or stale entry: grow it again
-        log.debug("plant cache %s unreadable: %s", path, exc)
+    kept = read_pickle(path)
+    if isinstance(kept, Plant):
+        return kept
     plant = grow(seed)
-    write_cached(path, pickle.dumps(plant, protocol=pickle.HIGHEST_PROTOCOL))
+    write_pickle(path, plant)
     return plant

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import logging
 import os
+import pickle
 import tempfile
 from pathlib import Path
 
@@ -35,3 +36,20 @@ def write_cached(path: Path, data: bytes) -> None:
         os.replace(tmp, path)
     except OSError as exc:
         log.debug("cache %s not written: %s", path, exc)
+
+
+def read_pickle(path: Path) -> object | None:
+    """The object kept at ``path`` by :func:`write_pickle`, or None: none kept, or an entry that
+    cannot be read (truncated, made by other versions), which the caller then makes again."""
+    try:
+        return pickle.loads(path.read_bytes())
+    except FileNotFoundError:
+        return None
+    except Exception as exc:  # noqa: BLE001 - any unreadable entry is a miss
+        log.debug("cache %s unreadable: %s", path, exc)
+        return None
+
+
+def write_pickle(path: Path, value: object) -> None:
+    """Keep ``value`` at ``path`` (see :func:`write_cached`)."""
+    write_cached(path, pickle.dumps(value, protocol=pickle.HIGHEST_PROTOCOL))
