@@ -26,6 +26,7 @@ import os
 import shutil
 from collections.abc import Callable, Iterator
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 import pytest
@@ -323,9 +324,17 @@ def leaf_card(
     return Mesh("card", v + np.asarray(at), faces, [mat], np.zeros(2, np.int32), uv, np.array([1, 1], np.uint16))
 
 
-def kernels_launched(render: Callable[[], object]) -> list[tuple[str, bool]]:
-    """The Dr.Jit kernels ``render()`` launched: (hash, compiled or read from disk rather than
-    found in this process's memory)."""
+class Kernel(NamedTuple):
+    """A Dr.Jit kernel launched: its hash, whether it was compiled or read from disk (rather
+    than found in this process's memory), and its size in operations."""
+
+    hash: str
+    fresh: bool
+    operations: int
+
+
+def kernels_launched(render: Callable[[], object]) -> list[Kernel]:
+    """The Dr.Jit kernels ``render()`` launched."""
     import drjit as dr
 
     before = dr.flag(dr.JitFlag.KernelHistory)
@@ -336,4 +345,6 @@ def kernels_launched(render: Callable[[], object]) -> list[tuple[str, bool]]:
         history = dr.kernel_history([dr.KernelType.JIT])
     finally:
         dr.set_flag(dr.JitFlag.KernelHistory, before)
-    return [(k["hash"], not k["cache_hit"] or bool(k.get("cache_disk"))) for k in history]
+    return [
+        Kernel(k["hash"], not k["cache_hit"] or bool(k.get("cache_disk")), int(k["operation_count"])) for k in history
+    ]

@@ -186,8 +186,8 @@ def test_every_pose_reuses_the_first_views_kernels(lens: Distortion) -> None:
     first = kernels_launched(lambda: renderer.render(camera, views[0], {}))
     for T in views[1:]:
         again = kernels_launched(lambda T=T: renderer.render(camera, T, {}))
-        assert again and {h for h, _ in again} <= {h for h, _ in first}
-        assert not any(fresh for _, fresh in again)
+        assert again and {k.hash for k in again} <= {k.hash for k in first}
+        assert not any(k.fresh for k in again)
 
 
 def test_opencv_calibrates_the_rendered_lens_back() -> None:

@@ -11,6 +11,7 @@ import itertools
 
 import numpy as np
 import pytest
+from conftest import kernels_launched
 
 from agrisim.config import RenderConfig
 from agrisim.errors import ConfigError
@@ -258,7 +259,10 @@ def test_environment_map_lights_what_the_camera_sees_of_the_sky(tmp_path):
 def test_frozen_views_are_the_traced_views_bit_for_bit(cell, kin, lab_scene):
     """Three views, the camera and both arms moving between them: the renderer that records its
     kernels and replays them (``freeze``) gives the bytes of one that traces every view anew;
-    denoised, as the defaults are (the recording then holds the guides' outputs too)."""
+    denoised, as the defaults are (the recording then holds the guides' outputs too). The one
+    that traces compiles at the first view only, though its exact pass leaves other arm links
+    out at each view: the path tracer dispatches over every Shape alive in the process, so the
+    exact pass must move its links' instances rather than make new ones."""
     denoise = "on"
     camera = CameraModel(48, 36, 40.0, 40.0, 23.5, 17.5)
     target = lab_scene.mesh("plant").vertices.mean(axis=0)
@@ -269,9 +273,20 @@ def test_frozen_views_are_the_traced_views_bit_for_bit(cell, kin, lab_scene):
     assert "image" in frozen._frozen  # it took the frozen path
     del frozen  # one renderer alive at a time: Dr.Jit's kernels name the live instances
     traced = renderer(lab_scene, cell, spp=2, denoise=denoise, freeze="off")
+    links_cast, launched = [], []
     for rgb, T, poses in zip(images, views, arms, strict=True):
-        np.testing.assert_array_equal(rgb, traced.render_rgb(camera, T, poses)[0])
+        frame: list = []
+        launched.append(kernels_launched(lambda T=T, poses=poses, f=frame: f.append(traced.render(camera, T, poses))))
+        np.testing.assert_array_equal(rgb, frame[0].rgb)
+        links_cast.append(sorted(sh.id() for sh in traced.tracer.engine.layers[-1].scene.shapes()))
     assert not traced._frozen  # and this one the traced path
+    assert len({tuple(c) for c in links_cast}) == len(views)  # the exact pass cast other links each view
+    # the path tracer's kernel, by far the largest (tens of thousands of operations against the
+    # exact pass's hundreds, which may differ when shadow rays meet other links than camera rays)
+    tracer_kernel = max(launched[0], key=lambda k: k.operations)
+    assert tracer_kernel.operations > 10_000
+    again = [k for later in launched[1:] for k in later if k.fresh and k.operations > tracer_kernel.operations // 2]
+    assert not again, again
     assert all((a != b).any() for a, b in itertools.pairwise(images))  # the views differ
 
 

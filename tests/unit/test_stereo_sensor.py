@@ -119,5 +119,5 @@ def test_every_pose_reuses_the_first_views_kernels():
     first = kernels_launched(lambda: sensor.measure_native(poses[0], {}, 1))
     for T in poses[1:]:
         again = kernels_launched(lambda T=T: sensor.measure_native(T, {}, 1))
-        assert again and {h for h, _ in again} <= {h for h, _ in first}
-        assert not any(fresh for _, fresh in again)
+        assert again and {k.hash for k in again} <= {k.hash for k in first}
+        assert not any(k.fresh for k in again)

@@ -67,7 +67,13 @@ class _Link:
     slot: int  # row of its rotation in the per-frame table
     face0: int  # its first global face
     corners: np.ndarray  # (8, 3) corners of its box, in the link frame
-    group: Any = None  # CPU: its shape group, placed by a new instance each pose
+    group: Any = None  # CPU: its shape group
+    # CPU: the instance placing the group, built with the engine and moved from pose to pose. A
+    # new instance each pose (or each link first seen) would be a new Shape in Dr.Jit's registry,
+    # and every kernel that dispatches over Shapes (Mitsuba's path tracer in the same process,
+    # whose exact pass this is) would compile anew at each view: 5 s a view at 96x54 on a Xeon
+    placed: Any = None
+    placed_params: Any = None
 
 
 @dataclass
@@ -187,6 +193,11 @@ class Engine:
                     }
                 else:
                     link.group = mi.load_dict(group)
+                    link.placed = mi.load_dict(
+                        {"type": "instance", "shapegroup": link.group, "to_world": mi.ScalarTransform4f(_PARKED)}
+                    )
+                    link.placed.set_id(name)
+                    link.placed_params = mi.traverse(link.placed)
                 self.links.append(link)
                 face_mat.append(index[mesh.face_material])
                 face_uv.append(np.zeros((len(mesh.faces), 3, 2), F32))
@@ -299,12 +310,14 @@ class Engine:
         for link, T, kept in zip(self.links, poses, keep, strict=True):
             if T is not None and kept:
                 shapes[link.instance + "_group"] = link.group  # (only a scene's own groups are built)
-                shapes[link.instance] = {
-                    "type": "instance",
-                    "shapegroup": link.group,
-                    "to_world": self.mi.ScalarTransform4f(T),
-                }
+                shapes[link.instance] = self._placed(link, T)
         return _Layer(self.mi.load_dict(shapes), 0, solid=self._arms_solid) if len(shapes) > 1 else None
+
+    def _placed(self, link: _Link, T: np.ndarray) -> Any:
+        """``link``'s instance (CPU), moved to ``T``."""
+        link.placed_params["to_world"] = self.mi.ScalarTransform4f(T)
+        link.placed_params.update()
+        return link.placed
 
     # ------------------------------------------------------------------- posing
     def link_poses(self, link_poses: Mapping[str, Mapping[str, np.ndarray]]) -> list[np.ndarray | None]:
