@@ -53,7 +53,7 @@ FIELDS: list[tuple[str, st.SearchStrategy[Any]]] = [
     ("routine.radius", bad_float),
     ("routine.csv", st.sampled_from(["/nonexistent/poses.csv", ""])),
     ("cell.arm_distance", bad_float),
-    ("cell.stand_height", bad_float),
+    ("cell.stand_height", bad_float.filter(lambda x: x != 0.0)),  # (a stand of height 0 is the floor: allowed)
     ("camera.preset", st.one_of(st.sampled_from(["rpi4", "", "RPI3-WIDE-1080P"]), st.integers())),
     (
         "camera.resolution",

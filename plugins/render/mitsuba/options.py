@@ -45,7 +45,8 @@ class MitsubaOptions(Options):
     the camera and arms moved in place: the same images bit for bit, without tracing the render
     in Python again (an H100 at 1080p: 115 -> 15 ms a view; bench/mitsuba_frame_cost.py).
     ``auto``: on with the CUDA variant; off with LLVM, where moving the arms rebuilds Embree's
-    scene and every view is recorded anew (the CPU gains nothing)."""
+    scene, every view is recorded anew (the CPU gains nothing) and a replay can trace the scene
+    before (wrong pixels: ``on`` is refused there unless the robots are hidden)."""
     exposure: float = Field(1.0, gt=0.0, le=1e6)
     """Scale of the linear radiance before tone mapping, one for the whole run (NeRF and
     photogrammetry want constant exposure). 1: a white surface lit with irradiance 1 in the

@@ -13,6 +13,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from agrisim.config import RenderConfig
+from agrisim.errors import ConfigError
 from agrisim.interfaces import CameraModel, Frame, Renderer
 from agrisim.scene.camera import view_seed
 from agrisim.scene.cell import Cell
@@ -46,6 +47,12 @@ class MitsubaRenderer(Renderer):
         # float32 in the link frame, as a saved scene stores them, so that a run and a
         # re-render of it (agrisim render) trace exactly the same triangles.
         self._unrounded_arms = {} if settings.hide_robots else self._load_arms(scene, cell, options)
+        if options.freeze == "on" and self._unrounded_arms and not mi.variant().startswith("cuda"):
+            raise ConfigError(
+                "[renderer.mitsuba] freeze = 'on' needs the cuda variant where the arms are drawn: on the CPU, "
+                "Embree rebuilds the arms' scene as they move and a replayed view can trace the old one (wrong "
+                "pixels); set freeze = 'auto' or 'off', or hide the robots"
+            )
         self._arms = {
             arm: [
                 (link, Mesh(m.name, m.vertices.astype(F32), m.faces, m.materials, m.face_material, m.uvs))
@@ -202,8 +209,8 @@ class MitsubaRenderer(Renderer):
         read back, denoised and encoded: on a GPU the host's part of a view overlaps the next
         one's path tracing (agrisim render at 1080p, 8 spp, on an H100: 4.20 -> 4.29-4.40 views/s,
         the same PNGs; bench/mitsuba_frame_cost.py: 3.45-3.58 -> 3.98-4.14 views/s). Moving the
-        arms and the sensor for the next view is safe while this one's kernels run: Dr.Jit
-        queues both on one stream, and the new vertex buffers are new arrays. Views whose
+        arms and the sensor for the next view is safe while this one's kernels run on a GPU:
+        Dr.Jit queues both on one stream, and the new vertex buffers are new arrays. Views whose
         denoiser needs a guide pass of their own (an integrator without guide channels) are
         drawn one at a time: that pass needs the sensor where the view was."""
         if self.denoise and not self.guided:
@@ -211,8 +218,14 @@ class MitsubaRenderer(Renderer):
             return
         import drjit as dr
 
+        # On the CPU, Embree rebuilds the moved arms' hierarchy on the host at once, under the
+        # rays of kernels still running (wrong pixels, measured with freeze on): there, the
+        # view before is waited for first (its kernels hold every core: nothing is lost)
+        in_order = self.mi.variant().startswith("cuda")
         pending: tuple | None = None
         for world_T_camera, link_poses in views:
+            if pending is not None and not in_order:
+                dr.sync_thread()
             self._place_arms(link_poses)
             launched = self._launch(camera, world_T_camera)
             dr.eval(launched[0])  # launched, not waited for
