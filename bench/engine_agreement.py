@@ -32,7 +32,7 @@ from machine import cpu_model  # noqa: E402
 WORKER = r"""
 import sys, numpy as np
 from agrisim.config import CellConfig, RenderConfig, RoutineConfig, build_config
-from agrisim.episode import resolve_plant
+from agrisim.scene.plant_choice import resolve_plant
 from agrisim.lab.room import build_scene
 from agrisim.registry import Registry, make_plugin_manager
 from agrisim.robot.kinematics import ArmKinematics

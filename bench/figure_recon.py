@@ -18,7 +18,6 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 from agrisim.config import CellConfig, RenderConfig, RoutineConfig, build_config  # noqa: E402
-from agrisim.episode import resolve_plant  # noqa: E402
 from agrisim.evaluation.metrics import GroundTruth, SurfaceDistance  # noqa: E402
 from agrisim.evaluation.session import ReconSession  # noqa: E402
 from agrisim.evaluation.views import View  # noqa: E402
@@ -28,6 +27,7 @@ from agrisim.registry import Registry, make_plugin_manager  # noqa: E402
 from agrisim.robot.setpoints import hemisphere  # noqa: E402
 from agrisim.scene.camera import preset  # noqa: E402
 from agrisim.scene.cell import build_cell  # noqa: E402
+from agrisim.scene.plant_choice import resolve_plant  # noqa: E402
 
 MAX_MM = 10.0  # colour scale: distances beyond this are drawn as this
 

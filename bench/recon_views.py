@@ -18,7 +18,6 @@ import numpy as np
 import open3d as o3d
 
 from agrisim.config import CellConfig, RenderConfig, RoutineConfig, build_config
-from agrisim.episode import resolve_plant
 from agrisim.evaluation.metrics import GroundTruth
 from agrisim.evaluation.session import ReconSession
 from agrisim.evaluation.views import View, backproject
@@ -29,6 +28,7 @@ from agrisim.registry import Registry, make_plugin_manager
 from agrisim.robot.setpoints import hemisphere
 from agrisim.scene.camera import preset
 from agrisim.scene.cell import build_cell
+from agrisim.scene.plant_choice import resolve_plant
 
 
 def _pcd(points: np.ndarray) -> o3d.geometry.PointCloud:

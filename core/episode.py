@@ -23,7 +23,7 @@ from pydantic import BaseModel
 
 from agrisim.capabilities import check_reconstructor, check_renderer, check_sensor
 from agrisim.config import BackendChoice, RunConfig, backend_options, depth_read
-from agrisim.errors import BackendFailure, ConfigError
+from agrisim.errors import ConfigError
 from agrisim.evaluation.metrics import GroundTruth
 from agrisim.evaluation.session import ReconSession, summary_metrics
 from agrisim.evaluation.views import View, load_frame, view_from_capture, view_of
@@ -691,14 +691,4 @@ def run_episode(config: RunConfig, *, pm: pluggy.PluginManager | None = None) ->
     return Episode(config, pm).run()
 
 
-__all__ = [
-    "BackendFailure",
-    "blame",
-    "Episode",
-    "Run",
-    "RunSummary",
-    "SetpointResult",
-    "run_episode",
-    "resolve_plant",
-    "JointTrajectory",
-]
+__all__ = ["TRAJECTORY_RATE", "Episode", "run_episode"]

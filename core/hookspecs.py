@@ -136,7 +136,7 @@ def agrisim_trajectory(run: Run, robot: str, trajectory: Trajectory) -> None:
 @hookspec
 def agrisim_setpoint(run: Run, robot: str, result: Any) -> None:
     """A setpoint has been handled (reached or not): ``result`` is a
-    :class:`agrisim.episode.SetpointResult` with the reason when it failed."""
+    :class:`agrisim.records.SetpointResult` with the reason when it failed."""
 
 
 @hookspec

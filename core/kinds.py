@@ -82,9 +82,10 @@ class NoOptions(Options):
 class BackendSpec:
     """What a provider hook returns for one backend.
 
-    ``factory(options, **context)`` builds the backend; ``options`` is an instance of
-    ``options_model`` validated from the user's configuration (its field docstrings are the
-    documentation users see).
+    ``factory(*context, options)`` builds the backend: the kind's context first, as
+    :attr:`KindInfo.factory` names it (``factory(cell, options)`` for physics, ``factory(options)``
+    for a planner), then ``options``, an instance of ``options_model`` validated from the user's
+    configuration (its field docstrings are the documentation users see).
     """
 
     name: str

@@ -151,7 +151,7 @@ def start_ray(*, workers: int | None, address: str | None) -> dict[str, Any]:
             "owned": False,
         }
     if address not in (None, "auto", "local") and not address.startswith("ray://"):
-        _probe(address)
+        probe(address)
     common: dict[str, Any] = dict(
         include_dashboard=False,
         log_to_driver=False,  # episodes' own output would tear the progress bar
@@ -199,7 +199,8 @@ def stop_ray(info: dict[str, Any]) -> None:
     info["shutdown_s"] = round(time.perf_counter() - t0, 3)
 
 
-def _probe(address: str, timeout: float = 5.0) -> None:
+def probe(address: str, timeout: float = 5.0) -> None:
+    """Refuse a ``--ray-address`` that is not HOST:PORT or where nothing listens."""
     host, sep, port = address.rpartition(":")
     if not sep or not port.isdigit():
         raise UserError(f"--ray-address expects HOST:PORT, 'auto' or ray://HOST:PORT, got {address!r}")

@@ -247,14 +247,14 @@ def plan_compare(
     clash = sorted({k for k in keys if keys.count(k) > 1})
     if clash:
         raise UserError(f"--plants: two plants would share the run directory {clash[0]!r}")
-    _check_backends(registry, probe)
+    check_backends(registry, probe)
     renderer = registry.get("renderer", probe.renderer.backend)
     check_renderer(renderer, registry.specs("renderer"), seg_modes, probe.render.labels, points=bool(sizes))
     if sizes and "points" in base:
         raise UserError("--point-sizes sets each episode's points: leave [points] out of the shared settings")
 
     out = Path(out).expanduser().absolute()  # absolute: Ray workers need not share our cwd
-    _check_out(out, overwrite=overwrite, resume=resume)
+    check_out(out, overwrite=overwrite, resume=resume)
     episodes = []
     # (mode, variant, run-directory name, settings of its own) of each plant's episodes
     variants: list[tuple[str, str, str, dict[str, Any]]] = [(m, "", m, {}) for m in seg_modes]
@@ -296,7 +296,7 @@ def plan_compare(
     )
 
 
-def _check_backends(registry: Any, config: RunConfig) -> None:
+def check_backends(registry: Any, config: RunConfig) -> None:
     """Every chosen backend exists and its options validate (the workers would fail late)."""
     for name, kind in SECTIONS.items():
         choice = getattr(config, name, None)
@@ -306,7 +306,9 @@ def _check_backends(registry: Any, config: RunConfig) -> None:
         backend_options(spec.options_model, choice.options_for(spec.name), f"{kind} backend {spec.name!r}")
 
 
-def _check_out(out: Path, *, overwrite: bool, resume: bool) -> None:
+def check_out(out: Path, *, overwrite: bool, resume: bool) -> None:
+    """A compare's output folder: new or empty, else ``--overwrite`` or ``--resume`` (of a
+    compare); a directory, and writable."""
     if out.exists():
         if not out.is_dir():
             raise OutputError(f"--out {out} exists and is not a directory")

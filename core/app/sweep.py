@@ -31,7 +31,7 @@ from pathlib import Path
 from typing import Any
 
 from agrisim.app.arguments import apply_sets, set_dotted
-from agrisim.app.compare_plan import _check_backends, check_same_settings, run_dir_state
+from agrisim.app.compare_plan import check_backends, check_same_settings, run_dir_state
 from agrisim.config import RunConfig, backend_options, build_config, load_toml
 from agrisim.errors import ConfigError, OutputError, UserError
 from agrisim.files import layout
@@ -253,7 +253,7 @@ def _check_cell(registry: Any, config: RunConfig) -> None:
     from agrisim.scene.camera_choice import camera_of
     from agrisim.scene.plant_choice import check_plant_name, draws_points, plant_seed
 
-    _check_backends(registry, config)
+    check_backends(registry, config)
     for section, kind in (("physics", "physics"), ("planner", "planner"), ("renderer", "renderer")):
         getattr(config, section).check_tables(section, registry.specs(kind))
     config.recon.check_tables("recon", registry.specs("reconstructor"))
@@ -340,7 +340,7 @@ def plan_sweep(
 
 def _check_out(out: Path, *, overwrite: bool, resume: bool) -> None:
     """The output folder: a new or empty one, else ``--overwrite`` or ``--resume`` (of a sweep)."""
-    from agrisim.app.compare_plan import _check_out as check_writable
+    from agrisim.app.compare_plan import check_out as check_writable
 
     if resume and not (out / MANIFEST).is_file():
         raise OutputError(f"--resume: {out} holds no {MANIFEST}, so it is not a sweep to continue")

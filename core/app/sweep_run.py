@@ -22,7 +22,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from agrisim.app.compare import _probe, prepare_out, start_ray, stop_ray
+from agrisim.app.compare import prepare_out, probe, start_ray, stop_ray
 from agrisim.app.compare_plan import run_dir_state
 from agrisim.app.placement import task_resources
 from agrisim.app.sweep import MANIFEST, Cell, SweepPlan, follow_up_done
@@ -237,7 +237,7 @@ def sweep(
     t0 = time.perf_counter()
     todo = [c for c in plan.cells if c.action != "skip"]
     if ray_address not in (None, "auto", "local") and not ray_address.startswith("ray://"):
-        _probe(ray_address)  # even where this process has a Ray already (which would be used instead)
+        probe(ray_address)  # even where this process has a Ray already (which would be used instead)
     info = start_ray(workers=None, address=ray_address) if todo else {}
     earlier = _earlier(plan.out) if plan.resume else {}
     try:

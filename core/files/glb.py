@@ -69,7 +69,7 @@ def glb_bytes(mesh: Mesh, labels: LabelTable) -> bytes:
                 f"material {mat.name!r} uses label ids {sorted(used - known)} missing from the label table"
             )
 
-    w = _GlbWriter()
+    w = GlbWriter()
     gltf_mesh = w.mesh(mesh)
     gltf: dict[str, Any] = {
         "asset": {
@@ -93,7 +93,7 @@ def glb_bytes(mesh: Mesh, labels: LabelTable) -> bytes:
 # --------------------------------------------------------------------------------------------
 
 
-class _GlbWriter:
+class GlbWriter:
     """Collects buffer views, accessors, images, textures and materials of one binary glTF
     (:mod:`agrisim.files.scene_glb` writes its scenes through it too)."""
 

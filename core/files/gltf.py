@@ -28,7 +28,7 @@ from agrisim.scene.model import LabelTable, Material
 __all__ = ["read_gltf"]
 
 
-class _Gltf(GltfDocument):
+class GltfReader(GltfDocument):
     """A glTF document read into agrisim's mesh (:mod:`agrisim.files.scene_glb` reads its
     scenes through it too)."""
 
@@ -267,4 +267,4 @@ def _uv_transform(uv: np.ndarray, t: tuple[float, ...] | None) -> np.ndarray:
 
 def read_gltf(path: Path, shown: str, root: Path | None) -> RawMesh:
     """Read the glTF file at ``path`` (``shown`` names it in errors; ``root`` confines the files it refers to)."""
-    return _Gltf(path, shown, root).read()
+    return GltfReader(path, shown, root).read()

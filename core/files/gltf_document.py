@@ -101,11 +101,13 @@ class GltfDocument:
             raise self.error(f"refers to {key}[{index}], but the file has {len(items)}")
         return items[index]
 
-    # agrisim.files.scene_glb reads its scenes' nodes and meshes as the JSON objects they are in the file.
-    def _list(self, key: str) -> list[Any]:
+    def plain_list(self, key: str) -> list[Any]:
+        """The document's list ``key`` as the JSON objects it is in the file (how
+        :mod:`agrisim.files.scene_glb` reads its scenes' nodes)."""
         return [plain(x) for x in self.items(key)]
 
-    def _item(self, key: str, index: Any) -> Any:
+    def plain_item(self, key: str, index: Any) -> Any:
+        """:meth:`item` as the JSON object it is in the file."""
         return plain(self.item(key, index))
 
     # -- raw data ------------------------------------------------------------------------------

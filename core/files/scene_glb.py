@@ -28,8 +28,8 @@ import numpy as np
 
 from agrisim.errors import UserError
 from agrisim.files.atomic import write_bytes
-from agrisim.files.glb import _GlbWriter
-from agrisim.files.gltf import _Gltf
+from agrisim.files.glb import GlbWriter
+from agrisim.files.gltf import GltfReader
 from agrisim.scene.model import LabelTable, Light, Material, Mesh, Scene
 
 FORMAT = 1
@@ -41,7 +41,7 @@ Z_UP_TO_Y_UP = np.array([[1.0, 0, 0, 0], [0, 0, 1, 0], [0, -1, 0, 0], [0, 0, 0, 
 def scene_glb_bytes(scene: Scene, arm_poses: dict[str, dict[str, np.ndarray]] | None = None) -> bytes:
     """The bytes of ``scene`` as agrisim's scene GLB; ``arm_poses`` (robot -> link -> world_T_link)
     places the arm nodes for viewers (identity where absent)."""
-    w = _GlbWriter()
+    w = GlbWriter()
     nodes, meshes = [], []
     for mesh in scene.meshes:
         if len(mesh.faces) == 0:
@@ -102,7 +102,7 @@ def read_scene(path: Path) -> Scene:
     """The :class:`Scene` (with ``arms``) of agrisim's scene GLB at ``path``; a UserError for any
     other file."""
     shown = str(path)
-    doc = _Gltf(Path(path), shown, None)
+    doc = GltfReader(Path(path), shown, None)
     info = doc.agrisim if isinstance(doc.agrisim, dict) else None
     if info is None or info.get("kind") != "scene":
         raise UserError(f"{shown} is not a scene saved by agrisim (no agrisim scene in its asset extras)")
@@ -125,7 +125,7 @@ def read_scene(path: Path) -> Scene:
         ]
         meshes: list[Mesh] = []
         arms: dict[str, list[tuple[str, Mesh]]] = {}
-        for node in doc._list("nodes"):
+        for node in doc.plain_list("nodes"):
             mesh = _read_mesh(doc, node)
             extras = (node.get("extras") or {}).get("agrisim") or {}
             if str(node.get("name", "")).startswith(ARM_PREFIX):
@@ -137,10 +137,10 @@ def read_scene(path: Path) -> Scene:
         raise UserError(f"{shown}: malformed agrisim scene ({type(exc).__name__}: {exc})") from None
 
 
-def _read_mesh(doc: _Gltf, node: dict[str, Any]) -> Mesh:
-    """One node's mesh as written by :meth:`_GlbWriter.mesh`: positions back to z up unless
+def _read_mesh(doc: GltfReader, node: dict[str, Any]) -> Mesh:
+    """One node's mesh as written by :meth:`GlbWriter.mesh`: positions back to z up unless
     it is an arm link's (in its own frame), materials, UVs, vertex colours and leaf instances."""
-    gm = doc._item("meshes", node["mesh"])
+    gm = doc.plain_item("meshes", node["mesh"])
     prims = gm["primitives"]
     first = prims[0]["attributes"]
     pos = doc.accessor(first["POSITION"]).astype(np.float64)

@@ -122,6 +122,14 @@ class ArmKinematics:
         err = pin.log6(data.oMf[tip].actInv(target)).vector
         return q, _norm3(err[:3]), _norm3(err[3:])
 
+    def solve(
+        self, world_T_target: np.ndarray, q0: np.ndarray, iterations: int = 200, tol: float = 5e-8
+    ) -> tuple[np.ndarray, float, float]:
+        """One run of :meth:`ik`'s damped least-squares loop from ``q0``, without restarts or
+        checks: (joints, position error in m, rotation error in rad) at ``world_T_target``."""
+        target = self._base.actInv(pin.SE3(np.asarray(world_T_target, float)))
+        return self._solve(target, np.asarray(q0, float), iterations, tol)
+
     def nearest_equivalent(self, q: np.ndarray, reference: np.ndarray) -> np.ndarray:
         """Shift joints by whole turns towards ``reference``, staying within limits."""
         out = q.copy()

@@ -13,7 +13,7 @@ import pytest
 
 from agrisim.app.cli import main
 from agrisim.config import CellConfig, RenderConfig, RoutineConfig, build_config
-from agrisim.episode import Episode, resolve_plant
+from agrisim.episode import Episode
 from agrisim.evaluation.metrics import GroundTruth, ViewStats, evaluate
 from agrisim.evaluation.session import ReconSession
 from agrisim.evaluation.views import View, backproject, load_view
@@ -28,6 +28,7 @@ from agrisim.robot.setpoints import hemisphere
 from agrisim.scene.camera import preset
 from agrisim.scene.cell import build_cell
 from agrisim.scene.model import Label, LabelTable, Material, Mesh
+from agrisim.scene.plant_choice import resolve_plant
 
 
 @pytest.fixture(scope="module")

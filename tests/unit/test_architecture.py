@@ -99,6 +99,60 @@ def test_the_cycle_finder_finds_a_cycle() -> None:
     assert any({"agrisim.interfaces", "agrisim.scene.camera"} <= set(c) for c in cycles(graph))
 
 
+def _absolute(package: str, node: ast.ImportFrom) -> str:
+    """The module an ``ImportFrom`` in ``package`` names, relative imports resolved."""
+    if not node.level:
+        return node.module or ""
+    anchor = package.split(".")[: len(package.split(".")) - (node.level - 1)]
+    return ".".join(anchor + ([node.module] if node.module else []))
+
+
+def private_reach_ins(name: str, source: str, mods: dict[str, Path]) -> list[str]:
+    """The private names of other agrisim modules that module ``name`` (of ``source``) uses:
+    imported (``from agrisim.app.compare import _probe``) or reached through an imported
+    module (``compare._probe``). A name with a leading underscore is its module's own."""
+    package = name if mods.get(name, Path()).name == "__init__.py" else name.rpartition(".")[0]
+    tree = ast.parse(source)
+    found: list[str] = []
+    aliases: dict[str, str] = {}  # a local name -> the agrisim module it is bound to
+    for node in ast.walk(tree):
+        if isinstance(node, ast.ImportFrom):
+            base = _absolute(package, node)
+            for alias in node.names:
+                full = f"{base}.{alias.name}"
+                if full in mods:
+                    aliases[alias.asname or alias.name] = full
+                elif base in mods and base != name and alias.name.startswith("_") and not alias.name.startswith("__"):
+                    found.append(full)
+        elif isinstance(node, ast.Import):
+            aliases |= {alias.asname: alias.name for alias in node.names if alias.asname and alias.name in mods}
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Attribute) and isinstance(node.value, ast.Name) and node.value.id in aliases:
+            module = aliases[node.value.id]
+            if module != name and node.attr.startswith("_") and not node.attr.startswith("__"):
+                found.append(f"{module}.{node.attr}")
+    return found
+
+
+def test_no_module_uses_another_modules_private_name() -> None:
+    mods = modules()
+    reach_ins = {name: private_reach_ins(name, path.read_text(), mods) for name, path in mods.items()}
+    assert {name: found for name, found in reach_ins.items() if found} == {}
+
+
+@pytest.mark.parametrize(
+    "source",
+    [
+        "from agrisim.app.compare_plan import check_same_settings, _plan",
+        "from .compare_plan import _plan",
+        "from agrisim.app import compare_plan as plans\nplans._plan()",
+    ],
+)
+def test_the_private_name_check_catches_a_reach_in(source: str) -> None:
+    assert private_reach_ins("agrisim.app.sweep", source, modules()) == ["agrisim.app.compare_plan._plan"]
+    assert private_reach_ins("agrisim.app.compare_plan", "_plan = 1\n_plan", modules()) == []  # its own
+
+
 def _loaded_after(code: str) -> set[str]:
     """Modules a fresh interpreter has loaded after running ``code``."""
     probe = f"import sys, io, contextlib\n{code}\nprint(' '.join(sorted(sys.modules)))"

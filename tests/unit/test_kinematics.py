@@ -130,7 +130,7 @@ def test_ik_iterations_cut_short_by_a_cycle_give_the_full_answer_bit_for_bit(cel
         target = k._base.actInv(pin.SE3(target_T))
         q0 = rng.uniform(k.lower / 2, k.upper / 2)
         iterations = int(rng.integers(20, 200))
-        q, ep, er = k._solve(target, q0, iterations, tol)
+        q, ep, er = k.solve(target_T, q0, iterations, tol)  # the public entry: _solve in the base frame
         q_ref, ep_ref, er_ref, visited = _every_iteration(k, target, q0, iterations, tol)
         assert q.tobytes() == q_ref.tobytes() and (ep, er) == (ep_ref, er_ref), n
         cycled += len(set(visited)) < len(visited)
