@@ -1,4 +1,4 @@
 """agrisim's version, in a module of its own so that any module can name it without importing the
 package's public façade."""
 
-__version__ = "0.6.0"
+__version__ = "0.7.0"
