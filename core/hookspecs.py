@@ -7,6 +7,8 @@ Two families:
   ``agrisim_exporters``) return a list of
   :class:`agrisim.BackendSpec`. Results of all plugins are concatenated; a name provided twice is
   an error naming both distributions. They are called once per run, never in the inner loop.
+  ``agrisim_commands`` returns :class:`agrisim.commands.Command` s, the subcommands of the
+  ``agrisim`` command line (agrisim's own among them).
 * **Events** (``agrisim_run_started`` ... ``agrisim_run_finished``) announce what an episode does.
   Sinks (the Rerun recording, the dataset files) are plugins on these hooks. Return values are
   ignored.
@@ -22,12 +24,23 @@ from typing import TYPE_CHECKING, Any
 import pluggy
 
 if TYPE_CHECKING:
+    from agrisim.commands import Command
     from agrisim.interfaces import Capture, Trajectory
     from agrisim.kinds import BackendSpec
     from agrisim.records import Run, RunSummary
 
 PROJECT = "agrisim"
 hookspec = pluggy.HookspecMarker(PROJECT)
+
+
+# ---------------------------------------------------------------- the command line
+
+
+@hookspec
+def agrisim_commands() -> list[Command]:
+    """Subcommands of ``agrisim``: each a name, a line of help, its flags and its function
+    (:class:`agrisim.commands.Command`). agrisim's own come first, in their order, then the
+    others' by name; a name added twice is an error naming both plugins."""
 
 
 # ---------------------------------------------------------------- backend providers

@@ -1,0 +1,20 @@
+"""agrisim's own commands, registered through the ``agrisim_commands`` hook as a plugin's
+are (:func:`agrisim.app.arguments.installed_commands` registers this module)."""
+
+from __future__ import annotations
+
+from agrisim.app import catalogue_commands, run_commands, study_commands
+from agrisim.commands import Command
+from agrisim.registry import hookimpl
+
+#: the order of ``agrisim --help``
+ORDER = (
+    "run", "ros", "plants", "traits", "nextview", "plugins", "doctor",
+    "recon", "render", "export", "colmap", "view", "compare", "sweep",
+)  # fmt: skip
+
+
+@hookimpl
+def agrisim_commands() -> list[Command]:
+    by_name = {c.name: c for m in (run_commands, catalogue_commands, study_commands) for c in m.COMMANDS}
+    return [by_name[name] for name in ORDER]
