@@ -30,8 +30,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from agrisim.app.flags import apply_sets, set_dotted
 from agrisim.app.compare_plan import check_backends, check_same_settings, run_dir_state
+from agrisim.app.flags import apply_sets, set_dotted
 from agrisim.config import RunConfig, backend_options, build_config, load_toml
 from agrisim.errors import ConfigError, OutputError, UserError
 from agrisim.files import layout
