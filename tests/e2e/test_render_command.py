@@ -78,12 +78,13 @@ def sets() -> list[str]:
     return [arg for k, v in MITSUBA.items() for arg in ("--set", f"renderer.mitsuba.{k}={v}")]
 
 
-def test_rerender_equals_a_mitsuba_run_without_the_heavy_stack(runs: dict[str, Path], tmp_path: Path) -> None:
-    """The raycast run re-rendered by mitsuba, in an interpreter without Open3D, pybullet,
-    Pinocchio, OMPL or Rerun: its RGB is byte for byte the mitsuba run's, its labels and depth
-    the source's (which are mitsuba's too), and every other file is carried over but those
-    made from the old RGB (COLMAP's model of it, the bag holding it)."""
-    out = tmp_path / "re"
+@pytest.fixture(scope="module")
+def rerendered(runs: dict[str, Path], tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, str, str, int]:
+    """The raycast run re-rendered by mitsuba in an interpreter without Open3D, pybullet,
+    Pinocchio, OMPL or Rerun, the source holding files made from its old RGB (COLMAP's model,
+    a bag) meanwhile: (its folder, stdout, stderr, exit status). Tests read it, and copy it
+    before changing it."""
+    out = tmp_path_factory.mktemp("rerendered") / "re"
     made_from_rgb = [runs["raycast"] / layout.COLMAP / "poses.json", runs["raycast"] / layout.ROSBAG / "metadata.yaml"]
     for path in made_from_rgb:
         path.parent.mkdir()
@@ -93,9 +94,20 @@ def test_rerender_equals_a_mitsuba_run_without_the_heavy_stack(runs: dict[str, P
     finally:
         for path in made_from_rgb:
             shutil.rmtree(path.parent)
-    assert done.returncode == 0, done.stderr
+    return out, done.stdout, done.stderr, done.returncode
+
+
+def test_rerender_equals_a_mitsuba_run_without_the_heavy_stack(
+    runs: dict[str, Path], rerendered: tuple[Path, str, str, int]
+) -> None:
+    """The raycast run re-rendered by mitsuba without the heavy stack: its RGB is byte for byte
+    the mitsuba run's, its labels and depth the source's (which are mitsuba's too), and every
+    other file is carried over but those made from the old RGB (COLMAP's model of it, the bag
+    holding it)."""
+    out, stdout, stderr, status = rerendered
+    assert status == 0, stderr
+    assert "re-rendered" in stdout
     assert not (out / layout.COLMAP).exists() and not (out / layout.ROSBAG).exists()
-    assert "re-rendered" in done.stdout
     assert files(out, "rgb") == files(runs["mitsuba"], "rgb")
     assert files(out, "rgb") != files(runs["raycast"], "rgb")
     for folder in ("labels", "depth", "instances", "labels_vis"):
@@ -155,11 +167,13 @@ def test_radiance_is_what_the_rgb_encodes(runs: dict[str, Path], tmp_path: Path)
         assert np.array_equal(encoded.reshape(rgb.shape), rgb)
 
 
-def test_rerender_resumes_frame_by_frame(runs: dict[str, Path], tmp_path: Path) -> None:
+def test_rerender_resumes_frame_by_frame(
+    runs: dict[str, Path], rerendered: tuple[Path, str, str, int], tmp_path: Path
+) -> None:
     """An interrupted re-render (render.json lists one frame done) goes on with the others and
     leaves the done one as it is."""
-    out = tmp_path / "re"
-    assert rerender(runs["raycast"], "--out", str(out), *sets(), blocked=()).returncode == 0
+    assert rerendered[3] == 0, rerendered[2]
+    out = Path(shutil.copytree(rerendered[0], tmp_path / "re"))
     record = json.loads((out / "render.json").read_text())
     first, *rest = record["frames_done"]
     marker = layout.image(runs["raycast"], "rgb", first).read_bytes()  # stands for "kept"
