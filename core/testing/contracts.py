@@ -128,11 +128,15 @@ def _assert_joins(path: np.ndarray, start: np.ndarray, goal: np.ndarray) -> None
 
 
 def _plant_scene(registry: Registry, cell: Cell, labels: str) -> tuple[Any, Plant]:
-    """The lab with the hydrangea (four organs, leaf instances), grown through the registry."""
+    """The lab with the hydrangea (four organs, leaf instances), grown through the registry as
+    a run grows it (kept on disk where ``AGRISIM_PLANT_CACHE`` says: every renderer and sensor
+    check draws the same plant)."""
     from agrisim.lab.room import build_scene
+    from agrisim.scene.plant_cache import grown
 
     spec = registry.get("plant", "hydrangea")
-    plant = registry.build("plant", spec, spec.options_model()).build(0)
+    options = spec.options_model()
+    plant = grown("hydrangea", options, 0, registry.build("plant", spec, options).build)
     return build_scene(cell, plant, labels=labels), plant
 
 
