@@ -43,16 +43,18 @@ class MitsubaRenderer(Renderer):
     def __init__(self, scene: Scene, cell: Cell | None, settings: RenderConfig, options: MitsubaOptions) -> None:
         super().__init__(scene, cell, settings, options)
         self.mi = mi = use_variant(options.variant)
-        # The exact pass poses the arms as raycast does; the path tracer poses them rounded to
-        # float32 in the link frame, as a saved scene stores them, so that a run and a
-        # re-render of it (agrisim render) trace exactly the same triangles.
-        self._unrounded_arms = {} if settings.hide_robots else self._load_arms(scene, cell, options)
-        if options.freeze == "on" and self._unrounded_arms and not mi.variant().startswith("cuda"):
+        # (refused before the arms' meshes are loaded: whether any are drawn is known already)
+        arms_drawn = not settings.hide_robots and (bool(scene.arms) or (cell is not None and bool(cell.arms)))
+        if options.freeze == "on" and arms_drawn and not mi.variant().startswith("cuda"):
             raise ConfigError(
                 "[renderer.mitsuba] freeze = 'on' needs the cuda variant where the arms are drawn: on the CPU, "
                 "Embree rebuilds the arms' scene as they move and a replayed view can trace the old one (wrong "
                 "pixels); set freeze = 'auto' or 'off', or hide the robots"
             )
+        # The exact pass poses the arms as raycast does; the path tracer poses them rounded to
+        # float32 in the link frame, as a saved scene stores them, so that a run and a
+        # re-render of it (agrisim render) trace exactly the same triangles.
+        self._unrounded_arms = {} if settings.hide_robots else self._load_arms(scene, cell, options)
         self._arms = {
             arm: [
                 (link, Mesh(m.name, m.vertices.astype(F32), m.faces, m.materials, m.face_material, m.uvs))
