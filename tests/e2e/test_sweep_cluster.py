@@ -55,15 +55,19 @@ def cluster(monkeypatch: pytest.MonkeyPatch) -> Iterator[object]:
     made.shutdown()
 
 
-def _frames_done(out: Path) -> dict[str, int]:
-    done = {}
+def _under_way(out: Path) -> dict[str, int]:
+    """Views saved by each run that has begun and not finished (``run.json`` says running)."""
+    under_way = {}
     for run in out.iterdir():
         if (run / "run.json").is_file():
             try:
-                done[run.name] = len(json.loads((run / "run.json").read_text()).get("frames_complete") or [])
+                doc = json.loads((run / "run.json").read_text())
             except ValueError:  # (being rewritten this instant)
                 continue
-    return done
+            views = len(doc.get("frames_complete") or [])
+            if doc.get("status") == "running" and views < VIEWS:
+                under_way[run.name] = views
+    return under_way
 
 
 def test_a_sweep_survives_a_node_lost_mid_sweep(cluster, tmp_path: Path) -> None:  # noqa: ANN001
@@ -78,17 +82,22 @@ def test_a_sweep_survives_a_node_lost_mid_sweep(cluster, tmp_path: Path) -> None
         stderr=subprocess.PIPE,
         text=True,
     )
-    # wait until both nodes are half-way through a run each (the head runs nothing): on a slow
-    # machine one node's worker can start seconds after the other's, so the first view of one run
-    # does not mean the other has begun; then lose one node with the run it holds
+    # wait until both nodes hold a run (the head runs nothing) and one of them has saved a view:
+    # a run's views take a few seconds of its ~12, and on a slow machine one node's worker starts
+    # seconds after the other's, so two runs mid-views at once is not certain to be seen; two
+    # runs begun and not finished is, with two nodes and three runs. Then lose one node with
+    # the run it holds
     deadline = time.monotonic() + 240
-    started: set[str] = set()
-    while time.monotonic() < deadline and sweep.poll() is None and len(started) < 2:
+    under_way: dict[str, int] = {}
+    while time.monotonic() < deadline and sweep.poll() is None:
         time.sleep(0.05)
         if out.is_dir():
-            started = {name for name, n in _frames_done(out).items() if 1 <= n < VIEWS}
+            under_way = _under_way(out)
+            if len(under_way) == 2 and max(under_way.values()) >= 1:
+                break
     assert sweep.poll() is None, sweep.communicate()
-    assert len(started) == 2, f"never saw both nodes mid-run: {_frames_done(out)}"
+    assert len(under_way) == 2, f"never saw both nodes hold a run: {under_way}"
+    started = set(under_way)
     lost = cluster.workers[0]  # type: ignore[attr-defined]
     cluster.remove_node(lost, allow_graceful=False)  # its raylet and workers killed at once
     killed_at = time.time()
