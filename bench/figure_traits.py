@@ -1,5 +1,5 @@
 """The README's traits figure (``docs/traits.png``): four species from above, each leaf's opaque
-surface coloured by its inclination (``agrisim.traits``: exact, cut-outs removed), and under each
+surface coloured by its inclination (``agrisim.plugins.apps.traits``: exact, cut-outs removed), and under each
 its leaf angle distribution (area shares in 10-degree bins) with the nearest of de Wit's classes.
 Prints each species' traits; asserts nothing.
 
@@ -19,9 +19,9 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 from matplotlib.collections import PolyCollection  # noqa: E402
 
+from agrisim.plugins.apps.traits.opaque_area import opaque_pieces  # noqa: E402
+from agrisim.plugins.apps.traits.truth import INCLINATION_BINS, de_wit_shares, plant_traits  # noqa: E402
 from agrisim.plugins.plants.procedural import grow  # noqa: E402
-from agrisim.traits.opaque_area import opaque_pieces  # noqa: E402
-from agrisim.traits.truth import INCLINATION_BINS, de_wit_shares, plant_traits  # noqa: E402
 
 
 def main() -> None:

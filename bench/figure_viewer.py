@@ -12,9 +12,9 @@ from pathlib import Path
 
 from PIL import Image
 
-from agrisim.app.web import serve_web
 from agrisim.config import build_config
 from agrisim.episode import Episode
+from agrisim.plugins.apps.web import serve_web
 
 TESTS = Path(__file__).resolve().parent.parent / "tests"
 sys.path[:0] = [str(TESTS), str(TESTS / "e2e")]

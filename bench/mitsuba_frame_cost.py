@@ -29,8 +29,8 @@ sys.path.insert(0, str(Path(__file__).parent))
 from machine import cpu_model, gpu_name  # noqa: E402
 from saved_run import saved_run  # noqa: E402
 
-from agrisim.app.render import _link_poses  # noqa: E402
 from agrisim.files.png import encode_png  # noqa: E402
+from agrisim.plugins.apps.render import _link_poses  # noqa: E402
 from agrisim.plugins.render.mitsuba import denoise  # noqa: E402
 from agrisim.plugins.render.mitsuba.options import MitsubaOptions  # noqa: E402
 from agrisim.plugins.render.mitsuba.renderer import MitsubaRenderer  # noqa: E402

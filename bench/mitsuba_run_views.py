@@ -24,9 +24,9 @@ sys.path.insert(0, str(Path(__file__).parent))
 from machine import cpu_model, gpu_name  # noqa: E402
 from saved_run import saved_run  # noqa: E402
 
-from agrisim.app.render import _link_poses  # noqa: E402
 from agrisim.files.dataset import write_frame  # noqa: E402
 from agrisim.interfaces import Frame  # noqa: E402
+from agrisim.plugins.apps.render import _link_poses  # noqa: E402
 from agrisim.plugins.render.mitsuba.options import MitsubaOptions  # noqa: E402
 from agrisim.plugins.render.mitsuba.renderer import MitsubaRenderer  # noqa: E402
 from agrisim.plugins.render.raycast.tracing import label_map  # noqa: E402

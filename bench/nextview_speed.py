@@ -67,7 +67,7 @@ def end_episode(env: Any) -> float | str:
 
 def main() -> None:
     from agrisim.app.arguments import apply_sets
-    from agrisim.envs.plant_view import PlantViewEnv
+    from agrisim.plugins.apps.nextview.env import PlantViewEnv
 
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--plant", default="coltsfoot")

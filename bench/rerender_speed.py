@@ -19,7 +19,7 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).parent))
 from machine import cpu_model, gpu_name  # noqa: E402
 
-from agrisim.app.render import RenderPlan  # noqa: E402
+from agrisim.plugins.apps.render import RenderPlan  # noqa: E402
 
 
 def main() -> None:

@@ -13,13 +13,13 @@ from typing import Any
 
 import numpy as np
 
-from agrisim.app.render import RenderPlan
 from agrisim.config import ImagerConfig, RenderConfig, build_config
 from agrisim.evaluation.session import capture_order
 from agrisim.files import layout
 from agrisim.files.rundir import camera_from_json
 from agrisim.files.scene_glb import read_scene
 from agrisim.interfaces import View
+from agrisim.plugins.apps.render import RenderPlan
 from agrisim.scene.camera import CameraModel, preset
 from agrisim.scene.imager import ImagePipeline, pipeline_of, view_key
 from agrisim.scene.model import Scene

@@ -1,6 +1,6 @@
 """Traits measured from a run's views against their truth, for each species and each depth
 sensor: leaves seen and clustered against leaves there, per-leaf area error (MAPE over the leaves
-seen), inclination error, height and hull error (:mod:`agrisim.traits.scores`); and a plot of
+seen), inclination error, height and hull error (:mod:`agrisim.plugins.apps.traits.scores`); and a plot of
 estimated against true leaf area, on exact depth and on one sensor. Prints the CPU and Markdown
 tables; asserts nothing.
 
@@ -33,9 +33,9 @@ SENSORS = "exact,azure-kinect-nfov,d435,d415,d405"
 def _truth(run: Path) -> Any:
     """The run's plant traits, grown again from its config (its own seed) in the plant frame."""
     from agrisim.config import build_config
+    from agrisim.plugins.apps.traits.truth import plant_traits
     from agrisim.registry import Registry, make_plugin_manager
     from agrisim.scene.plant_choice import resolve_plant
-    from agrisim.traits.truth import plant_traits
 
     config = build_config(json.loads((run / "run.json").read_text())["config"])
     return plant_traits(resolve_plant(Registry(make_plugin_manager()), config))
@@ -54,9 +54,9 @@ def _fmt(x: float, spec: str) -> str:
 
 
 def main() -> None:
+    from agrisim.plugins.apps.traits.estimate import measure
+    from agrisim.plugins.apps.traits.scores import trait_errors
     from agrisim.plugins.plants.procedural.species import SPECIES
-    from agrisim.traits.estimate import measure
-    from agrisim.traits.scores import trait_errors
 
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("out", type=Path)

@@ -1,6 +1,6 @@
 """The subcommands of ``agrisim``: what a plugin's ``agrisim_commands`` hook returns
 (:mod:`agrisim.hookspecs`). agrisim's own commands are registered through the same hook
-(:mod:`agrisim.app.builtin_commands`), as pytest and Datasette register their built-ins."""
+(:mod:`agrisim.plugins.apps.commands`), as pytest and Datasette register their built-ins."""
 
 from __future__ import annotations
 

@@ -28,6 +28,7 @@ from agrisim.interfaces import PlanningFailed
 from agrisim.kinds import KINDS, PROVIDER_HOOKS, BackendSpec, Kind, NoOptions
 
 __all__ = [
+    "DISTRIBUTION",
     "KINDS",
     "PROVIDER_HOOKS",
     "BackendSpec",
@@ -37,9 +38,12 @@ __all__ = [
     "blame",
     "hookimpl",
     "make_plugin_manager",
+    "with_own_plugins",
 ]
 
 hookimpl = pluggy.HookimplMarker(hookspecs.PROJECT)
+#: the distribution whose entry points are agrisim's own plugins
+DISTRIBUTION = "agrisim"
 
 
 def make_plugin_manager(*, autoload: bool | None = None) -> pluggy.PluginManager:
@@ -87,6 +91,26 @@ def make_plugin_manager(*, autoload: bool | None = None) -> pluggy.PluginManager
         pm.trace.root.setwriter(lambda msg: sys.stderr.write(msg))
         pm.enable_tracing()
     return pm
+
+
+def with_own_plugins(pm: pluggy.PluginManager) -> list[object]:
+    """agrisim's own entry points' plugins (the distribution ``agrisim`` declares), registered
+    in ``pm`` where ``AGRISIM_LOAD_PLUGINS`` or ``AGRISIM_DISABLE_PLUGIN_AUTOLOAD`` left them out.
+
+    The command line's built-in commands come from them, so the switches that choose a run's
+    backends never take ``agrisim run`` away: pytest loads its built-ins whatever
+    ``PYTEST_DISABLE_PLUGIN_AUTOLOAD`` says, the same way."""
+    own = []
+    for ep in metadata.entry_points(group=hookspecs.PROJECT):
+        if ep.dist is None or ep.dist.name != DISTRIBUTION:
+            continue
+        plugin = pm.get_plugin(ep.name)
+        if plugin is None:
+            pm.unblock(ep.name)
+            plugin = ep.load()
+            pm.register(plugin, name=ep.name)
+        own.append(plugin)
+    return own
 
 
 def loads_everything(pm: pluggy.PluginManager) -> bool:

@@ -6,6 +6,9 @@
   mkdocstrings to render from the docstrings and type hints;
 - ``plugins/kinds.md``: every kind of backend from the core's own table (``agrisim.kinds.KINDS``):
   its hook, setting, contract and factory, and the backends this installation registers.
+
+mkdocstrings reads the package from ``scripts/docs-src/agrisim``, laid out here as it is installed
+(``core/`` with ``plugins/`` inside it as ``agrisim.plugins``): links, rebuilt at every build.
 """
 
 from __future__ import annotations
@@ -24,20 +27,37 @@ REPO = Path(__file__).resolve().parents[1]
 #: the width the CLI page's help is formatted at (argparse reads $COLUMNS)
 HELP_COLUMNS = 100
 
-#: the core's packages, in the order the API pages list them, each with a line saying what it is
+#: the packages of the Python API (the core's, and the apps' that a user's code calls), in the order the API pages list them, each with a line saying what it is
 PACKAGES = {
     "agrisim": "The top level: configuration, the episode, the registry of backends and their contracts.",
-    "envs": "Gymnasium environments (`agrisim/PlantView-v0`).",
-    "nextview": "Choosing views: coverage of the true surface, the voxel map, the policies.",
-    "traits": "Plant traits: the truth from the mesh, the estimates from the views, their errors.",
-    "evaluation": "Accuracy against the true surface, photogrammetry, views back-projected.",
-    "scene": "The scene: camera, lens, imager, meshes, plants, colours.",
-    "robot": "The arms: URDF, kinematics (Pinocchio), setpoints, trajectories, TF.",
-    "files": "The run directory's files: dataset, glTF, PNG/EXR, point clouds, exports.",
-    "lab": "The lab around the cell: room, clutter, textures.",
-    "testing": "The contract suite a backend is checked against, and perturbations for tests.",
-    "util": "Small helpers: caches, CPU facts, native output.",
+    "agrisim.envs": "Gymnasium environments (`agrisim/PlantView-v0`).",
+    "agrisim.plugins.apps.nextview": "Choosing views: coverage of the true surface, the voxel map, the policies.",
+    "agrisim.plugins.apps.traits": "Plant traits: the truth from the mesh, the estimates from the views, their errors.",
+    "agrisim.evaluation": "Accuracy against the true surface, photogrammetry, views back-projected.",
+    "agrisim.scene": "The scene: camera, lens, imager, meshes, plants, colours.",
+    "agrisim.robot": "The arms: URDF, kinematics (Pinocchio), setpoints, trajectories, TF.",
+    "agrisim.files": "The run directory's files: dataset, glTF, PNG/EXR, point clouds, exports.",
+    "agrisim.lab": "The lab around the cell: room, clutter, textures.",
+    "agrisim.testing": "The contract suite a backend is checked against, and perturbations for tests.",
+    "agrisim.util": "Small helpers: caches, CPU facts, native output.",
 }
+
+
+def source_tree() -> None:
+    """``scripts/docs-src/agrisim``: the installed package's layout, of links to the sources."""
+    tree = REPO / "scripts" / "docs-src" / "agrisim"
+    if tree.is_symlink() or tree.is_file():
+        tree.unlink()
+    tree.mkdir(parents=True, exist_ok=True)
+    entries = {p.name: p for p in (REPO / "core").iterdir() if p.name != "__pycache__"}
+    entries["plugins"] = REPO / "plugins"
+    for old in tree.iterdir():
+        if old.name not in entries:
+            old.unlink()
+    for name, target in entries.items():
+        link = tree / name
+        if not link.is_symlink():
+            link.symlink_to(target)
 
 
 def cli_page() -> str:
@@ -64,10 +84,13 @@ def cli_page() -> str:
 
 
 def modules(package: str) -> list[str]:
-    root = REPO / "core" if package == "agrisim" else REPO / "core" / package
-    prefix = "agrisim" if package == "agrisim" else f"agrisim.{package}"
-    names = [] if package == "agrisim" else [prefix]
-    names += [f"{prefix}.{p.stem}" for p in sorted(root.glob("*.py")) if not p.stem.startswith("_")]
+    """``package`` and its public modules, found in its source folder."""
+    parts = package.split(".")
+    root = (
+        REPO / "plugins" / Path(*parts[2:]) if parts[:2] == ["agrisim", "plugins"] else REPO / "core" / Path(*parts[1:])
+    )
+    names = [] if package == "agrisim" else [package]
+    names += [f"{package}.{p.stem}" for p in sorted(root.glob("*.py")) if not p.stem.startswith("_")]
     return names
 
 
@@ -75,7 +98,7 @@ def api_pages() -> None:
     index = [
         "# Python API",
         "",
-        "Generated from the docstrings and type hints of the core (`agrisim`). Start with "
+        "Generated from the docstrings and type hints of the core (`agrisim`) and of the apps a user's code calls. Start with "
         "[the guide to the Python API](../../guides/python-api.md); a backend's contract is on "
         "[Backend kinds and hooks](../../plugins/kinds.md).",
         "",
@@ -83,10 +106,10 @@ def api_pages() -> None:
         "|---|---|",
     ]
     for package, about in PACKAGES.items():
-        page = f"reference/api/{package}.md"
-        title = "agrisim" if package == "agrisim" else f"agrisim.{package}"
-        index.append(f"| [{title}]({package}.md) | {about} |")
-        body = [f"# {title}", "", about, ""]
+        slug = package.rpartition(".")[2]
+        page = f"reference/api/{slug}.md"
+        index.append(f"| [{package}]({slug}.md) | {about} |")
+        body = [f"# {package}", "", about, ""]
         for name in modules(package):
             body += [f"::: {name}", ""]
         with mkdocs_gen_files.open(page, "w") as f:
@@ -142,4 +165,5 @@ with mkdocs_gen_files.open("plugins/kinds.md", "w") as f:
     f.write(kinds_page())
 with mkdocs_gen_files.open("reference/cli.md", "w") as f:
     f.write(cli_page())
+source_tree()
 api_pages()

@@ -1,1 +1,1 @@
-"""The application: the command line, the Ray comparison, its table, progress display."""
+"""The command line host: the ``agrisim`` console script, its parser of the installed commands (:mod:`agrisim.commands`) and the flags several commands share."""

@@ -20,7 +20,6 @@ from agrisim.app.flags import (
     overrides_from_args,
     parse_value,
     set_dotted,
-    web_address,
 )
 from agrisim.commands import Command
 from agrisim.errors import UserError
@@ -35,22 +34,20 @@ __all__ = [
     "overrides_from_args",
     "parse_value",
     "set_dotted",
-    "web_address",
 ]
 
 
 def installed_commands() -> dict[str, Command]:
-    """Every command by name: agrisim's own (:mod:`agrisim.app.builtin_commands`, registered
-    whatever ``AGRISIM_LOAD_PLUGINS`` says, as pytest's built-ins are) in their order, then the
-    installed plugins' by name. A name added twice is an error naming both plugins."""
-    from agrisim.app import builtin_commands
-    from agrisim.registry import make_plugin_manager
+    """Every command by name: agrisim's own (its distribution's entry points, loaded whatever
+    ``AGRISIM_LOAD_PLUGINS`` says, as pytest's built-ins are) in the order they give, then the
+    other installed plugins' by name. A name added twice is an error naming both plugins."""
+    from agrisim.registry import make_plugin_manager, with_own_plugins
 
     pm = make_plugin_manager()
-    pm.register(builtin_commands, name="agrisim-commands")
+    own = with_own_plugins(pm)
     impls: list[Any] = pm.hook.agrisim_commands.get_hookimpls()
-    added = [(c, "agrisim") for i in impls if i.plugin is builtin_commands for c in i.function()]
-    others = [(c, i.plugin_name) for i in impls if i.plugin is not builtin_commands for c in i.function()]
+    added = [(c, "agrisim") for p in own for i in impls if i.plugin is p for c in i.function()]
+    others = [(c, i.plugin_name) for i in impls if not any(i.plugin is p for p in own) for c in i.function()]
     added += sorted(others, key=lambda x: x[0].name)
     found: dict[str, tuple[Command, str]] = {}
     for command, plugin in added:

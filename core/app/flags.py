@@ -1,4 +1,4 @@
-"""The flags several ``agrisim`` commands share (the episode's, the web viewer's, ``--set``),
+"""The flags several ``agrisim`` commands share (the episode's, ``--set``),
 the nested config dictionary they make, and the one-line failure every command exits with.
 
 Bad flags exit with status 2 and one line (no usage dump).
@@ -163,36 +163,6 @@ def parse_value(text: str) -> Any:
 def set_flag(parser: argparse.ArgumentParser, text: str) -> None:
     """``--set KEY=VALUE``, repeatable: settings by their dotted names (``text`` says which)."""
     parser.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", help=text)
-
-
-def web_flags(parser: argparse.ArgumentParser) -> None:
-    from agrisim.app.web import DEFAULT_BIND, DEFAULT_GRPC_PORT, DEFAULT_WEB_PORT
-
-    parser.add_argument("--web-port", type=int, metavar="N", help=f"port of the web page (default: {DEFAULT_WEB_PORT})")
-    parser.add_argument(
-        "--grpc-port",
-        type=int,
-        metavar="N",
-        help=f"port the page reads the recording from (default: {DEFAULT_GRPC_PORT})",
-    )
-    parser.add_argument(
-        "--bind",
-        metavar="ADDR",
-        help=f"address to serve on (default: {DEFAULT_BIND}, this machine only; 0.0.0.0: every interface)",
-    )
-
-
-def web_address(args: argparse.Namespace) -> tuple[str, int, int]:
-    """(bind, web port, gRPC port) of ``--bind``, ``--web-port``, ``--grpc-port``, checked."""
-    from agrisim.app.web import DEFAULT_BIND, DEFAULT_GRPC_PORT, DEFAULT_WEB_PORT, check_address
-
-    bind = args.bind or DEFAULT_BIND
-    web = args.web_port if args.web_port is not None else DEFAULT_WEB_PORT
-    grpc = args.grpc_port if args.grpc_port is not None else DEFAULT_GRPC_PORT
-    if web == grpc:
-        raise UserError(f"--web-port and --grpc-port must differ (both {web})")
-    check_address(bind, {"--web-port": web, "--grpc-port": grpc})
-    return bind, web, grpc
 
 
 def _exposure(text: str | None) -> str | float | None:

@@ -128,7 +128,7 @@ def cutaway_fraction(mesh: Mesh, samples: int = 200_000, seed: int = 0) -> float
 
 def surface_summary(mesh: Mesh, samples: int = 200_000, seed: int = 0) -> tuple[float, int, float]:
     """(share of the area opacity cuts away, leaf instances, their opaque area in m^2) of a
-    mesh, by the same surface samples (Monte Carlo; agrisim.traits measures the area exactly)."""
+    mesh, by the same surface samples (Monte Carlo; agrisim.plugins.apps.traits measures the area exactly)."""
     _, faces, bary = sample_surface(mesh, samples, np.random.default_rng(seed))
     kept = opaque_samples(mesh, faces, bary)
     if mesh.face_instance is None:

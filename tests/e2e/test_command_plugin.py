@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from agrisim.app.builtin_commands import ORDER
+from agrisim.plugins.apps.commands import ORDER
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -85,3 +85,21 @@ def test_a_command_added_twice_is_refused_naming_both(site: Path, cli) -> None: 
     code, out, err = cli(["plugins"])
     assert code == 2 and not out
     assert err == "agrisim: error: the command 'run' is added by both agrisim and run-again\n"
+
+
+@pytest.mark.parametrize(
+    ("switch", "value"),
+    [("AGRISIM_LOAD_PLUGINS", "physics-kinematic"), ("AGRISIM_DISABLE_PLUGIN_AUTOLOAD", "1")],
+)
+def test_agrisims_own_commands_stay_whatever_plugins_are_chosen(  # noqa: ANN001
+    site: Path, cli, monkeypatch: pytest.MonkeyPatch, switch: str, value: str
+) -> None:
+    """The switches that choose a run's backends leave agrisim's own commands (an entry point of
+    agrisim's distribution, ``apps``) in place, and leave a third party's out."""
+    monkeypatch.setenv(switch, value)
+    code, out, _ = cli(["--help"])
+    assert code == 0
+    assert re.findall(r"^    (\w+)\s", out, re.M) == list(ORDER)
+    code, out, err = cli(["plugins"])
+    assert code == 0, err
+    assert ("kinematic" in out) == (switch == "AGRISIM_LOAD_PLUGINS") and "raycast" not in out

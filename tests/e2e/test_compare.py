@@ -19,10 +19,10 @@ from typing import Any
 
 import pytest
 
-from agrisim.app import compare as cmp
 from agrisim.app.cli import main
 from agrisim.config import first_difference
 from agrisim.errors import UserError
+from agrisim.plugins.apps import compare as cmp
 
 TINY = [
     "--physics",

@@ -16,8 +16,8 @@ import numpy as np
 import pytest
 from conftest import LEAF_LABELS, leaf_card
 
-from agrisim.envs.plant_view import PlantViewEnv
 from agrisim.files import layout
+from agrisim.plugins.apps.nextview.env import PlantViewEnv
 
 #: small and quick: kinematic arms, 160x90 views, a coarse map, few truth samples
 SMALL = {

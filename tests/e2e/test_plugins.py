@@ -539,7 +539,7 @@ OPTIONAL_LIBRARIES = {"torch", "gsplat"}
 def _builtin_implementations() -> set[str]:
     """Hooks implemented anywhere in agrisim's own entry-point modules (module functions and
     methods of the classes they define, e.g. the sinks' per-run objects), and by the commands
-    the CLI host registers itself (agrisim.app.builtin_commands)."""
+    the CLI host registers itself (agrisim.plugins.apps.commands)."""
     import importlib
     from importlib import metadata
 
@@ -559,7 +559,7 @@ def _builtin_implementations() -> set[str]:
                         raise
         for module in modules:
             _hook_names(module, marker, found)
-    _hook_names(importlib.import_module("agrisim.app.builtin_commands"), marker, found)
+    _hook_names(importlib.import_module("agrisim.plugins.apps.commands"), marker, found)
     return found
 
 

@@ -287,7 +287,7 @@ def logged_part(log: str, marker: str, lost: int) -> Callable[..., dict[str, Any
         import os
         import time
 
-        from agrisim.app.render import render_part_task
+        from agrisim.plugins.apps.render import render_part_task
 
         part = args[5]
 
@@ -314,7 +314,7 @@ def test_one_run_split_over_two_gpus(runs: dict[str, Path], ray_two_gpus: None, 
     its own GPU; one part's worker lost after its first frame and retried by Ray, going on from
     its part file. Every frame drawn exactly once, the whole byte for byte the mitsuba run's,
     ``render.json`` complete and the part files gone."""
-    from agrisim.app.render import PART_JSON, RenderPlan, render_runs
+    from agrisim.plugins.apps.render import PART_JSON, RenderPlan, render_runs
 
     src = tmp_path / "run"
     shutil.copytree(runs["raycast"], src)
@@ -352,7 +352,7 @@ def test_a_split_render_resumes_from_its_parts(runs: dict[str, Path], tmp_path: 
     """A split re-render stopped with one part half done: the next ``agrisim render`` reads the
     part's list, draws only the frames no part listed, merges every list into ``render.json``
     and removes the part files; the whole is the mitsuba run's RGB."""
-    from agrisim.app.render import PART_JSON, RenderPlan
+    from agrisim.plugins.apps.render import PART_JSON, RenderPlan
 
     src = tmp_path / "run"
     shutil.copytree(runs["raycast"], src)

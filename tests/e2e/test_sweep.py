@@ -25,9 +25,9 @@ import pytest
 from conftest import local_ray
 from PIL import Image
 
-from agrisim.app.sweep import plan_sweep, read_spec
-from agrisim.app.sweep_run import run_cell_task, sweep
 from agrisim.files import layout
+from agrisim.plugins.apps.sweep import plan_sweep, read_spec
+from agrisim.plugins.apps.sweep_run import run_cell_task, sweep
 
 BASE = """\
 physics.backend = "kinematic"

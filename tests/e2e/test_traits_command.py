@@ -12,8 +12,8 @@ import pytest
 from PIL import Image
 from test_cli_errors import assert_one_line_error, snapshot
 
+from agrisim.plugins.apps.traits.opaque_area import face_opaque_area
 from agrisim.plugins.plants.procedural import grow
-from agrisim.traits.opaque_area import face_opaque_area
 
 
 def test_a_species_traits_are_written_and_not_overwritten(tmp_path: Path, cli) -> None:
@@ -91,7 +91,7 @@ def test_plants_lists_each_species_leaf_count_and_area(cli) -> None:
     """``agrisim plants``: a species' leaves are its instances; its sampled leaf area is the
     exact one (agrisim traits) within the sampling's error (100,000 samples: 0.1% measured on
     coltsfoot; 2% allowed)."""
-    from agrisim.traits.truth import plant_traits
+    from agrisim.plugins.apps.traits.truth import plant_traits
 
     code, stdout, err = cli(["plants"])
     assert code == 0, err

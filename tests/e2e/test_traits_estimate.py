@@ -1,4 +1,4 @@
-"""A run's plant as a phenotyping pipeline sees it (agrisim.traits.estimate): each leaf's
+"""A run's plant as a phenotyping pipeline sees it (agrisim.plugins.apps.traits.estimate): each leaf's
 points fused from the views by its instance mask lie on that very leaf of the ground-truth mesh
 (scene/plant.glb), by id, within the dataset's millimetre depth; a tilted cut-out card's area,
 inclination, azimuth and height come back from its views; ``agrisim traits RUN --measure``
@@ -20,7 +20,7 @@ from agrisim.errors import UserError
 from agrisim.files import layout
 from agrisim.files.plant_asset import load_plant
 from agrisim.files.rundir import read_json
-from agrisim.traits.estimate import fuse_views, plant_T_world
+from agrisim.plugins.apps.traits.estimate import fuse_views, plant_T_world
 
 
 @pytest.fixture(scope="module")

@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from agrisim.app.placement import local_gpu_count
+from agrisim.plugins.apps.placement import local_gpu_count
 
 pytestmark = [
     pytest.mark.gpu,
@@ -28,7 +28,7 @@ MITSUBA = {"variant": "cuda", "spp": 4, "denoise": "off"}
 def test_one_run_split_over_two_gpus_draws_on_both(tmp_path: Path) -> None:
     from PIL import Image
 
-    from agrisim.app.render import RenderPlan, render_runs
+    from agrisim.plugins.apps.render import RenderPlan, render_runs
 
     overrides = {"renderer": {"mitsuba": MITSUBA}}
     drawn = {}

@@ -109,7 +109,7 @@ def _absolute(package: str, node: ast.ImportFrom) -> str:
 
 def private_reach_ins(name: str, source: str, mods: dict[str, Path]) -> list[str]:
     """The private names of other agrisim modules that module ``name`` (of ``source``) uses:
-    imported (``from agrisim.app.compare import _probe``) or reached through an imported
+    imported (``from agrisim.plugins.apps.compare import _probe``) or reached through an imported
     module (``compare._probe``). A name with a leading underscore is its module's own."""
     package = name if mods.get(name, Path()).name == "__init__.py" else name.rpartition(".")[0]
     tree = ast.parse(source)
@@ -143,14 +143,16 @@ def test_no_module_uses_another_modules_private_name() -> None:
 @pytest.mark.parametrize(
     "source",
     [
-        "from agrisim.app.compare_plan import check_same_settings, _plan",
+        "from agrisim.plugins.apps.compare_plan import check_same_settings, _plan",
         "from .compare_plan import _plan",
-        "from agrisim.app import compare_plan as plans\nplans._plan()",
+        "from agrisim.plugins.apps import compare_plan as plans\nplans._plan()",
     ],
 )
 def test_the_private_name_check_catches_a_reach_in(source: str) -> None:
-    assert private_reach_ins("agrisim.app.sweep", source, modules()) == ["agrisim.app.compare_plan._plan"]
-    assert private_reach_ins("agrisim.app.compare_plan", "_plan = 1\n_plan", modules()) == []  # its own
+    assert private_reach_ins("agrisim.plugins.apps.sweep", source, modules()) == [
+        "agrisim.plugins.apps.compare_plan._plan"
+    ]
+    assert private_reach_ins("agrisim.plugins.apps.compare_plan", "_plan = 1\n_plan", modules()) == []  # its own
 
 
 def _loaded_after(code: str) -> set[str]:

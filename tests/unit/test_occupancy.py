@@ -1,4 +1,4 @@
-"""The views' voxel map (agrisim.nextview.occupancy) against analytic geometry: a camera facing
+"""The views' voxel map (agrisim.plugins.apps.nextview.occupancy) against analytic geometry: a camera facing
 a wall frees the voxels in front of it, occupies the wall's and leaves those behind unknown; the
 information gain of a view is the unknown voxels its rays reach before an occupied one."""
 
@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from agrisim.nextview.occupancy import FREE, OCCUPIED, PLANT, UNKNOWN, VoxelMap
+from agrisim.plugins.apps.nextview.occupancy import FREE, OCCUPIED, PLANT, UNKNOWN, VoxelMap
 from agrisim.scene.camera import from_fov
 from agrisim.scene.transforms import look_at
 

@@ -11,7 +11,7 @@ from pathlib import Path
 
 import pytest
 
-from agrisim.app.placement import local_gpu_count, split_frames, task_resources
+from agrisim.plugins.apps.placement import local_gpu_count, split_frames, task_resources
 
 
 def frames(n: int, run: int = 0) -> list[str]:

@@ -15,10 +15,10 @@ from conftest import rotation_x as _rotation_x
 from agrisim.errors import UserError
 from agrisim.files.glb import export_glb
 from agrisim.files.plant_asset import load_plant
+from agrisim.plugins.apps.traits.opaque_area import face_opaque_area, kept_texels
+from agrisim.plugins.apps.traits.truth import DE_WIT, INCLINATION_BINS, de_wit_shares, nearest_de_wit, plant_traits
 from agrisim.plugins.plants.procedural import grow
 from agrisim.scene.model import Mesh, Plant
-from agrisim.traits.opaque_area import face_opaque_area, kept_texels
-from agrisim.traits.truth import DE_WIT, INCLINATION_BINS, de_wit_shares, nearest_de_wit, plant_traits
 
 NUDGE = 1e-3 * np.sqrt(2)
 
@@ -176,7 +176,7 @@ def test_leaves_drawn_from_a_de_wit_class_are_fitted_to_it(kind: str) -> None:
 def _cdf(kind: str, theta: np.ndarray) -> np.ndarray:
     shares = de_wit_shares(kind)  # (only to be sure the module's classes are the ones drawn here)
     assert np.isclose(shares.sum(), 1.0)
-    from agrisim.traits.truth import _cumulative
+    from agrisim.plugins.apps.traits.truth import _cumulative
 
     return _cumulative(kind, theta)
 
@@ -197,7 +197,7 @@ def test_leaves_are_clustered_apart_where_a_gap_parts_them_and_together_where_th
     """Instance-free counting (DBSCAN on the leaves' points, ids dropped): two 4 cm sheets of
     points on the 1 mm grid, 2 cm apart, are two clusters each one leaf; the same sheets meeting
     at a fold (an L) are one cluster that mixes them; a few stray points count as nothing."""
-    from agrisim.traits.estimate import cluster_leaves
+    from agrisim.plugins.apps.traits.estimate import cluster_leaves
 
     u, v = np.meshgrid(np.arange(40) * 1e-3, np.arange(40) * 1e-3)
     flat = np.column_stack([u.ravel(), v.ravel(), np.zeros(u.size)])

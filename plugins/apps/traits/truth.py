@@ -4,7 +4,7 @@ textures, leaf by leaf.
 
 A leaf is a leaf instance (the mesh's ``face_instance``: the id the instance masks, the COCO
 export and ``traits.json`` share); its surface is the opaque part of its triangles (a cut-out
-card counts its leaf, not its rectangle: :mod:`agrisim.traits.opaque_area`). Lengths in metres,
+card counts its leaf, not its rectangle: :mod:`agrisim.plugins.apps.traits.opaque_area`). Lengths in metres,
 areas in square metres, angles in degrees, positions in the plant's frame (z up from the soil;
 the stem at x = y = 0).
 
@@ -36,8 +36,8 @@ from typing import Any
 import numpy as np
 
 from agrisim.errors import UserError
+from agrisim.plugins.apps.traits.opaque_area import OpaquePieces, opaque_pieces
 from agrisim.scene.model import Plant
-from agrisim.traits.opaque_area import OpaquePieces, opaque_pieces
 
 #: edges of the inclination histograms, degrees
 INCLINATION_BINS = np.arange(0.0, 91.0, 10.0)

@@ -1,6 +1,6 @@
 """The commands that describe what is installed and what a plant is: ``plants``, ``traits``,
 ``plugins`` and ``doctor``. Each is a :class:`~agrisim.commands.Command`, its flags and the
-function of its parsed flags, registered by :mod:`agrisim.app.builtin_commands`."""
+function of its parsed flags, registered by :mod:`agrisim.plugins.apps.commands`."""
 
 from __future__ import annotations
 
@@ -80,7 +80,7 @@ def _cmd_plugins(args: argparse.Namespace) -> int:
 def _cmd_doctor(args: argparse.Namespace) -> int:
     import json
 
-    from agrisim.app.doctor import gather, render_text
+    from agrisim.plugins.apps.doctor import gather, render_text
 
     report = gather(timing=not args.no_timing)
     if args.json:
@@ -124,15 +124,15 @@ def _cmd_plants(args: argparse.Namespace) -> int:
 def _cmd_traits(args: argparse.Namespace) -> int:
     from pathlib import Path
 
-    from agrisim.app.progress import EpisodeProgress
     from agrisim.errors import OutputError
     from agrisim.files.atomic import write_json
     from agrisim.files.rundir import read_json
+    from agrisim.plugins.apps.progress import EpisodeProgress
+    from agrisim.plugins.apps.traits.document import traits_document
+    from agrisim.plugins.apps.traits.estimate import measurable_frames, measure
+    from agrisim.plugins.apps.traits.truth import plant_traits
     from agrisim.registry import Registry, make_plugin_manager
     from agrisim.scene.plant_choice import check_plant_name, resolve_plant
-    from agrisim.traits.document import traits_document
-    from agrisim.traits.estimate import measurable_frames, measure
-    from agrisim.traits.truth import plant_traits
 
     target = Path(args.target)
     if args.seed is not None and args.seed < 0:

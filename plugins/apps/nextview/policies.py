@@ -1,4 +1,4 @@
-"""Policies that choose the next view among a :class:`~agrisim.envs.plant_view.PlantViewEnv`'s
+"""Policies that choose the next view among a :class:`~agrisim.plugins.apps.nextview.env.PlantViewEnv`'s
 candidates (discrete actions), for ``agrisim nextview``'s benchmark:
 
 - ``paper``: the paper's 100 setpoints in its order (each step's setpoint of each arm in turn);
@@ -8,7 +8,7 @@ candidates (discrete actions), for ``agrisim nextview``'s benchmark:
   camera-only planner can beat step for step;
 - ``volumetric``: uses only what the views measured: the candidate whose rays would reach the
   most unknown voxels of the map before an occupied one (Isler et al. 2016; Delmerico et al.
-  2018), the voxel map of :mod:`agrisim.nextview.occupancy`;
+  2018), the voxel map of :mod:`agrisim.plugins.apps.nextview.occupancy`;
 - ``volumetric-motion``: the same gain discounted by the move, ``gain * exp(-distance /
   MOTION_SCALE_M)`` with ``distance`` from where that arm's camera is now (Bircher et al.
   2016's discount), so that near views win ties and the arms travel less;
@@ -27,7 +27,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 if TYPE_CHECKING:
-    from agrisim.envs.plant_view import PlantViewEnv
+    from agrisim.plugins.apps.nextview.env import PlantViewEnv
 
 #: the distance over which ``volumetric-motion`` discounts a view's gain by 1/e, m
 MOTION_SCALE_M = 0.4

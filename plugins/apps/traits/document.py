@@ -5,10 +5,10 @@ from __future__ import annotations
 
 from typing import Any
 
+from agrisim.plugins.apps.traits.estimate import PlantEstimate
+from agrisim.plugins.apps.traits.scores import trait_errors
+from agrisim.plugins.apps.traits.truth import INCLINATION_BINS, PROJECTION_CELL_M, PlantTraits
 from agrisim.scene.model import Plant
-from agrisim.traits.estimate import PlantEstimate
-from agrisim.traits.scores import trait_errors
-from agrisim.traits.truth import INCLINATION_BINS, PROJECTION_CELL_M, PlantTraits
 from agrisim.version import __version__
 
 #: the units of traits.json's fields, by the suffix of their names

@@ -12,7 +12,7 @@ from the files on disk. Outputs under ``OUT``:
 ``compare.json`` the plan (plants, modes, the base configuration), one record per episode
                  (Ray task id, worker pid, wall time, peak RSS) and the table's rows
 
-The table itself (rows, markdown, CSV, chart) is :mod:`agrisim.app.table`.
+The table itself (rows, markdown, CSV, chart) is :mod:`agrisim.plugins.apps.table`.
 
 The module is split into pure parts (planning and validating the episodes, building rows from
 metrics dictionaries, formatting) and the parts with effects (:func:`execute` runs the Ray
@@ -36,7 +36,10 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from agrisim.app.compare_plan import (  # noqa: F401 - planning is part of compare's API
+from agrisim.config import build_config
+from agrisim.errors import OutputError, UserError
+from agrisim.files.atomic import write_bytes, write_json
+from agrisim.plugins.apps.compare_plan import (  # noqa: F401 - planning is part of compare's API
     PAPER_PLANTS,
     ComparePlan,
     EpisodePlan,
@@ -45,8 +48,8 @@ from agrisim.app.compare_plan import (  # noqa: F401 - planning is part of compa
     plan_compare,
     run_dir_state,
 )
-from agrisim.app.point_table import point_chart_png, point_csv, point_markdown, point_rows
-from agrisim.app.table import (  # noqa: F401 - the table is part of compare's API
+from agrisim.plugins.apps.point_table import point_chart_png, point_csv, point_markdown, point_rows
+from agrisim.plugins.apps.table import (  # noqa: F401 - the table is part of compare's API
     MODE_TITLES,
     SEG_MODES,
     TABLE_LABEL,
@@ -63,9 +66,6 @@ from agrisim.app.table import (  # noqa: F401 - the table is part of compare's A
     table_threshold,
     thresholds_of,
 )
-from agrisim.config import build_config
-from agrisim.errors import OutputError, UserError
-from agrisim.files.atomic import write_bytes, write_json
 
 # ---------------------------------------------------------------------------------- running
 

@@ -15,7 +15,7 @@ import math
 from collections.abc import Mapping, Sequence
 from typing import Any
 
-from agrisim.app.table import TABLE_LABEL, plant_title, table_threshold
+from agrisim.plugins.apps.table import TABLE_LABEL, plant_title, table_threshold
 
 #: measures with one value per row
 SCALARS = ("pixels", "points", "chamfer_mm", "thickness_mm")

@@ -1,4 +1,4 @@
-"""Running a planned sweep (:mod:`agrisim.app.sweep`) on Ray: every cell a task in a fresh
+"""Running a planned sweep (:mod:`agrisim.plugins.apps.sweep`) on Ray: every cell a task in a fresh
 worker, GPU runs one per GPU, CPU runs one per core, locally or on a cluster.
 
 Each task decides what to do from the cell's folder as it finds it (:func:`run_cell_task`):
@@ -22,14 +22,14 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from agrisim.app.compare import prepare_out, probe, start_ray, stop_ray
-from agrisim.app.compare_plan import run_dir_state
-from agrisim.app.placement import task_resources
-from agrisim.app.sweep import MANIFEST, Cell, SweepPlan, follow_up_done
 from agrisim.config import build_config
 from agrisim.errors import UserError
 from agrisim.files import layout
 from agrisim.files.atomic import write_json
+from agrisim.plugins.apps.compare import prepare_out, probe, start_ray, stop_ray
+from agrisim.plugins.apps.compare_plan import run_dir_state
+from agrisim.plugins.apps.placement import task_resources
+from agrisim.plugins.apps.sweep import MANIFEST, Cell, SweepPlan, follow_up_done
 
 #: Ray retries a task whose worker or node was lost this many times (an exception raised by
 #: the run itself is recorded, never retried: it would fail the same way)

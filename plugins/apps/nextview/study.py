@@ -1,5 +1,5 @@
 """``agrisim nextview``: the view-choosing benchmark. Each plant, each policy
-(:mod:`agrisim.nextview.policies`) runs one episode of ``agrisim/PlantView-v0``; every step's
+(:mod:`agrisim.plugins.apps.nextview.policies`) runs one episode of ``agrisim/PlantView-v0``; every step's
 coverage and motion time go to ``OUT/nextview.json``, each episode's views to its own run
 directory (``OUT/<plant>/<policy>/episode_0000``), the curves to ``OUT/nextview.png``, and a
 table says how many views and how much motion each policy needs to see what the paper's 100
@@ -39,7 +39,7 @@ class PolicyRun:
 
 def check_request(plants: Sequence[str], policies: Sequence[str], views: int) -> None:
     """Refuse an unknown policy or too few views (plants are checked when their env is built)."""
-    from agrisim.nextview.policies import POLICIES
+    from agrisim.plugins.apps.nextview.policies import POLICIES
 
     unknown = [p for p in policies if p not in POLICIES]
     if unknown:
@@ -68,7 +68,7 @@ def reachable_candidates(env: Any) -> int:
 
 def check_candidates(plant: str, env_options: dict[str, Any]) -> None:
     """Refuse a candidate set that no arm reaches at all, before anything runs or is written."""
-    from agrisim.envs.plant_view import PlantViewEnv
+    from agrisim.plugins.apps.nextview.env import PlantViewEnv
 
     env = PlantViewEnv(plant=plant, **env_options)
     try:
@@ -91,8 +91,8 @@ def run_benchmark(
     progress: Callable[[str, int, int], None] | None = None,
 ) -> list[PolicyRun]:
     """Every plant x policy episode (the paper's first on each plant: the others' target)."""
-    from agrisim.envs.plant_view import PlantViewEnv
-    from agrisim.nextview.policies import POLICIES
+    from agrisim.plugins.apps.nextview.env import PlantViewEnv
+    from agrisim.plugins.apps.nextview.policies import POLICIES
 
     order = [PAPER] + [p for p in policies if p != PAPER]
     episodes: list[PolicyRun] = []

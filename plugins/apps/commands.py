@@ -1,10 +1,11 @@
-"""agrisim's own commands, registered through the ``agrisim_commands`` hook as a plugin's
-are (:func:`agrisim.app.arguments.installed_commands` registers this module)."""
+"""agrisim's own commands, registered through the ``agrisim_commands`` hook as a third party's
+are: this module is the ``apps`` entry point of agrisim's distribution (which
+:func:`agrisim.app.arguments.installed_commands` loads whatever ``AGRISIM_LOAD_PLUGINS`` says)."""
 
 from __future__ import annotations
 
-from agrisim.app import catalogue_commands, run_commands, study_commands
 from agrisim.commands import Command
+from agrisim.plugins.apps import catalogue_commands, run_commands, study_commands
 from agrisim.registry import hookimpl
 
 #: the order of ``agrisim --help``

@@ -16,7 +16,7 @@ the source's radiance are not carried (they hold the old light).
 an interrupted re-render resumes frame by frame. Nothing is replaced without ``--overwrite``.
 
 Several runs, or one run on several GPUs, go to Ray (:func:`render_runs`): a task per run, or a
-run's frames dealt out over the GPUs (:func:`agrisim.app.placement.split_frames`). Each part
+run's frames dealt out over the GPUs (:func:`agrisim.plugins.apps.placement.split_frames`). Each part
 lists the frames it has done in ``render.part-<k>.json`` beside ``render.json`` (one writer a
 file, so none can lose another's record); a resumed or retried part reads them back, and when
 every part of a run is done they are merged into ``render.json`` and removed.
@@ -385,7 +385,7 @@ def render_runs(
     task: PartTask = render_part_task,
 ) -> list[dict[str, Any]]:
     """Checked re-renders as Ray tasks: one GPU each, and a run's frames split over several GPUs
-    where there are fewer runs than GPUs (:func:`agrisim.app.placement.split_frames`); on a
+    where there are fewer runs than GPUs (:func:`agrisim.plugins.apps.placement.split_frames`); on a
     cluster without GPUs, one task a run. ``gpus`` caps the GPUs used (default: every
     ``gpu_resource`` of the cluster; more than it has is a UserError raised before anything is
     written). ``progress(views_done, views)`` hears of the frames drawn about once a second.
@@ -393,8 +393,8 @@ def render_runs(
     the body of each part (:func:`render_part_task`; tests wrap it)."""
     import time
 
-    from agrisim.app.compare import start_ray, stop_ray
-    from agrisim.app.placement import split_frames, task_resources
+    from agrisim.plugins.apps.compare import start_ray, stop_ray
+    from agrisim.plugins.apps.placement import split_frames, task_resources
 
     if gpus is not None and gpus < 1:
         raise UserError(f"--gpus must be 1 or more, got {gpus}")

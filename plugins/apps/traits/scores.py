@@ -1,5 +1,5 @@
-"""How far a plant's estimated traits (:mod:`agrisim.traits.estimate`) lie from its truth
-(:mod:`agrisim.traits.truth`), as phenotyping studies report it: leaves found against leaves
+"""How far a plant's estimated traits (:mod:`agrisim.plugins.apps.traits.estimate`) lie from its truth
+(:mod:`agrisim.plugins.apps.traits.truth`), as phenotyping studies report it: leaves found against leaves
 there, the per-leaf area's mean absolute percentage error over the leaves seen, the leaf
 inclination's error in degrees, and the plant's height and hull. Leaves meet by id."""
 
@@ -10,8 +10,8 @@ from typing import Any
 
 import numpy as np
 
-from agrisim.traits.estimate import PlantEstimate
-from agrisim.traits.truth import PlantTraits
+from agrisim.plugins.apps.traits.estimate import PlantEstimate
+from agrisim.plugins.apps.traits.truth import PlantTraits
 
 
 @dataclass

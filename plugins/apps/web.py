@@ -9,6 +9,7 @@ remote headless machine, forward the two ports over SSH (``ssh -L 9090:localhost
 
 from __future__ import annotations
 
+import argparse
 import ipaddress
 import signal
 import socket
@@ -181,3 +182,30 @@ def recording_of(target: Path) -> Path:
             f"{target} holds no {layout.RECORDING} (made with --no-rrd, or --rrd elsewhere: give that file)"
         )
     raise UserError(f"{target} is neither a run directory nor an .rrd recording")
+
+
+def web_flags(parser: argparse.ArgumentParser) -> None:
+    """``--web-port``, ``--grpc-port``, ``--bind``: where the web viewer serves."""
+    parser.add_argument("--web-port", type=int, metavar="N", help=f"port of the web page (default: {DEFAULT_WEB_PORT})")
+    parser.add_argument(
+        "--grpc-port",
+        type=int,
+        metavar="N",
+        help=f"port the page reads the recording from (default: {DEFAULT_GRPC_PORT})",
+    )
+    parser.add_argument(
+        "--bind",
+        metavar="ADDR",
+        help=f"address to serve on (default: {DEFAULT_BIND}, this machine only; 0.0.0.0: every interface)",
+    )
+
+
+def web_address(args: argparse.Namespace) -> tuple[str, int, int]:
+    """(bind, web port, gRPC port) of ``--bind``, ``--web-port``, ``--grpc-port``, checked."""
+    bind = args.bind or DEFAULT_BIND
+    web = args.web_port if args.web_port is not None else DEFAULT_WEB_PORT
+    grpc = args.grpc_port if args.grpc_port is not None else DEFAULT_GRPC_PORT
+    if web == grpc:
+        raise UserError(f"--web-port and --grpc-port must differ (both {web})")
+    check_address(bind, {"--web-port": web, "--grpc-port": grpc})
+    return bind, web, grpc

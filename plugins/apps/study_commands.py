@@ -1,6 +1,6 @@
 """The commands that run many episodes: ``nextview``, ``compare`` (the paper's Tables 2 and 3)
 and ``sweep``. Each is a :class:`~agrisim.commands.Command`, its flags and the function of its
-parsed flags, registered by :mod:`agrisim.app.builtin_commands`."""
+parsed flags, registered by :mod:`agrisim.plugins.apps.commands`."""
 
 from __future__ import annotations
 
@@ -9,7 +9,6 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from agrisim.app import run_commands
 from agrisim.app.flags import (
     COMPARE_EPISODE_FLAGS,
     PROG,
@@ -22,13 +21,14 @@ from agrisim.app.flags import (
 from agrisim.commands import Command
 from agrisim.config import load_toml
 from agrisim.errors import UserError
+from agrisim.plugins.apps import run_commands
 
 
 def _nextview_arguments(nextview: argparse.ArgumentParser) -> None:
     nextview.add_argument(
         "--plant", nargs="+", default=["coltsfoot"], metavar="NAME", help="species or plant files, or 'all' (coltsfoot)"
     )
-    from agrisim.nextview.policies import POLICIES
+    from agrisim.plugins.apps.nextview.policies import POLICIES
 
     nextview.add_argument(
         "--policies", default=",".join(POLICIES), help=f"comma-separated: {', '.join(POLICIES)} (all)"
@@ -93,11 +93,11 @@ def _sweep_arguments(sweep: argparse.ArgumentParser) -> None:
 
 
 def _cmd_compare(args: argparse.Namespace) -> int:
-    from agrisim.app.compare import SEG_MODES, compare, default_out, markdown_table, parse_names, plan_compare
-    from agrisim.app.compare_plan import parse_sizes
-    from agrisim.app.point_table import point_markdown
-    from agrisim.app.progress import EpisodeProgress
     from agrisim.config import merge
+    from agrisim.plugins.apps.compare import SEG_MODES, compare, default_out, markdown_table, parse_names, plan_compare
+    from agrisim.plugins.apps.compare_plan import parse_sizes
+    from agrisim.plugins.apps.point_table import point_markdown
+    from agrisim.plugins.apps.progress import EpisodeProgress
 
     if args.workers is not None and args.workers < 1:
         raise UserError(f"--workers must be 1 or more, got {args.workers}")
@@ -158,7 +158,7 @@ def _cmd_compare(args: argparse.Namespace) -> int:
 def _cmd_nextview(args: argparse.Namespace) -> int:
     from pathlib import Path
 
-    from agrisim.app.nextview import (
+    from agrisim.plugins.apps.nextview.study import (
         check_candidates,
         check_request,
         pivot,
@@ -168,7 +168,7 @@ def _cmd_nextview(args: argparse.Namespace) -> int:
         run_benchmark,
         table,
     )
-    from agrisim.app.progress import EpisodeProgress
+    from agrisim.plugins.apps.progress import EpisodeProgress
     from agrisim.registry import Registry, make_plugin_manager
 
     out = Path(args.out)
@@ -200,9 +200,9 @@ def _cmd_nextview(args: argparse.Namespace) -> int:
 
 
 def _cmd_sweep(args: argparse.Namespace) -> int:
-    from agrisim.app.progress import SweepProgress
-    from agrisim.app.sweep import plan_sweep, read_spec
-    from agrisim.app.sweep_run import sweep
+    from agrisim.plugins.apps.progress import SweepProgress
+    from agrisim.plugins.apps.sweep import plan_sweep, read_spec
+    from agrisim.plugins.apps.sweep_run import sweep
 
     spec = read_spec(args.spec, args.set)
     # every cell validated and the folder checked before Ray starts or anything is written

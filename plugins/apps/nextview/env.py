@@ -4,7 +4,7 @@ Each step moves one arm's camera to a chosen viewpoint with the episode's own ma
 OMPL planning, Ruckig timing, physics), renders the view there and fuses it into the
 reconstruction, exactly as a run's routine does (:meth:`agrisim.episode.Episode.visit`). The
 reward is the true plant surface the view saw first (the share of the ground truth's samples,
-:mod:`agrisim.nextview.coverage`) less a cost per second of arm motion; a viewpoint the arm
+:mod:`agrisim.plugins.apps.nextview.coverage`) less a cost per second of arm motion; a viewpoint the arm
 cannot reach costs a penalty and moves nothing. Each episode is a run directory, so ``agrisim
 recon``, ``colmap`` and the splat reconstructor work on the views it chose.
 
@@ -13,7 +13,7 @@ Actions are an index into a candidate set (``candidates="5x10"``: the paper's he
 ``(azimuth, polar angle, radius, arm)`` around the plant (radians from +x and from the zenith,
 metres from the hemisphere's centre; arm < 0.5 is the first). Observations: the new view's RGB,
 depth (m) and labels, every arm's joints, and the voxel map of what the views saw
-(:mod:`agrisim.nextview.occupancy`: unknown, free, occupied, plant).
+(:mod:`agrisim.plugins.apps.nextview.occupancy`: unknown, free, occupied, plant).
 """
 
 from __future__ import annotations
@@ -32,8 +32,8 @@ from agrisim.episode import Episode
 from agrisim.evaluation.metrics import GroundTruth
 from agrisim.evaluation.views import View
 from agrisim.lab.room import soil_pose
-from agrisim.nextview.coverage import SurfaceCoverage
-from agrisim.nextview.occupancy import VoxelMap
+from agrisim.plugins.apps.nextview.coverage import SurfaceCoverage
+from agrisim.plugins.apps.nextview.occupancy import VoxelMap
 from agrisim.registry import Registry, make_plugin_manager
 from agrisim.robot.kinematics import ArmKinematics
 from agrisim.robot.setpoints import Setpoint, hemisphere

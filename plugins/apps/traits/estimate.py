@@ -1,5 +1,5 @@
 """What a phenotyping pipeline measures of a plant from a run's views, with Open3D and the
-field's usual steps; each estimate meets its truth (:mod:`agrisim.traits.truth`) by leaf id.
+field's usual steps; each estimate meets its truth (:mod:`agrisim.plugins.apps.traits.truth`) by leaf id.
 
 1. **Fusion** (:func:`fuse_views`): each view's plant pixels (labels > 0) with a depth within
    ``max_depth`` are back-projected through the run's camera, lens included, and moved to the
@@ -188,7 +188,7 @@ def leaf_estimates(clouds: dict[int, np.ndarray], voxel_m: float = VOXEL_M) -> l
       area) and a 3D alpha shape thickens it. Holes the views left stay holes: an unseen part
       of a leaf is not counted.
     - Inclination and azimuth: each point's normal from its neighbours within 3 spacings (PCA,
-      Open3D), turned upward, averaged as :mod:`agrisim.traits.truth` averages the surface's.
+      Open3D), turned upward, averaged as :mod:`agrisim.plugins.apps.traits.truth` averages the surface's.
     """
     import open3d as o3d
 
@@ -276,7 +276,7 @@ class PlantEstimate:
 def measure(run_dir: Path, depth: str = "sensor", progress: Callable[[int, int], None] | None = None) -> PlantEstimate:
     """Every estimate of the plant in the complete run ``run_dir`` from its views (the module's
     steps), on the exact depth (``truth``) or the run's sensor's (``sensor``)."""
-    from agrisim.traits.truth import hull_figures
+    from agrisim.plugins.apps.traits.truth import hull_figures
 
     fused = fuse_views(run_dir, depth, progress=progress)
     seen = [leaf for leaf in leaf_estimates(fused.leaves) if leaf.points >= MIN_LEAF_POINTS]

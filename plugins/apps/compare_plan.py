@@ -12,7 +12,6 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from agrisim.app.table import SEG_MODES, is_file_plant, plant_key
 from agrisim.capabilities import check_renderer
 from agrisim.config import (
     BackendChoice,
@@ -26,6 +25,7 @@ from agrisim.config import (
 from agrisim.errors import ConfigError, OutputError, UserError
 from agrisim.files import layout
 from agrisim.kinds import SECTIONS
+from agrisim.plugins.apps.table import SEG_MODES, is_file_plant, plant_key
 
 #: the ten procedural species, in the row order of the paper's Table 2
 PAPER_PLANTS: tuple[str, ...] = (

@@ -1,6 +1,6 @@
 """The commands that make or use one run: ``run``, ``ros``, ``recon``, ``render``, ``export``,
 ``colmap`` and ``view``. Each is a :class:`~agrisim.commands.Command`, its flags and the
-function of its parsed flags, registered by :mod:`agrisim.app.builtin_commands`."""
+function of its parsed flags, registered by :mod:`agrisim.plugins.apps.commands`."""
 
 from __future__ import annotations
 
@@ -17,13 +17,12 @@ from agrisim.app.flags import (
     parse_value,
     set_dotted,
     set_flag,
-    web_address,
-    web_flags,
 )
 from agrisim.commands import Command
 from agrisim.config import RunConfig, build_config, first_difference, load_toml, outcome_settings
 from agrisim.errors import UserError
 from agrisim.files import layout
+from agrisim.plugins.apps.web import web_address, web_flags
 
 
 def _run_arguments(run: argparse.ArgumentParser) -> None:
@@ -174,13 +173,13 @@ def _view_arguments(view: argparse.ArgumentParser) -> None:
 
 
 def _cmd_run(args: argparse.Namespace) -> int:
-    from agrisim.app.progress import EpisodeProgress
     from agrisim.episode import Episode
+    from agrisim.plugins.apps.progress import EpisodeProgress
 
     overrides = overrides_from_args(args)
     web = None
     if args.serve_web:
-        from agrisim.app.web import grpc_url
+        from agrisim.plugins.apps.web import grpc_url
 
         web = web_address(args)
         set_dotted(overrides, "sink.rerun.connect", grpc_url(web[0], web[2]))
@@ -197,7 +196,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
     viewer = None
     try:
         if web is not None:
-            from agrisim.app.web import serve_web
+            from agrisim.plugins.apps.web import serve_web
 
             viewer = serve_web(None, *web)
             print(f"watch the run in a browser: {viewer.url}", flush=True)
@@ -219,9 +218,9 @@ def _cmd_run(args: argparse.Namespace) -> int:
 def _cmd_ros(args: argparse.Namespace) -> int:
     import signal
 
-    from agrisim.app.progress import EpisodeProgress
     from agrisim.config import backend_options
     from agrisim.live import LiveSession
+    from agrisim.plugins.apps.progress import EpisodeProgress
 
     config = build_config(load_toml(args.config) if args.config else {}, overrides_from_args(args))
     session = LiveSession(config, routine=args.routine, real_time_factor=args.real_time_factor)
@@ -280,7 +279,7 @@ def _report_run(run: Any, summary: Any) -> None:
 
 
 def _cmd_view(args: argparse.Namespace) -> int:
-    from agrisim.app.web import recording_of, serve_web
+    from agrisim.plugins.apps.web import recording_of, serve_web
 
     recording = recording_of(args.target)
     bind, web, grpc = web_address(args)
@@ -293,8 +292,8 @@ def _cmd_view(args: argparse.Namespace) -> int:
 
 
 def _cmd_recon(args: argparse.Namespace) -> int:
-    from agrisim.app.progress import EpisodeProgress
     from agrisim.evaluation.session import reconstruct_saved_run
+    from agrisim.plugins.apps.progress import EpisodeProgress
 
     overrides: dict[str, Any] = {}
     if args.recon:
@@ -316,9 +315,9 @@ def _cmd_recon(args: argparse.Namespace) -> int:
 
 
 def _cmd_render(args: argparse.Namespace) -> int:
-    from agrisim.app.placement import local_gpu_count
-    from agrisim.app.progress import EpisodeProgress
-    from agrisim.app.render import RenderPlan
+    from agrisim.plugins.apps.placement import local_gpu_count
+    from agrisim.plugins.apps.progress import EpisodeProgress
+    from agrisim.plugins.apps.render import RenderPlan
 
     overrides: dict[str, Any] = {}
     apply_sets(overrides, args.set)
@@ -341,7 +340,7 @@ def _cmd_render(args: argparse.Namespace) -> int:
 
 def _render_several(args: argparse.Namespace, overrides: dict[str, Any]) -> int:
     """``agrisim render RUN1 RUN2 ...``: every run checked first, then re-rendered as Ray tasks."""
-    from agrisim.app.render import RenderPlan
+    from agrisim.plugins.apps.render import RenderPlan
 
     if args.out is not None:
         raise UserError("--out names the output of one run; with several, each goes to RUN_DIR-<renderer>")
@@ -352,8 +351,8 @@ def _render_several(args: argparse.Namespace, overrides: dict[str, Any]) -> int:
 
 
 def _render_on_ray(args: argparse.Namespace, overrides: dict[str, Any], plans: list[Any]) -> int:
-    from agrisim.app.progress import EpisodeProgress
-    from agrisim.app.render import render_runs
+    from agrisim.plugins.apps.progress import EpisodeProgress
+    from agrisim.plugins.apps.render import render_runs
 
     with EpisodeProgress("views") as progress:
         records = render_runs(
@@ -404,8 +403,8 @@ def _resume_config(args: argparse.Namespace, overrides: dict[str, Any]) -> RunCo
 
 
 def _cmd_export(args: argparse.Namespace) -> int:
-    from agrisim.app.progress import EpisodeProgress
     from agrisim.files.exports import build_exporter, run_export
+    from agrisim.plugins.apps.progress import EpisodeProgress
     from agrisim.registry import Registry, make_plugin_manager
 
     registry = Registry(make_plugin_manager())
@@ -438,8 +437,8 @@ def _export_options(name: str, items: Sequence[str]) -> dict[str, Any]:
 
 
 def _cmd_colmap(args: argparse.Namespace) -> int:
-    from agrisim.app.progress import EpisodeProgress
     from agrisim.evaluation.photogrammetry import run_colmap
+    from agrisim.plugins.apps.progress import EpisodeProgress
 
     with EpisodeProgress("features") as progress:
         result = run_colmap(

@@ -1,6 +1,6 @@
 """Planning a sweep (``agrisim sweep SPEC``): a grid of runs from one TOML file, every cell's
 configuration built and validated, and the output folder checked, before Ray starts or
-anything is written (:func:`plan_sweep`). Running the plan is :mod:`agrisim.app.sweep_run`.
+anything is written (:func:`plan_sweep`). Running the plan is :mod:`agrisim.plugins.apps.sweep_run`.
 
 A spec is a ``--config`` file with two tables of its own::
 
@@ -30,11 +30,11 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from agrisim.app.compare_plan import check_backends, check_same_settings, run_dir_state
 from agrisim.app.flags import apply_sets, set_dotted
 from agrisim.config import RunConfig, backend_options, build_config, load_toml
 from agrisim.errors import ConfigError, OutputError, UserError
 from agrisim.files import layout
+from agrisim.plugins.apps.compare_plan import check_backends, check_same_settings, run_dir_state
 
 #: the follow-ups a spec's ``[sweep] after`` may name: what ``agrisim colmap``, ``agrisim export
 #: coco`` and ``agrisim export nerfstudio`` do (the last two through their installed exporters),
@@ -340,7 +340,7 @@ def plan_sweep(
 
 def _check_out(out: Path, *, overwrite: bool, resume: bool) -> None:
     """The output folder: a new or empty one, else ``--overwrite`` or ``--resume`` (of a sweep)."""
-    from agrisim.app.compare_plan import check_out as check_writable
+    from agrisim.plugins.apps.compare_plan import check_out as check_writable
 
     if resume and not (out / MANIFEST).is_file():
         raise OutputError(f"--resume: {out} holds no {MANIFEST}, so it is not a sweep to continue")
