@@ -40,8 +40,8 @@ def main() -> None:
     parser.add_argument("--threads", type=int, help="Dr.Jit's thread pool size (default: every core)")
     args = parser.parse_args()
 
+    from agrisim.plugins.render.mitsuba.cpu import emulate_llvm_target, llvm_target
     from agrisim.plugins.render.mitsuba.variant import resolve_variant
-    from agrisim.util.cpu import emulate_llvm_target, llvm_target
 
     resolve_variant("llvm")  # points Dr.Jit at a libLLVM first
     if args.target == "avx2":

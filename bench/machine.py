@@ -7,9 +7,9 @@ import subprocess
 
 def cpu_model() -> str:
     """The CPU's model name and widest vector ISA, e.g. ``"AMD EPYC 7B13 (AVX2)"``: the engine's
-    speed follows the vector width as much as the model (:mod:`agrisim.util.cpu`)."""
-    from agrisim.util.cpu import cpu_model as model
-    from agrisim.util.cpu import vector_isa
+    speed follows the vector width as much as the model (:mod:`agrisim.plugins.render.mitsuba.cpu`)."""
+    from agrisim.plugins.render.mitsuba.cpu import cpu_model as model
+    from agrisim.plugins.render.mitsuba.cpu import vector_isa
 
     return f"{model()} ({vector_isa()})"
 

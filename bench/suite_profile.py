@@ -96,7 +96,7 @@ def _machine_ticks() -> tuple[int, int]:
 def _cpu() -> str:
     sys.path.insert(0, str(ROOT))
     try:
-        from agrisim.util.cpu import cpu_model, vector_isa
+        from agrisim.plugins.render.mitsuba.cpu import cpu_model, vector_isa
 
         line = f"{cpu_model()} ({vector_isa()})"
     except Exception as exc:  # noqa: BLE001 - only a header

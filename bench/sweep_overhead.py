@@ -22,7 +22,7 @@ import time
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
-from agrisim.util.cpu import cpu_model, vector_isa
+from agrisim.plugins.render.mitsuba.cpu import cpu_model, vector_isa
 
 
 def agrisim(*args: str) -> None:

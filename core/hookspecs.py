@@ -110,7 +110,7 @@ def agrisim_sinks() -> list[BackendSpec]:
 def agrisim_bridges() -> list[BackendSpec]:
     """Middleware bridges for live sessions (``agrisim ros --ros 1|2`` picks ``ros1`` or
     ``ros2``). The core calls ``factory(session: LiveSession, options) -> Bridge`` with the
-    opened :class:`agrisim.live.LiveSession` and the bridge's validated options; the bridge
+    opened :class:`agrisim.plugins.ros.live.LiveSession` and the bridge's validated options; the bridge
     registers its own event hook implementations (``agrisim_capture``, to publish views) on
     ``session.pm``."""
 

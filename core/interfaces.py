@@ -428,7 +428,7 @@ class PlantSpecies(ABC):
 class Bridge(ABC):
     """A middleware serving a live session (``agrisim ros``): it turns messages into the
     session's commands and publishes the arms and the views. Built with the opened session
-    (:class:`agrisim.live.LiveSession`) and its options; :meth:`start` connects, :meth:`close`
+    (:class:`agrisim.plugins.ros.live.LiveSession`) and its options; :meth:`start` connects, :meth:`close`
     disconnects."""
 
     @abstractmethod

@@ -39,7 +39,7 @@ PACKAGES = {
     "agrisim.files": "The run directory's files: dataset, glTF, PNG/EXR, point clouds, exports.",
     "agrisim.lab": "The lab around the cell: room, clutter, textures.",
     "agrisim.testing": "The contract suite a backend is checked against, and perturbations for tests.",
-    "agrisim.util": "Small helpers: caches, CPU facts, native output.",
+    "agrisim.util": "Small helpers: caches, native output.",
 }
 
 

@@ -16,7 +16,7 @@ without them): ``OPENBLAS_CORETYPE=Haswell`` (OpenBLAS's AVX2 kernels, numpy's a
 
 The header of the session says what it runs on (the CPU, and the emulated target). What stays
 the host's: Embree's and Open Image Denoise's kernels (chosen from CPUID) and the results of
-approximate instructions (:mod:`agrisim.util.cpu`).
+approximate instructions (:mod:`agrisim.plugins.render.mitsuba.cpu`).
 """
 
 from __future__ import annotations
@@ -63,7 +63,7 @@ def pytest_configure(config: pytest.Config) -> None:
     isa = os.environ.get(TEST_CPU_ENV, "").strip().lower()
     if not isa:
         return
-    from agrisim.util.cpu import LLVM_TARGET_ENV, TARGETS
+    from agrisim.plugins.render.mitsuba.cpu import LLVM_TARGET_ENV, TARGETS
 
     if isa not in TARGETS:
         raise pytest.UsageError(f"{TEST_CPU_ENV}={isa}: unknown; known: {', '.join(TARGETS)}")
@@ -72,7 +72,7 @@ def pytest_configure(config: pytest.Config) -> None:
         raise pytest.UsageError(
             f"{TEST_CPU_ENV}={isa} needs OPENBLAS_CORETYPE={core} from the shell (OpenBLAS reads it when it loads)"
         )
-    from agrisim.util.cpu import numpy_simd, numpy_wide_targets
+    from agrisim.plugins.render.mitsuba.cpu import numpy_simd, numpy_wide_targets
 
     if wide := [t for t in numpy_wide_targets() if t in numpy_simd()[1]]:
         raise pytest.UsageError(
@@ -91,7 +91,7 @@ def pytest_configure(config: pytest.Config) -> None:
 
 
 def pytest_report_header(config: pytest.Config) -> list[str]:
-    from agrisim.util.cpu import cpu_model, numpy_simd, openblas_cores, vector_isa
+    from agrisim.plugins.render.mitsuba.cpu import cpu_model, numpy_simd, openblas_cores, vector_isa
 
     cores = ", ".join(sorted(set(openblas_cores().values()))) or "not loaded"
     used = numpy_simd()[1]
@@ -99,7 +99,7 @@ def pytest_report_header(config: pytest.Config) -> list[str]:
         f"cpu: {cpu_model()} ({vector_isa()}); OpenBLAS kernels: {cores}; numpy SIMD: {used[-1] if used else 'baseline'}"
     ]
     if _emulated:
-        from agrisim.util.cpu import llvm_target
+        from agrisim.plugins.render.mitsuba.cpu import llvm_target
 
         target = llvm_target()
         lines.append(
@@ -114,8 +114,8 @@ def isolated_env(**extra: str) -> dict[str, str]:
     settings: ``os.environ`` without them, except the emulated CPU (``AGRISIM_LLVM_TARGET``, set
     by ``AGRISIM_TEST_CPU``: the child computes as this process does) and the session's plant
     cache (which changes no result); ``extra`` on top."""
+    from agrisim.plugins.render.mitsuba.cpu import LLVM_TARGET_ENV
     from agrisim.scene.plant_cache import PLANT_CACHE_ENV
-    from agrisim.util.cpu import LLVM_TARGET_ENV
 
     env = {k: v for k, v in os.environ.items() if not k.startswith("AGRISIM_") or k == PLANT_CACHE_ENV}
     if _emulated:  # from the session, not os.environ: a test's monkeypatch may have cleared it

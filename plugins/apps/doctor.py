@@ -30,7 +30,7 @@ from pathlib import Path
 from typing import Any
 
 from agrisim.errors import UserError
-from agrisim.util.cpu import CPUINFO, cpuinfo
+from agrisim.plugins.render.mitsuba.cpu import CPUINFO, cpuinfo
 from agrisim.version import __version__
 
 
@@ -181,8 +181,8 @@ def drjit_facts(llvm_path_before: str | None = None) -> dict[str, Any]:
 
 def _llvm_backend() -> dict[str, Any]:
     """The LLVM backend, initialised: the libLLVM mapped into this process and what Dr.Jit
-    compiles for (:func:`agrisim.util.cpu.llvm_target`)."""
-    from agrisim.util.cpu import llvm_target
+    compiles for (:func:`agrisim.plugins.render.mitsuba.cpu.llvm_target`)."""
+    from agrisim.plugins.render.mitsuba.cpu import llvm_target
 
     target = llvm_target()  # (starts the backend: its target is known from there)
     feature_set = {f[1:] for f in target.features.split(",") if f.startswith("+")}

@@ -219,8 +219,8 @@ def _cmd_ros(args: argparse.Namespace) -> int:
     import signal
 
     from agrisim.config import backend_options
-    from agrisim.live import LiveSession
     from agrisim.plugins.apps.progress import EpisodeProgress
+    from agrisim.plugins.ros.live import LiveSession
 
     config = build_config(load_toml(args.config) if args.config else {}, overrides_from_args(args))
     session = LiveSession(config, routine=args.routine, real_time_factor=args.real_time_factor)

@@ -16,7 +16,7 @@ from agrisim import hookimpl
 from agrisim.files.calibration import ros_distortion
 from agrisim.files.encoding import rep118
 from agrisim.interfaces import Bridge, Capture
-from agrisim.live import LiveSession, Refused
+from agrisim.plugins.ros.live import LiveSession, Refused
 from agrisim.records import Run
 from agrisim.robot.tf_tree import ArmFrames, quaternions
 

@@ -24,7 +24,7 @@ from typing import Any
 import numpy as np
 
 from agrisim.errors import UserError
-from agrisim.live import LiveSession
+from agrisim.plugins.ros.live import LiveSession
 
 from . import BridgeOptions
 from .bridge import IMAGE_TOPICS, RosBridge

@@ -13,7 +13,7 @@ import pytest
 from agrisim.config import build_config, merge
 from agrisim.episode import Episode
 from agrisim.interfaces import JointTrajectory
-from agrisim.live import ArmMotion, LiveSession, Refused
+from agrisim.plugins.ros.live import ArmMotion, LiveSession, Refused
 from agrisim.registry import hookimpl
 
 

@@ -1,4 +1,4 @@
-"""agrisim.util.cpu: the host's vector ISA from /proc/cpuinfo, and Dr.Jit's LLVM backend compiling
+"""agrisim.plugins.render.mitsuba.cpu: the host's vector ISA from /proc/cpuinfo, and Dr.Jit's LLVM backend compiling
 for AVX2 on request (what ``AGRISIM_TEST_CPU=avx2`` runs the suite with): its kernels' IR, not
 only its settings, say 8 lanes of AVX2."""
 
@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import pytest
 
-from agrisim.util import cpu
+from agrisim.plugins.render.mitsuba import cpu
 
 
 @pytest.mark.parametrize(

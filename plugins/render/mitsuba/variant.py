@@ -4,7 +4,7 @@ Mitsuba's variant is process-wide (``mitsuba.set_variant``); every renderer of a
 one chosen first. Dr.Jit's LLVM backend loads a shared libLLVM at run time: version 15 or newer
 (on Debian, ``libllvm19``; ``DRJIT_LIBLLVM_PATH`` names a file), and CUDA needs the NVIDIA driver.
 ``AGRISIM_LLVM_TARGET=avx2`` makes that backend compile for AVX2 on an AVX-512 machine, as it
-would on an AVX2 one (:func:`agrisim.util.cpu.emulate_llvm_target`; the test suite's
+would on an AVX2 one (:func:`agrisim.plugins.render.mitsuba.cpu.emulate_llvm_target`; the test suite's
 ``AGRISIM_TEST_CPU`` sets it).
 """
 
@@ -66,7 +66,7 @@ def _backends() -> tuple[bool, bool]:
     cuda, llvm = bool(dr.has_backend(dr.JitBackend.CUDA)), bool(dr.has_backend(dr.JitBackend.LLVM))
     if llvm:
         # here, before the first kernel of any renderer: the target applies to later kernels only
-        from agrisim.util.cpu import LLVM_TARGET_ENV, emulate_from_environment
+        from agrisim.plugins.render.mitsuba.cpu import LLVM_TARGET_ENV, emulate_from_environment
 
         try:
             emulate_from_environment()
