@@ -138,23 +138,26 @@ def _develop_run(run: Path) -> str:
     import pyoidn
 
     from agrisim.config import ImagerConfig, build_config
+    from agrisim.episode import open_imager
     from agrisim.files import layout
     from agrisim.files.atomic import write_json
     from agrisim.files.dataset import write_png
+    from agrisim.interfaces import Imager, view_key
+    from agrisim.registry import Registry, make_plugin_manager
     from agrisim.scene.colour import encode_srgb8
-    from agrisim.scene.imager import ImagePipeline, pipeline_of, view_key
 
     doc = json.loads((run / "drawn.json").read_text())
     config = build_config(json.loads((run / layout.RUN_JSON).read_text())["config"])
     settings = ImagerConfig(model=doc["imager"]) if doc["imager"] else None
-    shooters: dict[str, ImagePipeline | None] = {}
+    shooters: dict[str, Imager | None] = {}
+    registry = Registry(make_plugin_manager())
     for frame in doc["order"]:
         noisy = np.load(run / "noisy" / f"{frame}.npz")
         colour, albedo, normal = (np.ascontiguousarray(noisy[k], np.float32) for k in ("colour", "albedo", "normal"))
         radiance = np.asarray(pyoidn.denoise(colour, albedo, normal, hdr=True), np.float32)
         robot = frame.split("_")[0]
         if robot not in shooters:  # each arm's camera its own, auto-exposing from its first view
-            shooters[robot] = pipeline_of(settings, config.seed) if settings is not None else None
+            shooters[robot] = open_imager(registry, settings, config.seed) if settings is not None else None
         shooter = shooters[robot]
         if shooter is not None:
             rgb = shooter.shoot(radiance, view_key(frame)).rgb

@@ -14,14 +14,15 @@ from typing import Any
 import numpy as np
 
 from agrisim.config import ImagerConfig, RenderConfig, build_config
+from agrisim.episode import open_imager
 from agrisim.evaluation.session import capture_order
 from agrisim.files import layout
 from agrisim.files.rundir import camera_from_json
 from agrisim.files.scene_glb import read_scene
-from agrisim.interfaces import View
+from agrisim.interfaces import Imager, View, view_key
 from agrisim.plugins.apps.render import RenderPlan
+from agrisim.registry import Registry, make_plugin_manager
 from agrisim.scene.camera import CameraModel, preset
-from agrisim.scene.imager import ImagePipeline, pipeline_of, view_key
 from agrisim.scene.model import Scene
 
 
@@ -72,7 +73,8 @@ def drawn_views(
     draw, camera = plan.renderer()
     if camera_preset is not None:
         camera = preset(camera_preset, f"{camera.width}x{camera.height}")
-    pipelines: dict[str, ImagePipeline | None] = {}
+    pipelines: dict[str, Imager | None] = {}
+    registry = Registry(make_plugin_manager())
     views = []
     start = time.perf_counter()
     try:
@@ -82,7 +84,7 @@ def drawn_views(
             images = draw.render(camera, T, {})
             robot = frame.split("_")[0]
             if robot not in pipelines:
-                pipelines[robot] = pipeline_of(plan.config.imager, plan.config.seed)
+                pipelines[robot] = open_imager(registry, plan.config.imager, plan.config.seed)
             shooter = pipelines[robot]
             if shooter is not None and images.radiance is not None:
                 images.rgb = shooter.shoot(images.radiance, view_key(frame)).rgb

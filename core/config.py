@@ -252,11 +252,12 @@ class CameraConfig(_Model):
 
 
 class ImagerConfig(_Model):
-    """The colour camera's sensor and image processing (``agrisim.scene.imager``): ``none``
-    keeps the renderer's noise-free images."""
+    """The colour camera's sensor and image processing (an imager backend,
+    :class:`agrisim.interfaces.Imager`): ``none`` keeps the renderer's noise-free images."""
 
     model: str = "none"
-    """``none``, ``imx708`` (Camera Module 3) or ``ov2740`` (RealSense D4xx colour); ``--imager``."""
+    """``none``, ``imx708`` (Camera Module 3) or ``ov2740`` (RealSense D4xx colour), or a
+    plugin's; ``--imager``."""
     lux: float = Field(default=1000.0, gt=0.0, le=1e6)
     """Illuminance, lux, that the renderer's irradiance 1 stands for (a lab under ceiling lights:
     1000 lx; sunlight: 100,000)."""
@@ -276,15 +277,6 @@ class ImagerConfig(_Model):
     sensor's own (10 for both presets)."""
     raw: bool = False
     """Also write each view's raw Bayer frame (``raw/<frame>.png``, uint16 digital numbers)."""
-
-    @field_validator("model")
-    @classmethod
-    def _model(cls, v: str) -> str:
-        from agrisim.scene.imager import imager_names
-
-        if v not in imager_names():
-            raise ValueError(f"unknown imager {v!r}; imagers: {', '.join(imager_names())}")
-        return v
 
     @field_validator("exposure")
     @classmethod

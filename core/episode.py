@@ -22,7 +22,7 @@ import pluggy
 from pydantic import BaseModel
 
 from agrisim.capabilities import check_reconstructor, check_renderer, check_sensor
-from agrisim.config import BackendChoice, RunConfig, backend_options, depth_read
+from agrisim.config import BackendChoice, ImagerConfig, RunConfig, backend_options, depth_read
 from agrisim.errors import ConfigError
 from agrisim.evaluation.metrics import GroundTruth
 from agrisim.evaluation.session import ReconSession, summary_metrics
@@ -34,6 +34,8 @@ from agrisim.files.rundir import prepare_out_dir, resolve_out_dir, saved_frames,
 from agrisim.interfaces import (
     Capture,
     DepthSensor,
+    Exposure,
+    Imager,
     JointTrajectory,
     PhysicsBackend,
     Planner,
@@ -41,6 +43,7 @@ from agrisim.interfaces import (
     Reconstructor,
     Renderer,
     Trajectory,
+    view_key,
 )
 from agrisim.kinds import KINDS
 from agrisim.lab.room import build_scene
@@ -52,7 +55,6 @@ from agrisim.robot.setpoints import Setpoint, routine
 from agrisim.robot.trajectory import Limits, TimedPath, time_parametrize
 from agrisim.scene.camera_choice import camera_of
 from agrisim.scene.cell import build_cell
-from agrisim.scene.imager import Exposure, ImagePipeline, pipeline_of, view_key
 from agrisim.scene.model import Scene
 from agrisim.scene.plant_choice import check_plant_name, draws_points, resolve_plant
 from agrisim.scene.transforms import pose_error
@@ -104,7 +106,8 @@ class Episode:
                 f"recon.poses = {config.recon.poses!r} needs the finished run: agrisim colmap RUN, then "
                 f"agrisim recon RUN --set recon.poses={config.recon.poses}; a run reconstructs on the true poses"
             )
-        self.imagers: dict[str, ImagePipeline] = {}
+        self.imagers: dict[str, Imager] = {}
+        self.imager_spec = imager_spec(self.registry, config.imager)
         if config.renderer.backend == "none":
             if config.imager.model != "none":
                 raise ConfigError(f"imager {config.imager.model!r} needs a renderer (renderer is 'none')")
@@ -154,9 +157,9 @@ class Episode:
         self.keep_radiance = bool(getattr(self.renderer_options, "radiance", False))
         self.renderer_options = self.renderer_options.model_copy(update={"radiance": True})
         for arm in self.cell.arms:
-            pipeline = pipeline_of(c, self.config.seed)
-            assert pipeline is not None
-            self.imagers[arm.name] = pipeline
+            imager = open_imager(self.registry, c, self.config.seed)
+            assert imager is not None
+            self.imagers[arm.name] = imager
         if self.done_frames:
             for sp in (sp for sps in self.setpoints.values() for sp in sps):  # in shooting order
                 shot = self.saved_frames.get(sp.frame, {}).get("exposure")
@@ -677,6 +680,31 @@ class Episode:
         }
 
 
+def imager_spec(registry: Registry, settings: ImagerConfig) -> BackendSpec | None:
+    """The imager backend ``[imager] model`` names (None for ``none``); an unknown name is
+    refused as an invalid setting, listing the installed imagers."""
+    if settings.model == "none":
+        return None
+    specs = registry.specs("imager")
+    if settings.model not in specs:
+        imagers = ", ".join(["none", *specs])
+        raise ConfigError(
+            f"invalid setting 'imager.model': unknown imager {settings.model!r}; imagers: {imagers} (got {settings.model!r})"
+        )
+    return specs[settings.model]
+
+
+def open_imager(registry: Registry, settings: ImagerConfig, seed: int) -> Imager | None:
+    """The imager of a run's ``[imager]`` settings and seed (None for ``none``): what each arm's
+    camera shoots through."""
+    spec = imager_spec(registry, settings)
+    if spec is None:
+        return None
+    with blame("imager", spec, " opening"):
+        imager: Imager = registry.build("imager", spec, settings, seed, spec.options_model())
+    return imager
+
+
 @contextmanager
 def _timed(store: dict[str, float], name: str) -> Iterator[None]:
     t0 = time.perf_counter()
@@ -691,4 +719,4 @@ def run_episode(config: RunConfig, *, pm: pluggy.PluginManager | None = None) ->
     return Episode(config, pm).run()
 
 
-__all__ = ["TRAJECTORY_RATE", "Episode", "run_episode"]
+__all__ = ["TRAJECTORY_RATE", "Episode", "imager_spec", "open_imager", "run_episode"]

@@ -2,7 +2,7 @@
 
 Two families:
 
-* **Providers** (``agrisim_physics``, ``agrisim_renderers``, ``agrisim_sensors``, ``agrisim_planners``,
+* **Providers** (``agrisim_physics``, ``agrisim_renderers``, ``agrisim_sensors``, ``agrisim_imagers``, ``agrisim_planners``,
   ``agrisim_reconstructors``, ``agrisim_plants``, ``agrisim_sinks``, ``agrisim_bridges``,
   ``agrisim_exporters``) return a list of
   :class:`agrisim.BackendSpec`. Results of all plugins are concatenated; a name provided twice is
@@ -67,6 +67,15 @@ def agrisim_sensors() -> list[BackendSpec]:
     RenderConfig, options) -> DepthSensor`` when the run renders, with what the renderer gets;
     the result must be an :class:`agrisim.interfaces.DepthSensor`, whose measurement the run
     writes as ``depth_sensor/`` and reconstructs from (``recon.depth = "sensor"``)."""
+
+
+@hookspec
+def agrisim_imagers() -> list[BackendSpec]:
+    """Imagers: a colour camera's sensor and image processing, chosen by ``[imager] model``
+    (``--imager``; ``none``: no imager, the renderer's noise-free images). The core calls
+    ``factory(settings: ImagerConfig, seed: int, options) -> Imager`` once per arm's camera with
+    the run's ``[imager]`` settings and seed; the result must be an
+    :class:`agrisim.interfaces.Imager`, whose shots replace the renderer's RGB."""
 
 
 @hookspec

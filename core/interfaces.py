@@ -6,6 +6,7 @@ plain dataclasses of numpy arrays (metres, radians, seconds; poses are 4x4 ``a_T
 
 from __future__ import annotations
 
+import zlib
 from abc import ABC, abstractmethod
 from collections.abc import Callable, Iterable, Iterator, Mapping
 from dataclasses import dataclass, field
@@ -411,6 +412,67 @@ class Reconstructor(ABC):
     @abstractmethod
     def result(self) -> Reconstruction:
         """The final reconstruction of every view integrated so far."""
+
+
+@dataclass(frozen=True)
+class Exposure:
+    """One shot's exposure: time and analogue gain, and the mean luminance it metered."""
+
+    time_s: float
+    gain: float
+    metered: float = float("nan")
+
+    @property
+    def total(self) -> float:
+        return self.time_s * self.gain
+
+    def to_json(self) -> dict[str, float]:
+        return {"time_s": self.time_s, "analogue_gain": self.gain, "metered_luminance": self.metered}
+
+    @classmethod
+    def from_json(cls, doc: dict[str, float]) -> Exposure:
+        return cls(float(doc["time_s"]), float(doc["analogue_gain"]), float(doc.get("metered_luminance", "nan")))
+
+
+@dataclass
+class Shot:
+    """What an imager made of one view: the developed 8-bit RGB, the raw frame it came from
+    (uint16 digital numbers) and the exposure."""
+
+    rgb: np.ndarray
+    raw: np.ndarray
+    exposure: Exposure
+
+
+def view_key(frame: str) -> int:
+    """The number that seeds a view's noise beside the run's seed (its frame name's CRC-32): the
+    same frame gets the same noise in a run, its ``--resume`` and ``agrisim render``."""
+    return zlib.crc32(frame.encode())
+
+
+class Imager(ABC):
+    """A colour camera's sensor and image processing: what it makes of each view's linear
+    radiance (``[imager] model``, ``--imager``). Each arm's camera has its own, built by
+    ``factory(settings: ImagerConfig, seed: int, options)``: the run's ``[imager]`` settings
+    (light level, exposure, gain, ...) and its seed, which seeds the noise."""
+
+    @abstractmethod
+    def shoot(self, radiance: np.ndarray, view: int) -> Shot:
+        """One view's shot of ``radiance`` (H x W x 3 linear sRGB, 1 = a white Lambertian
+        surface under irradiance 1), its noise seeded by the run's seed and ``view``
+        (:func:`view_key` of the frame): the same pair gives the same bytes."""
+
+    @abstractmethod
+    def resume_from(self, exposure: Exposure) -> None:
+        """Go on from a shot taken before (``--resume``): the next auto-exposure starts there."""
+
+    @abstractmethod
+    def at_exposure(self, exposure: Exposure) -> Imager:
+        """This imager at a fixed ``exposure`` (a frame shot again as it was: ``agrisim render``)."""
+
+    @abstractmethod
+    def describe(self) -> dict[str, Any]:
+        """Its figures and settings, for the run's record (``run.json``, ``cameras.json``)."""
 
 
 class PlantSpecies(ABC):

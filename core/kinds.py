@@ -17,6 +17,7 @@ from agrisim.interfaces import (
     Bridge,
     DepthSensor,
     Exporter,
+    Imager,
     PhysicsBackend,
     Planner,
     PlantSpecies,
@@ -25,7 +26,9 @@ from agrisim.interfaces import (
 )
 from agrisim.options import Options
 
-Kind = Literal["physics", "renderer", "sensor", "planner", "reconstructor", "plant", "sink", "bridge", "exporter"]
+Kind = Literal[
+    "physics", "renderer", "sensor", "imager", "planner", "reconstructor", "plant", "sink", "bridge", "exporter"
+]
 
 
 @dataclass(frozen=True)
@@ -36,8 +39,8 @@ class KindInfo:
     """The provider hook returning its :class:`BackendSpec` list."""
     section: str | None
     """The configuration section choosing one (``[physics] backend = ...``); None: not chosen
-    by a setting (every plant is selectable by name, every sink is on, an exporter is named
-    on the command line: ``agrisim export NAME``)."""
+    by a section's ``backend`` (an imager by ``[imager] model``, every plant is selectable by
+    name, every sink is on, an exporter is named on the command line: ``agrisim export NAME``)."""
     abc: type | None
     """The ABC every factory result must be an instance of (None: any object, as a sink is a
     plugin object with event hooks)."""
@@ -53,6 +56,8 @@ KINDS: dict[str, KindInfo] = {
                          "factory(scene: Scene, cell: Cell, settings: RenderConfig, options) -> Renderer"),
     "sensor": KindInfo("agrisim_sensors", "sensor", DepthSensor,
                        "factory(scene: Scene, cell: Cell, settings: RenderConfig, options) -> DepthSensor"),
+    "imager": KindInfo("agrisim_imagers", None, Imager,
+                       "factory(settings: ImagerConfig, seed: int, options) -> Imager"),
     "planner": KindInfo("agrisim_planners", "planner", Planner,
                         "factory(options) -> Planner"),
     "reconstructor": KindInfo("agrisim_reconstructors", "recon", Reconstructor,

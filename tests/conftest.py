@@ -124,6 +124,29 @@ def isolated_env(**extra: str) -> dict[str, str]:
     return env
 
 
+def install_package(site: Path, package: Path) -> tuple[str, str]:
+    """A test package (a folder with its ``pyproject.toml`` and modules) laid out in ``site`` as
+    pip installs it: its modules, and a dist-info with its metadata and ``agrisim`` entry points.
+    Returns (distribution name, version). Put ``site`` on ``sys.path`` to install it."""
+    import sys
+
+    if sys.version_info >= (3, 11):
+        import tomllib
+    else:  # pragma: no cover
+        import tomli as tomllib
+
+    pyproject = tomllib.loads((package / "pyproject.toml").read_text())
+    project = pyproject["project"]
+    info = site / f"{project['name'].replace('-', '_')}-{project['version']}.dist-info"
+    info.mkdir(parents=True)
+    (info / "METADATA").write_text(f"Metadata-Version: 2.1\nName: {project['name']}\nVersion: {project['version']}\n")
+    points = "".join(f"{k} = {v}\n" for k, v in project["entry-points"]["agrisim"].items())
+    (info / "entry_points.txt").write_text(f"[agrisim]\n{points}")
+    for module in pyproject["tool"]["setuptools"]["py-modules"]:
+        shutil.copyfile(package / f"{module}.py", site / f"{module}.py")
+    return project["name"], project["version"]
+
+
 @contextlib.contextmanager
 def local_ray(module: str, **resources: float) -> Iterator[None]:
     """A quiet local Ray of two CPUs on loopback, with ``resources`` (custom resources standing

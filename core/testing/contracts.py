@@ -24,9 +24,9 @@ from typing import Any
 
 import numpy as np
 
-from agrisim.config import CellConfig, RenderConfig
+from agrisim.config import CellConfig, ImagerConfig, RenderConfig
 from agrisim.errors import UserError
-from agrisim.interfaces import ALL, Frame, JointTrajectory, PlanningFailed, View
+from agrisim.interfaces import ALL, Exposure, Frame, JointTrajectory, PlanningFailed, View, view_key
 from agrisim.kinds import KINDS, BackendSpec
 from agrisim.registry import Registry
 from agrisim.robot.segments import path_is_valid
@@ -38,6 +38,7 @@ from agrisim.scene.transforms import look_at
 __all__ = [
     "check",
     "check_exporter",
+    "check_imager",
     "check_physics",
     "check_planner",
     "check_plant",
@@ -247,6 +248,46 @@ def check_sensor(registry: Registry, spec: BackendSpec, options: Any) -> None:
         renderer.close()
 
 
+def check_imager(registry: Registry, spec: BackendSpec, options: Any) -> None:
+    """Turns light into an image, the same for the same seed and view, brighter for more light.
+
+    On a 48 x 64 radiance (a grey ramp, 0.05 to 0.6 of a white surface under irradiance 1):
+
+    * a shot is H x W x 3 uint8 RGB, a raw frame and an exposure of positive time and gain;
+    * a second imager of the same settings and seed gives the same bytes for the same view;
+    * at the first shot's exposure (``at_exposure``), the shot records that exposure, and twice
+      the light gives a brighter mean image (unless it was already white);
+    * ``describe()`` is a JSON object naming the imager.
+    """
+    settings = ImagerConfig.model_validate({"model": spec.name})
+    ramp = np.linspace(0.05, 0.6, 64, dtype=np.float32)
+    radiance = np.repeat(np.broadcast_to(ramp, (48, 64))[..., None], 3, axis=2).copy()
+    view = view_key("r1_000")
+    first = registry.build("imager", spec, settings, 7, options).shoot(radiance, view)
+    rgb = np.asarray(first.rgb)
+    assert rgb.shape == (48, 64, 3) and rgb.dtype == np.uint8, (
+        f"a shot's RGB must be H x W x 3 uint8, got {rgb.shape} {rgb.dtype}"
+    )
+    assert isinstance(first.exposure, Exposure) and first.exposure.time_s > 0 and first.exposure.gain > 0, (
+        f"a shot's exposure must have a positive time and gain, got {first.exposure!r}"
+    )
+    assert np.asarray(first.raw).ndim in (2, 3), "a shot's raw frame must be an image"
+    again = registry.build("imager", spec, settings, 7, options).shoot(radiance, view)
+    assert np.array_equal(np.asarray(again.rgb), rgb), "the same settings, seed and view gave other bytes"
+    fixed = registry.build("imager", spec, settings, 7, options).at_exposure(first.exposure)
+    shot = fixed.shoot(radiance, view)
+    assert (shot.exposure.time_s, shot.exposure.gain) == (first.exposure.time_s, first.exposure.gain), (
+        f"at_exposure({first.exposure}) shot at {shot.exposure}"
+    )
+    dim, bright = float(np.asarray(shot.rgb).mean()), float(np.asarray(fixed.shoot(2 * radiance, view).rgb).mean())
+    assert bright > dim or dim >= 254.0, (
+        f"twice the light at one exposure gave a mean of {bright:.1f}, not above {dim:.1f}"
+    )
+    about = registry.build("imager", spec, settings, 7, options).describe()
+    assert isinstance(about, dict) and about.get("name"), "describe() must be a dict with the imager's name"
+    json.dumps(about)
+
+
 def _assert_frame(frame: Any, camera: CameraModel) -> None:
     h, w = camera.height, camera.width
     assert frame.rgb.shape == (h, w, 3) and frame.rgb.dtype == np.uint8, f"rgb {frame.rgb.shape} {frame.rgb.dtype}"
@@ -395,6 +436,7 @@ CHECKS: dict[str, Callable[[Registry, BackendSpec, Any], None]] = {
     "planner": check_planner,
     "renderer": check_renderer,
     "sensor": check_sensor,
+    "imager": check_imager,
     "reconstructor": check_reconstructor,
     "plant": check_plant,
     "exporter": check_exporter,

@@ -297,13 +297,17 @@ def plan_compare(
 
 
 def check_backends(registry: Any, config: RunConfig) -> None:
-    """Every chosen backend exists and its options validate (the workers would fail late)."""
+    """Every chosen backend exists and its options validate, the imager too (the workers would
+    fail late)."""
+    from agrisim.episode import imager_spec
+
     for name, kind in SECTIONS.items():
         choice = getattr(config, name, None)
         if not isinstance(choice, BackendChoice) or choice.backend == "none":
             continue
         spec = registry.get(kind, choice.backend)
         backend_options(spec.options_model, choice.options_for(spec.name), f"{kind} backend {spec.name!r}")
+    imager_spec(registry, config.imager)
 
 
 def check_out(out: Path, *, overwrite: bool, resume: bool) -> None:

@@ -89,6 +89,7 @@ class RenderPlan:
         self, run_dir: Path, renderer: str, overrides: dict[str, Any], out: Path | None, overwrite: bool
     ) -> None:
         from agrisim.config import backend_options, build_config
+        from agrisim.episode import imager_spec
         from agrisim.registry import Registry, make_plugin_manager
 
         self.run_dir = Path(run_dir).expanduser()
@@ -110,6 +111,7 @@ class RenderPlan:
                 f"renderers that can: {', '.join(able) or 'none installed'}"
             )
         self.config.renderer.check_tables("renderer", registry.specs("renderer"))
+        self.imager_spec = imager_spec(registry, self.config.imager)
         self.options = backend_options(
             self.spec.options_model, self.config.renderer.options_for(renderer), f"renderer {renderer!r}"
         )
@@ -205,14 +207,15 @@ class RenderPlan:
     def _shoot(self, frame: str, radiance: np.ndarray | None) -> tuple[np.ndarray, np.ndarray | None]:
         """(RGB, raw) of ``frame``'s radiance through the run's imager, at the exposure the run
         recorded for it and with its noise: the camera shot again, under the new light."""
-        from agrisim.scene.imager import Exposure, pipeline_of, view_key
+        from agrisim.interfaces import Exposure, view_key
 
-        pipeline = pipeline_of(self.config.imager, self.config.seed)
-        assert pipeline is not None and radiance is not None
+        spec = self.imager_spec
+        assert spec is not None and radiance is not None
+        imager = spec.factory(self.config.imager, self.config.seed, spec.options_model())
         recorded = self.cameras["frames"][frame].get("exposure")
         if recorded is not None:
-            pipeline = pipeline.at_exposure(Exposure.from_json(recorded))
-        shot = pipeline.shoot(radiance, view_key(frame))
+            imager = imager.at_exposure(Exposure.from_json(recorded))
+        shot = imager.shoot(radiance, view_key(frame))
         return shot.rgb, (shot.raw if self.config.imager.raw else None)
 
     def _parts(self) -> list[Path]:

@@ -83,6 +83,17 @@ def test_a_sensor_4_percent_long_breaks_its_contract() -> None:
         _broken("sensor", "azure-kinect-nfov", wrap)
 
 
+def test_an_imager_whose_noise_ignores_the_seed_breaks_its_contract() -> None:
+    draws = iter(range(1, 1000))
+
+    def wrap(imager):
+        imager.seed = next(draws)  # (each imager built gets other noise than the run's seed says)
+        return imager
+
+    with pytest.raises(AssertionError, match="other bytes"):
+        _broken("imager", "imx708", wrap)
+
+
 def test_a_planner_that_ignores_collisions_breaks_its_contract() -> None:
     def wrap(planner):
         planner.plan = lambda start, goal, *rest: np.array([start, goal])

@@ -14,13 +14,9 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import install_package
 
 from agrisim.plugins.apps.commands import ORDER
-
-if sys.version_info >= (3, 11):
-    import tomllib
-else:  # pragma: no cover
-    import tomli as tomllib
 
 PACKAGE = Path(__file__).resolve().parent / "agrisim-frames-command"
 MODULE = "agrisim_frames_command"
@@ -40,9 +36,7 @@ def install(root: Path, name: str, version: str, points: dict[str, str], modules
 def site(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
     """The test package installed in a fresh folder on ``sys.path``; forgotten afterwards."""
     root = tmp_path / "site"
-    project = tomllib.loads((PACKAGE / "pyproject.toml").read_text())["project"]
-    module = (PACKAGE / f"{MODULE}.py").read_text()
-    install(root, project["name"], project["version"], project["entry-points"]["agrisim"], {MODULE: module})
+    install_package(root, PACKAGE)
     monkeypatch.syspath_prepend(str(root))
     for var in ("AGRISIM_DISABLE_PLUGIN_AUTOLOAD", "AGRISIM_LOAD_PLUGINS", "AGRISIM_TRACE_PLUGINS"):
         monkeypatch.delenv(var, raising=False)

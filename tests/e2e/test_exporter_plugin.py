@@ -21,16 +21,12 @@ import cv2
 import numpy as np
 import pytest
 import yaml
+from conftest import install_package
 from PIL import Image
 from scipy import ndimage
 
 from agrisim.registry import Registry, make_plugin_manager
 from agrisim.testing.contracts import check
-
-if sys.version_info >= (3, 11):
-    import tomllib
-else:  # pragma: no cover
-    import tomli as tomllib
 
 PACKAGE = Path(__file__).resolve().parent / "agrisim-yolo-export"
 MODULE = "agrisim_yolo_export"
@@ -48,18 +44,11 @@ def site(tmp_path: Path, monkeypatch: pytest.MonkeyPatch):
     """The package installed as pip lays it out, in a fresh folder on ``sys.path``; its module
     is forgotten afterwards. Yields (distribution name, version)."""
     root = tmp_path / "site"
-    root.mkdir()
-    project = tomllib.loads((PACKAGE / "pyproject.toml").read_text())["project"]
-    info = root / f"{project['name'].replace('-', '_')}-{project['version']}.dist-info"
-    info.mkdir()
-    (info / "METADATA").write_text(f"Metadata-Version: 2.1\nName: {project['name']}\nVersion: {project['version']}\n")
-    points = "".join(f"{name} = {module}\n" for name, module in project["entry-points"]["agrisim"].items())
-    (info / "entry_points.txt").write_text(f"[agrisim]\n{points}")
-    (root / f"{MODULE}.py").write_text((PACKAGE / f"{MODULE}.py").read_text())
+    name, version = install_package(root, PACKAGE)
     monkeypatch.syspath_prepend(str(root))
     for var in ("AGRISIM_DISABLE_PLUGIN_AUTOLOAD", "AGRISIM_LOAD_PLUGINS", "AGRISIM_TRACE_PLUGINS"):
         monkeypatch.delenv(var, raising=False)
-    yield project["name"], project["version"]
+    yield name, version
     sys.modules.pop(MODULE, None)
 
 

@@ -10,7 +10,7 @@ import numpy as np
 from PIL import Image
 
 from agrisim.app.cli import main
-from agrisim.scene.imager import IMAGERS, ImagePipeline
+from agrisim.plugins.imagers.pipeline import IMAGERS, ImagePipeline
 
 ARGS = ["--plant", "coltsfoot", "--physics", "kinematic", "--setpoints", "1x2", "--arms", "1", "--no-rrd"]
 ARGS += ["--camera", "rpi-camera-3-wide", "--resolution", "192x108", "--shadow-samples", "4", "--recon", "none"]

@@ -12,7 +12,7 @@ import cv2
 import numpy as np
 import pytest
 
-from agrisim.scene.imager import IMAGERS, ImagePipeline, bayer_sites, relative_illumination
+from agrisim.plugins.imagers.pipeline import IMAGERS, ImagePipeline, bayer_sites, relative_illumination
 
 
 def _flat(imager_name: str, **changes: object) -> ImagePipeline:

@@ -21,18 +21,22 @@ follows from the last. A fixed exposure skips it. Noise is drawn from a generato
 run's seed and the view: the same seed gives the same bytes.
 
 Sensor figures are the manufacturers' where published; the rest are stated as assumed on each
-preset (:data:`IMAGERS`).
+preset (:data:`IMAGERS`). Each preset is an imager backend of its own name
+(:mod:`agrisim.plugins.imagers`), built by :func:`preset`.
 """
 
 from __future__ import annotations
 
-import zlib
 from dataclasses import dataclass, field, replace
-from typing import Any, Protocol
+from typing import Any
 
 import numpy as np
 
+from agrisim import interfaces
+from agrisim.config import ImagerConfig
 from agrisim.errors import UserError
+from agrisim.interfaces import Exposure, Shot
+from agrisim.options import Options
 from agrisim.scene.colour import encode_srgb8
 
 #: photons per second per m^2 in one lux of 555 nm light (1 lx = 1/683 W/m^2; h c / 555 nm =
@@ -43,7 +47,7 @@ LUMA = np.array([0.2126, 0.7152, 0.0722])
 
 
 @dataclass(frozen=True)
-class Imager:
+class SensorFigures:
     """A colour image sensor and the processing after it (one of :data:`IMAGERS`)."""
 
     name: str
@@ -92,7 +96,7 @@ class Imager:
         """Digital numbers per electron at gain 1: the ADC's range spans the full well."""
         return (self.white_level - self.black_level) / self.full_well_e
 
-    def at_bit_depth(self, bits: int) -> Imager:
+    def at_bit_depth(self, bits: int) -> SensorFigures:
         """This sensor read out at ``bits`` (the black level scaled with the range)."""
         black = round(self.black_level * 2.0 ** (bits - self.bit_depth))
         return replace(self, bit_depth=bits, black_level=black)
@@ -124,8 +128,8 @@ _IMX708_CCM = (
     (-0.03111, -0.44052, 1.47163),
 )
 
-IMAGERS: dict[str, Imager] = {
-    "imx708": Imager(
+IMAGERS: dict[str, SensorFigures] = {
+    "imx708": SensorFigures(
         name="imx708",
         sensor="Sony IMX708 (Raspberry Pi Camera Module 3 Wide)",
         pixel_um=1.4,
@@ -150,7 +154,7 @@ IMAGERS: dict[str, Imager] = {
             "QE 0.5 (Sony publishes none)"
         ),
     ),
-    "ov2740": Imager(
+    "ov2740": SensorFigures(
         name="ov2740",
         sensor="OmniVision OV2740 (RealSense D4xx colour camera)",
         pixel_um=1.4,
@@ -178,84 +182,7 @@ IMAGERS: dict[str, Imager] = {
 }
 
 
-class ImagerSettings(Protocol):
-    """What :func:`pipeline_of` reads of a run's ``[imager]`` (:class:`agrisim.config.ImagerConfig`,
-    which imports this module: a protocol keeps the two apart)."""
-
-    @property
-    def model(self) -> str: ...
-    @property
-    def lux(self) -> float: ...
-    @property
-    def exposure(self) -> str | float: ...
-    @property
-    def gain(self) -> float: ...
-    @property
-    def ae_frames(self) -> int: ...
-    @property
-    def jpeg_quality(self) -> int: ...
-    @property
-    def bit_depth(self) -> int | None: ...
-
-
-def pipeline_of(config: ImagerSettings, seed: int) -> ImagePipeline | None:
-    """The image pipeline that a run's ``[imager]`` settings describe (None for ``none``), its
-    noise seeded by the run's ``seed``."""
-    if config.model == "none":
-        return None
-    imager = IMAGERS[config.model] if config.bit_depth is None else IMAGERS[config.model].at_bit_depth(config.bit_depth)
-    fixed = None if config.exposure == "auto" else (float(config.exposure), config.gain)
-    if fixed is not None:
-        (t0, t1), (g0, g1) = imager.shutter_range_s, imager.gain_range
-        if not t0 <= fixed[0] <= t1:
-            raise UserError(f"imager {imager.name!r} exposes {t0 * 1e3:g}-{t1 * 1e3:g} ms, not {fixed[0] * 1e3:g} ms")
-        if not g0 <= fixed[1] <= g1:
-            raise UserError(f"imager {imager.name!r} has analogue gains {g0:g}-{g1:g}, not {fixed[1]:g}")
-    return ImagePipeline(imager, config.lux, fixed, config.ae_frames, config.jpeg_quality, seed=seed)
-
-
-def view_key(frame: str) -> int:
-    """The number that seeds a frame's noise beside the run's seed (its name's CRC-32): the same
-    frame gets the same noise in a run, its ``--resume`` and ``agrisim render``."""
-    return zlib.crc32(frame.encode())
-
-
-def imager_names() -> list[str]:
-    """The imager presets, and ``none`` (noise-free images)."""
-    return ["none", *IMAGERS]
-
-
-@dataclass(frozen=True)
-class Exposure:
-    """One shot's exposure: time and analogue gain, and the mean luminance it metered."""
-
-    time_s: float
-    gain: float
-    metered: float = float("nan")
-
-    @property
-    def total(self) -> float:
-        return self.time_s * self.gain
-
-    def to_json(self) -> dict[str, float]:
-        return {"time_s": self.time_s, "analogue_gain": self.gain, "metered_luminance": self.metered}
-
-    @classmethod
-    def from_json(cls, doc: dict[str, float]) -> Exposure:
-        return cls(float(doc["time_s"]), float(doc["analogue_gain"]), float(doc.get("metered_luminance", "nan")))
-
-
-@dataclass
-class Shot:
-    """What the imager made of one view: the developed 8-bit RGB, the raw mosaic it came from
-    (uint16 digital numbers, black level included) and the exposure."""
-
-    rgb: np.ndarray
-    raw: np.ndarray
-    exposure: Exposure
-
-
-def relative_illumination(imager: Imager, height: int, width: int) -> np.ndarray:
+def relative_illumination(imager: SensorFigures, height: int, width: int) -> np.ndarray:
     """H x W float32: the lens's vignetting, 1 at the image centre."""
     a, b = imager.shading
     half = np.hypot(width, height) / 2.0
@@ -274,15 +201,15 @@ def bayer_sites(height: int, width: int) -> np.ndarray:
 
 
 @dataclass
-class ImagePipeline:
-    """An :class:`Imager` in a run: its light level, exposure mode and the auto-exposure's
+class ImagePipeline(interfaces.Imager):
+    """A :class:`SensorFigures` in a run: its light level, exposure mode and the auto-exposure's
     state from shot to shot.
 
     ``exposure`` None is auto-exposure; otherwise (time s, gain) fixed. ``jpeg_quality`` 0
     keeps the developed image lossless, 1..100 passes it through JPEG as a streaming camera
     does."""
 
-    imager: Imager
+    imager: SensorFigures
     lux: float = 1000.0
     exposure: tuple[float, float] | None = None
     ae_frames: int = 15
@@ -409,7 +336,7 @@ class ImagePipeline:
         return replace(self, exposure=(exposure.time_s, exposure.gain))
 
     def resume_from(self, exposure: Exposure) -> None:
-        """Continue the auto-exposure from a shot taken before (``--resume``)."""
+        """Go on from a shot taken before (``--resume``): the next auto-exposure starts there."""
         self._state = exposure
 
     # -- one view -----------------------------------------------------------------------------
@@ -446,3 +373,28 @@ class ImagePipeline:
             "jpeg_quality": self.jpeg_quality,
             "sources": im.sources,
         }
+
+
+def preset(figures: SensorFigures, settings: ImagerConfig, seed: int) -> ImagePipeline:
+    """The image pipeline of ``figures`` that a run's ``[imager]`` settings describe, its noise
+    seeded by the run's ``seed``; a fixed exposure outside the sensor's ranges is refused."""
+    if settings.bit_depth is not None:
+        figures = figures.at_bit_depth(settings.bit_depth)
+    fixed = None if settings.exposure == "auto" else (float(settings.exposure), settings.gain)
+    if fixed is not None:
+        (t0, t1), (g0, g1) = figures.shutter_range_s, figures.gain_range
+        if not t0 <= fixed[0] <= t1:
+            raise UserError(f"imager {figures.name!r} exposes {t0 * 1e3:g}-{t1 * 1e3:g} ms, not {fixed[0] * 1e3:g} ms")
+        if not g0 <= fixed[1] <= g1:
+            raise UserError(f"imager {figures.name!r} has analogue gains {g0:g}-{g1:g}, not {fixed[1]:g}")
+    return ImagePipeline(figures, settings.lux, fixed, settings.ae_frames, settings.jpeg_quality, seed=seed)
+
+
+def imx708(settings: ImagerConfig, seed: int, options: Options) -> ImagePipeline:
+    """The ``imx708`` imager backend's factory."""
+    return preset(IMAGERS["imx708"], settings, seed)
+
+
+def ov2740(settings: ImagerConfig, seed: int, options: Options) -> ImagePipeline:
+    """The ``ov2740`` imager backend's factory."""
+    return preset(IMAGERS["ov2740"], settings, seed)
