@@ -9,7 +9,7 @@ from typing import Any
 import numpy as np
 
 from agrisim.config import CellConfig, RoutineConfig, build_config
-from agrisim.lab.room import build_scene
+from agrisim.plugins.rooms.lab.room import build_scene
 from agrisim.registry import Registry, make_plugin_manager
 from agrisim.robot.kinematics import ArmKinematics
 from agrisim.robot.setpoints import hemisphere

@@ -634,7 +634,7 @@ def main() -> None:
     print(f"JSON keys the new writer adds (pygltflib writes these spec defaults): {sorted(new_keys)}")
 
     from agrisim.config import CellConfig
-    from agrisim.lab.room import build_scene
+    from agrisim.plugins.rooms.lab.room import build_scene
     from agrisim.robot.visuals import arm_link_meshes
     from agrisim.scene.cell import build_cell
 

@@ -30,11 +30,11 @@ sys.path.insert(0, str(Path(__file__).parent))
 from machine import cpu_model, gpu_name  # noqa: E402
 
 from agrisim.config import CellConfig, RenderConfig  # noqa: E402
-from agrisim.lab.room import build_scene  # noqa: E402
 from agrisim.plugins.plants.procedural import grow  # noqa: E402
 from agrisim.plugins.render.mitsuba import integrator as cutout  # noqa: E402
 from agrisim.plugins.render.mitsuba.options import MitsubaOptions  # noqa: E402
 from agrisim.plugins.render.mitsuba.renderer import MitsubaRenderer  # noqa: E402
+from agrisim.plugins.rooms.lab.room import build_scene  # noqa: E402
 from agrisim.scene.camera import CameraModel  # noqa: E402
 from agrisim.scene.cell import build_cell  # noqa: E402
 from agrisim.scene.colour import encode_srgb8  # noqa: E402

@@ -25,11 +25,11 @@ sys.path.insert(0, str(Path(__file__).parent))
 from machine import cpu_model  # noqa: E402
 
 from agrisim.config import CellConfig, RenderConfig, RoutineConfig, build_config  # noqa: E402
-from agrisim.lab.room import build_scene  # noqa: E402
 from agrisim.plugins.render.mitsuba.options import MitsubaOptions  # noqa: E402
 from agrisim.plugins.render.mitsuba.renderer import MitsubaRenderer  # noqa: E402
 from agrisim.plugins.render.raycast import RaycastOptions  # noqa: E402
 from agrisim.plugins.render.raycast.renderer import RaycastRenderer  # noqa: E402
+from agrisim.plugins.rooms.lab.room import build_scene  # noqa: E402
 from agrisim.registry import Registry, make_plugin_manager  # noqa: E402
 from agrisim.robot.kinematics import ArmKinematics  # noqa: E402
 from agrisim.robot.setpoints import hemisphere  # noqa: E402

@@ -27,8 +27,8 @@ def measure(species: str, views: int, resolution: str) -> dict[str, float]:
     import numpy as np
 
     from agrisim.config import CellConfig, RenderConfig, RoutineConfig, build_config
-    from agrisim.lab.room import build_scene
     from agrisim.plugins.plants.procedural import grow
+    from agrisim.plugins.rooms.lab.room import build_scene
     from agrisim.registry import Registry, make_plugin_manager
     from agrisim.robot.kinematics import ArmKinematics
     from agrisim.robot.setpoints import hemisphere

@@ -26,7 +26,7 @@ from machine import cpu_model  # noqa: E402
 def one(plant_name: str, count: int, size: float, views: int, resolution: str) -> dict:
     """Render ``views`` views of the plant as ``count`` points of ``size`` (count 0: the mesh)."""
     from agrisim.config import CellConfig, RenderConfig, RoutineConfig, build_config
-    from agrisim.lab.room import build_scene
+    from agrisim.plugins.rooms.lab.room import build_scene
     from agrisim.registry import Registry, make_plugin_manager
     from agrisim.robot.kinematics import ArmKinematics
     from agrisim.robot.setpoints import hemisphere

@@ -21,9 +21,9 @@ from agrisim.config import CellConfig, RenderConfig, RoutineConfig, build_config
 from agrisim.evaluation.metrics import GroundTruth
 from agrisim.evaluation.session import ReconSession
 from agrisim.evaluation.views import View, backproject
-from agrisim.lab.room import build_scene
 from agrisim.plugins.recon.pointcloud import PointCloudReconstructor
 from agrisim.plugins.recon.tsdf import TsdfReconstructor
+from agrisim.plugins.rooms.lab.room import build_scene
 from agrisim.registry import Registry, make_plugin_manager
 from agrisim.robot.setpoints import hemisphere
 from agrisim.scene.camera import preset

@@ -86,6 +86,11 @@ class SensorChoice(BackendChoice):
     d415, d405, or a plugin's; what it measures goes to ``depth_sensor/`` beside ``depth/``."""
 
 
+class RoomChoice(BackendChoice):
+    backend: str = "lab"
+    """What surrounds the cell: lab (the paper's laboratory), or a plugin's."""
+
+
 class ReconChoice(BackendChoice):
     backend: str = "pointcloud"
     """Reconstructor (``--recon``): pointcloud or tsdf, or a plugin's; none: no reconstruction."""
@@ -349,7 +354,7 @@ class RunConfig(_Model):
     every species also takes ``seed`` (``--plant-seed``): the individual it grows, 0 to 2^32 - 1,
     by default the run's ``seed``."""
     pcg_seed: int = Field(default=42, ge=0, le=2**32 - 1)
-    """Seed of the lab's clutter randomizer (the paper's PCG Seed, 42)."""
+    """Seed of what the room randomizes (the lab's clutter: the paper's PCG Seed, 42)."""
     physics: PhysicsChoice = PhysicsChoice()
     """Physics backend and per-backend options (``[physics.pybullet]``)."""
     planner: PlannerChoice = PlannerChoice()
@@ -365,6 +370,8 @@ class RunConfig(_Model):
     """Reconstructor and per-backend options (``[recon.pointcloud]``, ``[recon.tsdf]``)."""
     metrics: MetricsConfig = MetricsConfig()
     cell: CellConfig = CellConfig()
+    room: RoomChoice = RoomChoice()
+    """What surrounds the cell and per-room options (``[room.lab]``)."""
     routine: RoutineConfig = RoutineConfig()
     camera: CameraConfig = CameraConfig()
     motion: MotionConfig = MotionConfig()

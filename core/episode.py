@@ -46,7 +46,6 @@ from agrisim.interfaces import (
     view_key,
 )
 from agrisim.kinds import KINDS
-from agrisim.lab.room import build_scene
 from agrisim.records import Run, RunSummary, SetpointResult
 from agrisim.registry import BackendSpec, Registry, blame, loads_everything, make_plugin_manager
 from agrisim.robot.kinematics import ArmKinematics
@@ -116,6 +115,7 @@ class Episode:
             config.renderer.check_tables("renderer", self.registry.specs("renderer"))
             config.sensor.check_tables("sensor", self.registry.specs("sensor"))
             config.recon.check_tables("recon", self.registry.specs("reconstructor"))
+            config.room.check_tables("room", self.registry.specs("room"))
         else:
             self.renderer_spec, self.renderer_options = self._backend("renderer", config.renderer)
             check_renderer(
@@ -132,8 +132,10 @@ class Episode:
             check_sensor(self.sensor_spec, self.registry.specs("sensor"), points=draws_points(config))
             with _timed(self._prep_wall, "plant"):
                 self.plant = resolve_plant(self.registry, config)
-            with _timed(self._prep_wall, "scene"):
-                self.scene = build_scene(self.cell, self.plant, pcg_seed=config.pcg_seed, labels=config.render.labels)
+            room_spec, room_options = self._backend("room", config.room)
+            with _timed(self._prep_wall, "scene"), blame("room", room_spec, " building the scene"):
+                room = self.registry.build("room", room_spec, self.cell, room_options)
+                self.scene = room.scene(self.plant, seed=config.pcg_seed, labels=config.render.labels)
             # Reconstruction fuses rendered views; without a renderer there is nothing to fuse.
             if config.recon.backend != "none":
                 check_reconstructor(

@@ -3,7 +3,7 @@
 Two families:
 
 * **Providers** (``agrisim_physics``, ``agrisim_renderers``, ``agrisim_sensors``, ``agrisim_imagers``, ``agrisim_planners``,
-  ``agrisim_reconstructors``, ``agrisim_plants``, ``agrisim_sinks``, ``agrisim_bridges``,
+  ``agrisim_reconstructors``, ``agrisim_plants``, ``agrisim_rooms``, ``agrisim_sinks``, ``agrisim_bridges``,
   ``agrisim_exporters``) return a list of
   :class:`agrisim.BackendSpec`. Results of all plugins are concatenated; a name provided twice is
   an error naming both distributions. They are called once per run, never in the inner loop.
@@ -102,6 +102,13 @@ def agrisim_plant_unavailable(name: str) -> str | None:
     """Why the plant ``name``, which no provider lists, is one this plugin would provide but
     cannot here (e.g. its optional dependency is not installed): a one-line message naming what
     to install, or None. Asked only before agrisim reports an unknown plant."""
+
+
+@hookspec
+def agrisim_rooms() -> list[BackendSpec]:
+    """Rooms: what surrounds the cell, chosen by ``[room] backend`` (``lab``: the paper's
+    laboratory). The core calls ``factory(cell: Cell, options) -> Room`` when the run renders;
+    the result must be an :class:`agrisim.interfaces.Room`, whose scene the renderers draw."""
 
 
 @hookspec

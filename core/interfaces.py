@@ -475,6 +475,22 @@ class Imager(ABC):
         """Its figures and settings, for the run's record (``run.json``, ``cameras.json``)."""
 
 
+class Room(ABC):
+    """What surrounds the robot cell (``[room] backend``): the room, what the cell's obstacles
+    look like, the lights. Built once a run by ``factory(cell: Cell, options)``."""
+
+    def __init__(self, cell: Cell, options: Any) -> None:
+        self.cell = cell
+        self.options = options
+
+    @abstractmethod
+    def scene(self, plant: Plant, *, seed: int, labels: str) -> Scene:
+        """Everything a renderer draws besides the arms, in world coordinates, with ``plant``
+        on the cell's soil as :func:`agrisim.scene.cell.place_plant` puts it for the run's
+        ``labels`` (``plant`` or ``organs``; everything else is background, label 0).
+        ``seed``: the run's ``pcg_seed``, from which a room draws what it randomizes."""
+
+
 class PlantSpecies(ABC):
     """A plant that can be grown from a seed (``factory(options)``)."""
 

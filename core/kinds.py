@@ -23,6 +23,7 @@ from agrisim.interfaces import (
     PlantSpecies,
     Reconstructor,
     Renderer,
+    Room,
 )
 from agrisim.options import Options
 
@@ -64,6 +65,8 @@ KINDS: dict[str, KindInfo] = {
                               "factory(labels: LabelTable, options) -> Reconstructor"),
     "plant": KindInfo("agrisim_plants", None, PlantSpecies,
                       "factory(options) -> PlantSpecies"),
+    "room": KindInfo("agrisim_rooms", "room", Room,
+                     "factory(cell: Cell, options) -> Room"),
     "sink": KindInfo("agrisim_sinks", None, None,
                      "factory(run: Run, options) -> a plugin object with event hooks, or None"),
     "bridge": KindInfo("agrisim_bridges", None, Bridge,

@@ -7,13 +7,20 @@ below the plant; the pot's centre on the table top is the routine's hemisphere c
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
 
 from agrisim.config import CellConfig
 from agrisim.robot.urdf import ARM_JOINTS, CAMERA_FRAME, ur10_with_camera
+from agrisim.scene.model import Label, LabelTable, Mesh, Plant, PointSet
 from agrisim.scene.transforms import translation, yaw_matrix
+
+SOIL_INSET = 0.015
+"""Depth of the soil surface below the pot's rim, m (capped at a third of the pot's height)."""
+PLANT_LABEL = Label(1, "plant", (0, 255, 0))
+"""The single plant label of ``labels="plant"``."""
 
 
 @dataclass(frozen=True)
@@ -101,3 +108,61 @@ def build_cell(cfg: CellConfig) -> Cell:
         world_T_base = translation(x, 0.0, cfg.stand_height) @ yaw_matrix(np.pi if side > 0 else 0.0)
         arms.append(Arm(name=name, urdf=urdf, world_T_base=world_T_base, stand=stand))
     return Cell(arms=tuple(arms), obstacles=tuple(obstacles), plant_center=center)
+
+
+def soil_pose(cell: Cell) -> np.ndarray:
+    """``world_T_plant``: the plant frame on the soil surface (centre of the pot, z up)."""
+    pot = next((ob for ob in cell.obstacles if ob.name == "pot"), None)
+    if pot is None:
+        return translation(*cell.plant_center)
+    assert isinstance(pot, Cylinder)
+    return pot.world_T @ translation(0.0, 0.0, pot.height / 2 - min(SOIL_INSET, pot.height / 3))
+
+
+@dataclass
+class PlacedPlant:
+    """A run's plant on the soil of its cell, as every room draws it: its mesh in world
+    coordinates named ``plant`` (every organ one ``plant`` label with ``labels="plant"``, the
+    plant's own table with ``"organs"``), its points where it is drawn as points."""
+
+    mesh: Mesh
+    labels: LabelTable
+    points: PointSet | None
+
+    @property
+    def drawn(self) -> np.ndarray:
+        """N x 3: the points of what is drawn (the points of a point plant, else its vertices)."""
+        return self.points.positions if self.points is not None else self.mesh.vertices
+
+    @property
+    def source(self) -> Mesh | None:
+        """The mesh a point plant was sampled from (its truth, not drawn), else None."""
+        return self.mesh if self.points is not None and len(self.mesh.faces) else None
+
+
+def place_plant(plant: Plant, cell: Cell, labels: str) -> PlacedPlant:
+    """``plant`` moved from its own frame onto the cell's soil (:func:`soil_pose`), its labels as
+    the run's ``labels`` mode (``plant`` or ``organs``) says."""
+    if labels not in ("plant", "organs"):
+        raise ValueError(f"labels must be 'plant' or 'organs', got {labels!r}")
+    world_T_plant = soil_pose(cell)
+    mesh = plant.mesh
+    if labels == "plant":
+        lut = np.ones(256, np.uint8)
+        lut[0] = 0
+        materials = [
+            dataclasses.replace(m, labels=None if m.labels is None else lut[m.labels], label=int(lut[m.label]))
+            for m in mesh.materials
+        ]
+        table = LabelTable([Label(0, "background", (0, 0, 0)), PLANT_LABEL])
+    else:
+        materials = list(mesh.materials)
+        table = LabelTable(list(plant.labels.labels))
+    V = mesh.vertices @ world_T_plant[:3, :3].T + world_T_plant[:3, 3]
+    placed = dataclasses.replace(mesh, name="plant", vertices=V, materials=materials)
+    points = None
+    if plant.points is not None:  # drawn as points; its mesh (if any) is the truth, not drawn
+        points = plant.points.transformed(world_T_plant)
+        if labels == "plant":
+            points.labels = (points.labels > 0).astype(np.uint8)
+    return PlacedPlant(placed, table, points)

@@ -44,6 +44,7 @@ __all__ = [
     "check_plant",
     "check_reconstructor",
     "check_renderer",
+    "check_room",
     "check_sensor",
 ]
 
@@ -129,16 +130,17 @@ def _assert_joins(path: np.ndarray, start: np.ndarray, goal: np.ndarray) -> None
 
 
 def _plant_scene(registry: Registry, cell: Cell, labels: str) -> tuple[Any, Plant]:
-    """The lab with the hydrangea (four organs, leaf instances), grown through the registry as
-    a run grows it (kept on disk where ``AGRISIM_PLANT_CACHE`` says: every renderer and sensor
-    check draws the same plant)."""
-    from agrisim.lab.room import build_scene
+    """The lab with the hydrangea (four organs, leaf instances), both through the registry as a
+    run builds them (the plant kept on disk where ``AGRISIM_PLANT_CACHE`` says: every renderer
+    and sensor check draws the same plant)."""
     from agrisim.scene.plant_cache import grown
 
     spec = registry.get("plant", "hydrangea")
     options = spec.options_model()
     plant = grown("hydrangea", options, 0, registry.build("plant", spec, options).build)
-    return build_scene(cell, plant, labels=labels), plant
+    lab = registry.get("room", "lab")
+    room = registry.build("room", lab, cell, lab.options_model())
+    return room.scene(plant, seed=42, labels=labels), plant
 
 
 def check_renderer(registry: Registry, spec: BackendSpec, options: Any) -> None:
@@ -246,6 +248,43 @@ def check_sensor(registry: Registry, spec: BackendSpec, options: Any) -> None:
     finally:
         sensor.close()
         renderer.close()
+
+
+def check_room(registry: Registry, spec: BackendSpec, options: Any) -> None:
+    """Places the plant where the cell says, and draws nothing else with a label.
+
+    With the hydrangea (four organs) in the paper's cell, for each labels mode:
+
+    * one mesh is the plant: named as the scene says, exactly where and as
+      :func:`agrisim.scene.cell.place_plant` puts it (its vertices, its label table);
+    * every other mesh is background: label 0, no label texture other than zeros;
+    * there is a light; the same seed gives the same scene.
+    """
+    from agrisim.scene.cell import place_plant
+    from agrisim.scene.model import Scene
+
+    cell = build_cell(CellConfig())
+    room = registry.build("room", spec, cell, options)
+    _, plant = _plant_scene(registry, cell, "plant")
+    for labels in ("plant", "organs"):
+        scene = room.scene(plant, seed=3, labels=labels)
+        assert isinstance(scene, Scene), f"scene() must return an agrisim.scene.model.Scene, got {type(scene).__name__}"
+        placed = place_plant(plant, cell, labels)
+        drawn = scene.mesh(scene.plant)
+        assert np.array_equal(drawn.vertices, placed.mesh.vertices), f"labels={labels}: the plant is not on the soil"
+        assert scene.labels.to_json() == placed.labels.to_json(), f"labels={labels}: the label table is not the plant's"
+        for mesh in scene.meshes:
+            if mesh.name == scene.plant:
+                continue
+            for m in mesh.materials:
+                assert m.label == 0 and (m.labels is None or not np.any(m.labels)), (
+                    f"mesh {mesh.name!r} is labelled: everything but the plant is background"
+                )
+        assert scene.lights, "the room lights nothing"
+        again = room.scene(plant, seed=3, labels=labels)
+        assert [m.name for m in again.meshes] == [m.name for m in scene.meshes] and all(
+            np.array_equal(a.vertices, b.vertices) for a, b in zip(again.meshes, scene.meshes, strict=True)
+        ), "the same seed gave another scene"
 
 
 def check_imager(registry: Registry, spec: BackendSpec, options: Any) -> None:
@@ -439,6 +478,7 @@ CHECKS: dict[str, Callable[[Registry, BackendSpec, Any], None]] = {
     "imager": check_imager,
     "reconstructor": check_reconstructor,
     "plant": check_plant,
+    "room": check_room,
     "exporter": check_exporter,
 }
 assert set(CHECKS) <= set(KINDS)

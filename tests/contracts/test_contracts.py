@@ -94,6 +94,23 @@ def test_an_imager_whose_noise_ignores_the_seed_breaks_its_contract() -> None:
         _broken("imager", "imx708", wrap)
 
 
+def test_a_room_that_floats_the_plant_breaks_its_contract() -> None:
+    def wrap(room):
+        scene = room.scene
+
+        def lifted(plant, **kw):
+            drawn = scene(plant, **kw)
+            m = drawn.mesh(drawn.plant)
+            m.vertices = m.vertices + np.array([0.0, 0.0, 0.01])  # a centimetre above the soil
+            return drawn
+
+        room.scene = lifted
+        return room
+
+    with pytest.raises(AssertionError, match="not on the soil"):
+        _broken("room", "lab", wrap)
+
+
 def test_a_planner_that_ignores_collisions_breaks_its_contract() -> None:
     def wrap(planner):
         planner.plan = lambda start, goal, *rest: np.array([start, goal])

@@ -19,10 +19,10 @@ from agrisim.evaluation.session import ReconSession
 from agrisim.evaluation.views import View, backproject, load_view
 from agrisim.files.rundir import camera_from_json, read_run
 from agrisim.interfaces import Cloud, Reconstruction
-from agrisim.lab.room import build_scene
 from agrisim.plugins.plants.procedural.species import SPECIES
 from agrisim.plugins.recon.pointcloud import PointCloudReconstructor
 from agrisim.plugins.recon.voxel_grid import VoxelGrid
+from agrisim.plugins.rooms.lab.room import build_scene
 from agrisim.registry import Registry, make_plugin_manager
 from agrisim.robot.setpoints import hemisphere
 from agrisim.scene.camera import preset

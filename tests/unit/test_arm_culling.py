@@ -12,10 +12,10 @@ import numpy as np
 import pytest
 
 from agrisim.config import RenderConfig, build_config
-from agrisim.lab.room import build_scene
 from agrisim.plugins.render.raycast import RaycastOptions, culling
 from agrisim.plugins.render.raycast.renderer import RaycastRenderer
 from agrisim.plugins.render.raycast.tracing import SceneTracer
+from agrisim.plugins.rooms.lab.room import build_scene
 from agrisim.registry import Registry, make_plugin_manager
 from agrisim.robot.setpoints import hemisphere
 from agrisim.scene.camera import preset

@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 
 from agrisim.config import CellConfig
-from agrisim.lab import clutter
-from agrisim.lab import room as lab
+from agrisim.plugins.rooms.lab import clutter
+from agrisim.plugins.rooms.lab import room as lab
 from agrisim.scene.cell import Box, Cylinder, build_cell
 from agrisim.scene.model import Label, LabelTable, Material, Mesh, Plant
 

@@ -15,12 +15,12 @@ from conftest import kernels_launched
 
 from agrisim.config import RenderConfig
 from agrisim.errors import ConfigError
-from agrisim.lab.room import build_scene
 from agrisim.plugins.plants.procedural import grow
 from agrisim.plugins.render.mitsuba.options import MitsubaOptions
 from agrisim.plugins.render.mitsuba.variant import newest_libllvm, resolve_variant
 from agrisim.plugins.render.raycast import RaycastOptions
 from agrisim.plugins.render.raycast.renderer import RaycastRenderer
+from agrisim.plugins.rooms.lab.room import build_scene
 from agrisim.scene.camera import CameraModel
 from agrisim.scene.colour import linear_to_srgb, srgb_to_linear
 from agrisim.scene.model import LEAF_TRANSMITTANCE, LabelTable, Light, Material, Mesh, Scene

@@ -8,8 +8,8 @@ import open3d as o3d
 import pytest
 
 from agrisim.config import CellConfig, RenderConfig, RoutineConfig, build_config
-from agrisim.lab.room import build_scene
 from agrisim.plugins.plants.procedural.species import SPECIES
+from agrisim.plugins.rooms.lab.room import build_scene
 from agrisim.registry import Registry, make_plugin_manager
 from agrisim.robot.setpoints import hemisphere
 from agrisim.scene.camera import preset

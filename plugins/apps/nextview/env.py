@@ -31,14 +31,13 @@ from agrisim.config import build_config, merge
 from agrisim.episode import Episode
 from agrisim.evaluation.metrics import GroundTruth
 from agrisim.evaluation.views import View
-from agrisim.lab.room import soil_pose
 from agrisim.plugins.apps.nextview.coverage import SurfaceCoverage
 from agrisim.plugins.apps.nextview.occupancy import VoxelMap
 from agrisim.registry import Registry, make_plugin_manager
 from agrisim.robot.kinematics import ArmKinematics
 from agrisim.robot.setpoints import Setpoint, hemisphere
 from agrisim.scene.camera_choice import camera_of
-from agrisim.scene.cell import build_cell
+from agrisim.scene.cell import build_cell, soil_pose
 from agrisim.scene.plant_choice import check_plant_name
 from agrisim.scene.transforms import look_at
 

@@ -83,8 +83,7 @@ def plant_T_world(run: dict[str, Any]) -> np.ndarray:
     """The plant's frame (the soil at the pot's centre, z up) from the world, by the cell of
     ``run`` (its run.json)."""
     from agrisim.config import build_config
-    from agrisim.lab.room import soil_pose
-    from agrisim.scene.cell import build_cell
+    from agrisim.scene.cell import build_cell, soil_pose
 
     return np.linalg.inv(soil_pose(build_cell(build_config(run["config"]).cell)))
 

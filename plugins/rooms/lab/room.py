@@ -23,22 +23,20 @@ the plant keeps its own label table.
 
 from __future__ import annotations
 
-import dataclasses
 from collections.abc import Callable
 from typing import Any, Literal
 
 import numpy as np
 
-from agrisim.lab import textures as tex
-from agrisim.lab.clutter import NOT_DRAWN, Item, Room, cell_keepouts, clutter_layout, room_for
-from agrisim.lab.primitives import annulus, box, cylinder_side, disc, quad
-from agrisim.scene.cell import Box, Cell, Cylinder
+from agrisim import interfaces
+from agrisim.plugins.rooms.lab import textures as tex
+from agrisim.plugins.rooms.lab.clutter import NOT_DRAWN, Item, Room, cell_keepouts, clutter_layout, room_for
+from agrisim.plugins.rooms.lab.primitives import annulus, box, cylinder_side, disc, quad
+from agrisim.scene.cell import SOIL_INSET, Box, Cell, Cylinder, place_plant, soil_pose
 from agrisim.scene.mesh_builder import MeshBuilder
-from agrisim.scene.model import Label, LabelTable, Light, Material, Mesh, Plant, PointSet, Scene
+from agrisim.scene.model import Light, Material, Mesh, Plant, Scene
 from agrisim.scene.transforms import translation, yaw_matrix
 
-SOIL_INSET = 0.015
-"""Depth of the soil surface below the pot's rim, m (capped at a third of the pot's height)."""
 POT_WALL = 0.008
 """Thickness of the pot's wall seen at its rim, m (capped at a third of its radius)."""
 POT_SEGMENTS = 48
@@ -48,8 +46,6 @@ CEILING_IRRADIANCE = 0.35
 """Irradiance each ceiling light gives the plant (1 = white on white), renderer-relative."""
 STAND_IRRADIANCE = 0.3
 """Irradiance each stand lamp gives the plant's side facing it."""
-PLANT_LABEL = Label(1, "plant", (0, 255, 0))
-"""The single plant label of ``labels="plant"``."""
 
 
 # --------------------------------------------------------------------------------------------
@@ -201,40 +197,6 @@ def _drum(item: Item, mats: _Materials) -> Mesh:
 _CLUTTER_BUILDERS = {"cabinet": _cabinet, "pallet": _pallet, "drum": _drum}
 
 
-def _plant_mesh(plant: Plant, world_T_plant: np.ndarray, labels: str) -> tuple[Mesh, LabelTable]:
-    mesh = plant.mesh
-    if labels == "plant":
-        lut = np.ones(256, np.uint8)
-        lut[0] = 0
-        materials = [
-            dataclasses.replace(m, labels=None if m.labels is None else lut[m.labels], label=int(lut[m.label]))
-            for m in mesh.materials
-        ]
-        table = LabelTable([Label(0, "background", (0, 0, 0)), PLANT_LABEL])
-    else:
-        materials = list(mesh.materials)
-        table = LabelTable(list(plant.labels.labels))
-    V = mesh.vertices @ world_T_plant[:3, :3].T + world_T_plant[:3, 3]
-    out = dataclasses.replace(mesh, name="plant", vertices=V, materials=materials)
-    return out, table
-
-
-def _plant_points(points: PointSet, world_T_plant: np.ndarray, labels: str) -> PointSet:
-    placed = points.transformed(world_T_plant)
-    if labels == "plant":
-        placed.labels = (placed.labels > 0).astype(np.uint8)
-    return placed
-
-
-def soil_pose(cell: Cell) -> np.ndarray:
-    """``world_T_plant``: the plant frame on the soil surface (centre of the pot, z up)."""
-    pot = next((ob for ob in cell.obstacles if ob.name == "pot"), None)
-    if pot is None:
-        return translation(*cell.plant_center)
-    assert isinstance(pot, Cylinder)
-    return pot.world_T @ translation(0.0, 0.0, pot.height / 2 - min(SOIL_INSET, pot.height / 3))
-
-
 def _intensity(irradiance: float, position: np.ndarray, direction: np.ndarray, target: np.ndarray) -> float:
     """Axial intensity giving ``irradiance`` at ``target`` (facing the light): E = I cos / d^2."""
     d = target - position
@@ -308,8 +270,7 @@ def build_scene(
     where irradiance 1 makes a white surface white), chosen so that a surface at the plant facing
     a light gets ``CEILING_IRRADIANCE`` or ``STAND_IRRADIANCE`` from it.
     """
-    if labels not in ("plant", "organs"):
-        raise ValueError(f"labels must be 'plant' or 'organs', got {labels!r}")
+    placed = place_plant(plant, cell, labels)
     if room is None:
         room = room_for(cell)
     mats = _Materials()
@@ -317,15 +278,9 @@ def build_scene(
     for ob in cell.obstacles:
         if ob.name not in NOT_DRAWN:
             meshes.extend(_obstacle_mesh(ob, mats))
-    plant_mesh, table = _plant_mesh(plant, soil_pose(cell), labels)
-    points = source = None
-    if plant.points is not None:  # drawn as points; its mesh (if any) is the truth, not drawn
-        points = _plant_points(plant.points, soil_pose(cell), labels)
-        source = plant_mesh if len(plant_mesh.faces) else None
-        drawn = points.positions
-    else:
-        meshes.append(plant_mesh)
-        drawn = plant_mesh.vertices
+    if placed.points is None:
+        meshes.append(placed.mesh)
+    drawn = placed.drawn
     if len(drawn):
         lo, hi = drawn.min(axis=0), drawn.max(axis=0)
         target = (lo + hi) / 2
@@ -335,4 +290,14 @@ def build_scene(
     meshes.extend(lamps)
     for item in clutter_layout(room, pcg_seed, cell_keepouts(cell)):
         meshes.append(_CLUTTER_BUILDERS[item.kind](item, mats))
-    return Scene(meshes=meshes, lights=lights, labels=table, plant="plant", points=points, source=source)
+    return Scene(
+        meshes=meshes, lights=lights, labels=placed.labels, plant="plant", points=placed.points, source=placed.source
+    )
+
+
+class Lab(interfaces.Room):
+    """The paper's laboratory (the ``lab`` room): :func:`build_scene` for the run's cell, its
+    clutter drawn from the run's ``pcg_seed``."""
+
+    def scene(self, plant: Plant, *, seed: int, labels: str) -> Scene:
+        return build_scene(self.cell, plant, pcg_seed=seed, labels=labels)

@@ -1,1 +1,0 @@
-"""The laboratory room around the cell: geometry and procedural textures."""

@@ -1,0 +1,1 @@
+"""Rooms: what surrounds the robot cell (``[room] backend``)."""
