@@ -24,7 +24,7 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from machine import cpu_model  # noqa: E402
 
-from agrisim.evaluation.photogrammetry import COLMAP_PEAK_THRESHOLD  # noqa: E402
+from agrisim.plugins.poses.colmap.photogrammetry import COLMAP_PEAK_THRESHOLD  # noqa: E402
 
 CONFIGS = {
     "robot": {},
@@ -55,7 +55,7 @@ def test_run(out: Path) -> Path:
 
 
 def main() -> None:
-    from agrisim.evaluation.photogrammetry import run_colmap
+    from agrisim.plugins.poses.colmap.photogrammetry import run_colmap
     from agrisim.testing.perturb import noisy_copy
 
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])

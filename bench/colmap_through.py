@@ -43,7 +43,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from machine import cpu_model  # noqa: E402
 
-from agrisim.evaluation.photogrammetry import PEAK_THRESHOLD  # noqa: E402 (pycolmap is imported when COLMAP runs)
+from agrisim.plugins.poses.colmap.photogrammetry import PEAK_THRESHOLD  # noqa: E402 (pycolmap is imported when COLMAP runs)
 
 PINHOLE = "pinhole"
 
@@ -213,7 +213,7 @@ def draw(args: argparse.Namespace) -> None:
 
 
 def _colmap(run: Path, threads: int, peak_threshold: float) -> tuple[str, float]:
-    from agrisim.evaluation.photogrammetry import run_colmap
+    from agrisim.plugins.poses.colmap.photogrammetry import run_colmap
 
     start = time.perf_counter()
     run_colmap(run, feature_threads=threads, peak_threshold=peak_threshold, overwrite=True)

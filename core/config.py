@@ -99,10 +99,11 @@ class ReconChoice(BackendChoice):
     depth: Literal["sensor", "truth"] = "sensor"
     """The depth the reconstructor is given: ``sensor``, what the run's depth sensor measured
     (``depth_sensor/``; the exact depth with the exact sensor); ``truth``, the exact depth."""
-    poses: Literal["truth", "colmap"] = "truth"
-    """The camera poses the reconstructor is given: ``truth``, the simulator's; ``colmap``,
-    COLMAP's estimates aligned to the world (``agrisim colmap RUN`` first; ``agrisim recon``
-    only), views COLMAP did not register left out: what estimated poses cost a reconstruction."""
+    poses: str = "truth"
+    """The camera poses the reconstructor is given: ``truth``, the simulator's; or a pose
+    source's (``agrisim recon`` only): ``colmap``, COLMAP's estimates aligned to the world
+    (``agrisim colmap RUN`` first), views COLMAP did not register left out: what estimated
+    poses cost a reconstruction."""
 
 
 class MetricsConfig(_Model):

@@ -25,7 +25,7 @@ from agrisim.capabilities import check_reconstructor, check_renderer, check_sens
 from agrisim.config import BackendChoice, ImagerConfig, RunConfig, backend_options, depth_read
 from agrisim.errors import ConfigError
 from agrisim.evaluation.metrics import GroundTruth
-from agrisim.evaluation.session import ReconSession, summary_metrics
+from agrisim.evaluation.session import ReconSession, pose_source, summary_metrics
 from agrisim.evaluation.views import View, load_frame, view_from_capture, view_of
 from agrisim.files.atomic import remove_partial
 from agrisim.files.dataset import DatasetWriter
@@ -100,7 +100,8 @@ class Episode:
         self.sensor_spec = None
         self.recon_spec = None
         self.scene: Scene | None = None
-        if config.recon.poses != "truth":  # COLMAP runs on the finished views
+        if config.recon.poses != "truth":  # a pose source estimates from the finished views
+            pose_source(self.registry, config.recon.poses)
             raise ConfigError(
                 f"recon.poses = {config.recon.poses!r} needs the finished run: agrisim colmap RUN, then "
                 f"agrisim recon RUN --set recon.poses={config.recon.poses}; a run reconstructs on the true poses"

@@ -3,7 +3,7 @@
 Two families:
 
 * **Providers** (``agrisim_physics``, ``agrisim_renderers``, ``agrisim_sensors``, ``agrisim_imagers``, ``agrisim_planners``,
-  ``agrisim_reconstructors``, ``agrisim_plants``, ``agrisim_rooms``, ``agrisim_sinks``, ``agrisim_bridges``,
+  ``agrisim_reconstructors``, ``agrisim_pose_sources``, ``agrisim_plants``, ``agrisim_rooms``, ``agrisim_sinks``, ``agrisim_bridges``,
   ``agrisim_exporters``) return a list of
   :class:`agrisim.BackendSpec`. Results of all plugins are concatenated; a name provided twice is
   an error naming both distributions. They are called once per run, never in the inner loop.
@@ -102,6 +102,14 @@ def agrisim_plant_unavailable(name: str) -> str | None:
     """Why the plant ``name``, which no provider lists, is one this plugin would provide but
     cannot here (e.g. its optional dependency is not installed): a one-line message naming what
     to install, or None. Asked only before agrisim reports an unknown plant."""
+
+
+@hookspec
+def agrisim_pose_sources() -> list[BackendSpec]:
+    """Pose sources: camera poses estimated from a finished run's views, chosen by
+    ``recon.poses`` (``colmap``; ``truth`` is the simulator's own). The core calls
+    ``factory(options) -> PoseSource`` when ``agrisim recon`` reads a run; the result must be an
+    :class:`agrisim.interfaces.PoseSource`, whose poses the views are fused at."""
 
 
 @hookspec

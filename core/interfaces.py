@@ -475,6 +475,18 @@ class Imager(ABC):
         """Its figures and settings, for the run's record (``run.json``, ``cameras.json``)."""
 
 
+class PoseSource(ABC):
+    """Where a reconstruction's camera poses come from instead of the simulator's
+    (``recon.poses``; ``truth``: the simulator's own): an estimate from a finished run's views,
+    aligned to the world. Built by ``factory(options)`` when ``agrisim recon`` reads a run."""
+
+    @abstractmethod
+    def poses(self, run_dir: Path) -> dict[str, np.ndarray]:
+        """The estimated ``world_T_camera`` (4 x 4, OpenCV cameras, metres) of the run's views,
+        by frame: only the views it placed. Raises :class:`agrisim.errors.UserError` saying what
+        to do where it has none for this run."""
+
+
 class Room(ABC):
     """What surrounds the robot cell (``[room] backend``): the room, what the cell's obstacles
     look like, the lights. Built once a run by ``factory(cell: Cell, options)``."""

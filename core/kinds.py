@@ -21,6 +21,7 @@ from agrisim.interfaces import (
     PhysicsBackend,
     Planner,
     PlantSpecies,
+    PoseSource,
     Reconstructor,
     Renderer,
     Room,
@@ -40,7 +41,7 @@ class KindInfo:
     """The provider hook returning its :class:`BackendSpec` list."""
     section: str | None
     """The configuration section choosing one (``[physics] backend = ...``); None: not chosen
-    by a section's ``backend`` (an imager by ``[imager] model``, every plant is selectable by
+    by a section's ``backend`` (an imager by ``[imager] model``, a pose source by ``recon.poses``, every plant is selectable by
     name, every sink is on, an exporter is named on the command line: ``agrisim export NAME``)."""
     abc: type | None
     """The ABC every factory result must be an instance of (None: any object, as a sink is a
@@ -63,6 +64,8 @@ KINDS: dict[str, KindInfo] = {
                         "factory(options) -> Planner"),
     "reconstructor": KindInfo("agrisim_reconstructors", "recon", Reconstructor,
                               "factory(labels: LabelTable, options) -> Reconstructor"),
+    "poses": KindInfo("agrisim_pose_sources", None, PoseSource,
+                      "factory(options) -> PoseSource"),
     "plant": KindInfo("agrisim_plants", None, PlantSpecies,
                       "factory(options) -> PlantSpecies"),
     "room": KindInfo("agrisim_rooms", "room", Room,

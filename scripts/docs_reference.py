@@ -33,7 +33,7 @@ PACKAGES = {
     "agrisim.envs": "Gymnasium environments (`agrisim/PlantView-v0`).",
     "agrisim.plugins.apps.nextview": "Choosing views: coverage of the true surface, the voxel map, the policies.",
     "agrisim.plugins.apps.traits": "Plant traits: the truth from the mesh, the estimates from the views, their errors.",
-    "agrisim.evaluation": "Accuracy against the true surface, photogrammetry, views back-projected.",
+    "agrisim.evaluation": "Accuracy against the true surface, views back-projected, the reconstruction session.",
     "agrisim.scene": "The scene: camera, lens, imager, meshes, plants, colours.",
     "agrisim.robot": "The arms: URDF, kinematics (Pinocchio), setpoints, trajectories, TF.",
     "agrisim.files": "The run directory's files: dataset, glTF, PNG/EXR, point clouds, exports.",

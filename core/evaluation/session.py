@@ -11,12 +11,12 @@ from __future__ import annotations
 import importlib.util
 from collections.abc import Callable, Iterable
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from agrisim.capabilities import check_reconstructor
-from agrisim.errors import OutputError, UserError
+from agrisim.errors import ConfigError, OutputError, UserError
 from agrisim.evaluation.metrics import GroundTruth, ViewStats, evaluate
 from agrisim.evaluation.views import View, load_view
 from agrisim.files import layout
@@ -24,6 +24,10 @@ from agrisim.files.atomic import write_bytes, write_json, write_through
 from agrisim.files.rundir import camera_from_json, read_run
 from agrisim.interfaces import ALL, Cloud, Reconstruction, Reconstructor, SurfaceMesh
 from agrisim.scene.model import LabelTable
+
+if TYPE_CHECKING:
+    from agrisim.kinds import BackendSpec
+    from agrisim.registry import Registry
 
 CloudCallback = Callable[[str, Cloud, bool], None]
 
@@ -236,6 +240,17 @@ def rebuild(
     return session
 
 
+def pose_source(registry: Registry, name: str) -> BackendSpec:
+    """The pose source ``recon.poses`` names; an unknown name is refused, listing them."""
+    sources = registry.specs("poses")
+    if name not in sources:
+        known = ", ".join(["truth", *sources])
+        raise ConfigError(
+            f"invalid setting 'recon.poses': unknown pose source {name!r}; pose sources: {known} (got {name!r})"
+        )
+    return sources[name]
+
+
 def check_writable(out_dir: Path, labels: LabelTable, overwrite: bool, folder: str | None = None) -> None:
     """Refuse, before any work, to replace a reconstruction's outputs (and the reconstructor's
     own ``folder``) unless ``overwrite``."""
@@ -269,7 +284,7 @@ def reconstruct_saved_run(
     returns it with the metrics. Every input is checked before any work or write.
     """
     from agrisim.config import backend_options, build_config, depth_read
-    from agrisim.registry import Registry, make_plugin_manager
+    from agrisim.registry import Registry, blame, make_plugin_manager
 
     unknown = set(overrides) - {"recon", "metrics"}
     if unknown:
@@ -285,6 +300,7 @@ def reconstruct_saved_run(
     registry = Registry(make_plugin_manager())
     spec = registry.get("reconstructor", config.recon.backend)
     config.recon.check_tables("recon", registry.specs("reconstructor"))
+    source = pose_source(registry, config.recon.poses) if config.recon.poses != "truth" else None
     options = backend_options(spec.options_model, config.recon.options_for(spec.name), f"reconstructor {spec.name!r}")
     lens = cameras["intrinsics"].get("distortion") is not None
     check_reconstructor(spec, config.render.hide_robots, lens=lens)
@@ -298,10 +314,9 @@ def reconstruct_saved_run(
     measurable = importlib.util.find_spec("open3d") is not None
     truth = truth_from_run(run_dir, config.metrics.truth_samples) if measurable else None
     estimated = None
-    if config.recon.poses == "colmap":
-        from agrisim.evaluation.photogrammetry import estimated_poses
-
-        estimated = estimated_poses(run_dir)
+    if source is not None:
+        with blame("poses", source, f" reading {run_dir}"):
+            estimated = registry.build("poses", source, source.options_model()).poses(run_dir)
     session = rebuild(
         run_dir,
         registry.build("reconstructor", spec, labels, options),

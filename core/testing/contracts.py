@@ -42,6 +42,7 @@ __all__ = [
     "check_physics",
     "check_planner",
     "check_plant",
+    "check_poses",
     "check_reconstructor",
     "check_renderer",
     "check_room",
@@ -287,6 +288,26 @@ def check_room(registry: Registry, spec: BackendSpec, options: Any) -> None:
         ), "the same seed gave another scene"
 
 
+def check_poses(registry: Registry, spec: BackendSpec, options: Any) -> None:
+    """Asked for the poses of a run it has estimated none for (a run directory of a run that
+    saved no view), it refuses with a :class:`agrisim.errors.UserError` of one line and writes
+    nothing there."""
+    source = registry.build("poses", spec, options)
+    with tempfile.TemporaryDirectory() as tmp:
+        run_dir = Path(tmp) / "run"
+        run_dir.mkdir()
+        run = {"status": "complete", "frames_complete": [], "labels": [], "config": {}, "results": []}
+        (run_dir / "run.json").write_text(json.dumps(run))
+        before = _tree(run_dir)
+        try:
+            source.poses(run_dir)
+        except UserError as exc:
+            assert str(exc) and "\n" not in str(exc).strip(), f"its refusal is not one line: {exc!r}"
+        else:
+            raise AssertionError("it gave poses for a run with no views")
+        assert _tree(run_dir) == before, "asked for poses, it wrote into the run directory"
+
+
 def check_imager(registry: Registry, spec: BackendSpec, options: Any) -> None:
     """Turns light into an image, the same for the same seed and view, brighter for more light.
 
@@ -479,6 +500,7 @@ CHECKS: dict[str, Callable[[Registry, BackendSpec, Any], None]] = {
     "reconstructor": check_reconstructor,
     "plant": check_plant,
     "room": check_room,
+    "poses": check_poses,
     "exporter": check_exporter,
 }
 assert set(CHECKS) <= set(KINDS)

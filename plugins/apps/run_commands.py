@@ -437,8 +437,8 @@ def _export_options(name: str, items: Sequence[str]) -> dict[str, Any]:
 
 
 def _cmd_colmap(args: argparse.Namespace) -> int:
-    from agrisim.evaluation.photogrammetry import run_colmap
     from agrisim.plugins.apps.progress import EpisodeProgress
+    from agrisim.plugins.poses.colmap.photogrammetry import run_colmap
 
     with EpisodeProgress("features") as progress:
         result = run_colmap(

@@ -92,7 +92,7 @@ def _follow_up(run_dir: Path, name: str, colmap: Mapping[str, Any]) -> str:
             spec, exporter = build_exporter(Registry(make_plugin_manager()), name)
             run_export(spec, exporter, run_dir, overwrite=True)  # (a half-made one of a lost worker is replaced)
         else:
-            from agrisim.evaluation.photogrammetry import run_colmap
+            from agrisim.plugins.poses.colmap.photogrammetry import run_colmap
 
             run_colmap(run_dir, overwrite=True, **colmap)
     except Exception as exc:  # one follow-up failing leaves the run and the others standing

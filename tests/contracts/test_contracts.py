@@ -111,6 +111,15 @@ def test_a_room_that_floats_the_plant_breaks_its_contract() -> None:
         _broken("room", "lab", wrap)
 
 
+def test_a_pose_source_that_answers_for_a_run_it_never_saw_breaks_its_contract() -> None:
+    def wrap(source):
+        source.poses = lambda run_dir: {}
+        return source
+
+    with pytest.raises(AssertionError, match="no views"):
+        _broken("poses", "colmap", wrap)
+
+
 def test_a_planner_that_ignores_collisions_breaks_its_contract() -> None:
     def wrap(planner):
         planner.plan = lambda start, goal, *rest: np.array([start, goal])

@@ -14,7 +14,7 @@ import pycolmap
 import pytest
 from conftest import small_run
 
-from agrisim.evaluation.photogrammetry import COLMAP_DIR, POSES_JSON
+from agrisim.plugins.poses.colmap.photogrammetry import COLMAP_DIR, POSES_JSON
 
 
 @pytest.fixture(scope="module")
@@ -165,7 +165,7 @@ def test_placed_views_hold_a_band_under_perturbation(run_dir: Path, tmp_path: Pa
     other threads, draws other random numbers: the default pipeline must place nearly every view
     under each (bench/colmap_robustness.py: PLACED_AT_LEAST's comment), where COLMAP at its own
     SIFT threshold from the images alone placed 17, 2 or 0 of these 36."""
-    from agrisim.evaluation import photogrammetry as pg
+    from agrisim.plugins.poses.colmap import photogrammetry as pg
     from agrisim.testing.perturb import noisy_copy
 
     # +-1 grey level on every pixel, SIFT on one thread (the first test's ran on every core), and
@@ -237,7 +237,7 @@ def test_colmap_poses_need_agrisim_colmap_and_a_finished_run(run_dir: Path, tmp_
 
 def test_the_command_lines_defaults_are_the_pipelines() -> None:
     from agrisim.app.arguments import build_parser
-    from agrisim.evaluation import photogrammetry as pg
+    from agrisim.plugins.poses.colmap import photogrammetry as pg
 
     args = build_parser().parse_args(["colmap", "RUN"])
     assert args.peak_threshold == pg.PEAK_THRESHOLD and args.prior_std_mm == pg.PRIOR_STD_MM

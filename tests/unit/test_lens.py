@@ -236,7 +236,7 @@ def test_pycolmap_projects_through_the_camera_agrisim_gives_it(lens: Distortion)
     is at 0.5)."""
     import pycolmap
 
-    from agrisim.evaluation.photogrammetry import colmap_camera
+    from agrisim.plugins.poses.colmap.photogrammetry import colmap_camera
 
     camera = CameraModel(320, 180, 150.0, 151.0, 159.5, 89.5, lens)
     model, params = colmap_camera(camera.K, lens.as_dict())
