@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # The static checks of `make test`, before the suite: ruff's lint rules and its formatting over
-# every Python file of the project, and mypy over the core (scripts/typecheck.sh). Their
+# every Python file of the project, and mypy over the package, core and plugins (scripts/typecheck.sh). Their
 # configuration is in pyproject.toml. `ruff format .` and `ruff check --fix .` repair most of
 # what the first two find.
 set -euo pipefail
