@@ -27,7 +27,7 @@ from pathlib import Path
 from agrisim.config import RenderConfig
 from agrisim.files import layout
 from agrisim.files.rundir import camera_from_json
-from agrisim.files.scene_glb import read_scene
+from agrisim.plugins.formats.scene_glb import read_scene
 from agrisim.plugins.render.raycast import RaycastOptions
 from agrisim.plugins.render.raycast.renderer import RaycastRenderer
 run, variant, views, samples, out = Path(sys.argv[1]), sys.argv[2], int(sys.argv[3]), int(sys.argv[4]), sys.argv[5]

@@ -50,7 +50,7 @@ def main() -> None:
 
     from agrisim.files import layout
     from agrisim.files.rundir import camera_from_json
-    from agrisim.files.scene_glb import read_scene
+    from agrisim.plugins.formats.scene_glb import read_scene
     from agrisim.plugins.render.raycast import RaycastOptions
     from agrisim.plugins.render.raycast.tracing import SceneTracer, label_map
 

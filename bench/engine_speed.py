@@ -27,7 +27,7 @@ from machine import cpu_model, gpu_name  # noqa: E402
 from agrisim.config import RenderConfig  # noqa: E402
 from agrisim.files import layout  # noqa: E402
 from agrisim.files.rundir import camera_from_json  # noqa: E402
-from agrisim.files.scene_glb import read_scene  # noqa: E402
+from agrisim.plugins.formats.scene_glb import read_scene  # noqa: E402
 
 
 def compiled(dr, history: list[dict]) -> str:  # noqa: ANN001

@@ -88,13 +88,13 @@ def load_old(rev: str) -> types.SimpleNamespace:
         return mod
 
     gltf = module("_old_gltf", "core/files/gltf.py", {})
-    glb = module("_old_glb", "core/files/glb.py", {"from agrisim.files.gltf import": "from _old_gltf import"})
+    glb = module("_old_glb", "core/files/glb.py", {"from agrisim.plugins.formats.gltf import": "from _old_gltf import"})
     scene = module(
         "_old_scene_glb",
         "core/files/scene_glb.py",
         {
             "from agrisim.files.glb import": "from _old_glb import",
-            "from agrisim.files.gltf import": "from _old_gltf import",
+            "from agrisim.plugins.formats.gltf import": "from _old_gltf import",
         },
     )
     return types.SimpleNamespace(gltf=gltf, glb=glb, scene_glb=scene, rev=rev)

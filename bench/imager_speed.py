@@ -20,7 +20,7 @@ from saved_run import frame_pose  # noqa: E402
 
 from agrisim.config import RenderConfig  # noqa: E402
 from agrisim.files import layout  # noqa: E402
-from agrisim.files.scene_glb import read_scene  # noqa: E402
+from agrisim.plugins.formats.scene_glb import read_scene  # noqa: E402
 from agrisim.plugins.imagers.pipeline import IMAGERS, ImagePipeline  # noqa: E402
 from agrisim.plugins.render.raycast import RaycastOptions  # noqa: E402
 from agrisim.plugins.render.raycast.renderer import RaycastRenderer  # noqa: E402

@@ -142,7 +142,7 @@ def save(args: argparse.Namespace, camera: CameraModel) -> None:
     import drjit as dr
 
     from agrisim.files import layout
-    from agrisim.files.scene_glb import read_scene
+    from agrisim.plugins.formats.scene_glb import read_scene
     from agrisim.scene.camera import view_seed
 
     args.save.mkdir(parents=True, exist_ok=True)

@@ -18,9 +18,9 @@ from agrisim.episode import open_imager
 from agrisim.evaluation.session import capture_order
 from agrisim.files import layout
 from agrisim.files.rundir import camera_from_json
-from agrisim.files.scene_glb import read_scene
 from agrisim.interfaces import Imager, View, view_key
 from agrisim.plugins.apps.render import RenderPlan
+from agrisim.plugins.formats.scene_glb import read_scene
 from agrisim.registry import Registry, make_plugin_manager
 from agrisim.scene.camera import CameraModel, preset
 from agrisim.scene.model import Scene

@@ -34,7 +34,7 @@ def main() -> None:
     from agrisim.config import RenderConfig
     from agrisim.files import layout
     from agrisim.files.rundir import camera_from_json
-    from agrisim.files.scene_glb import read_scene
+    from agrisim.plugins.formats.scene_glb import read_scene
     from agrisim.plugins.render.raycast import RaycastOptions
     from agrisim.plugins.render.raycast.renderer import RaycastRenderer
     from agrisim.plugins.sensors.align import align_to_colour

@@ -124,13 +124,13 @@ class Episode:
                 self.registry.specs("renderer"),
                 [config.render.seg_mode],
                 config.render.labels,
-                points=draws_points(config),
+                points=draws_points(self.registry, config),
                 lens=not self.camera.pinhole,
                 radiance=config.imager.model != "none",
             )
             self._open_imagers()
             self.sensor_spec, self.sensor_options = self._backend("sensor", config.sensor)
-            check_sensor(self.sensor_spec, self.registry.specs("sensor"), points=draws_points(config))
+            check_sensor(self.sensor_spec, self.registry.specs("sensor"), points=draws_points(self.registry, config))
             with _timed(self._prep_wall, "plant"):
                 self.plant = resolve_plant(self.registry, config)
             room_spec, room_options = self._backend("room", config.room)

@@ -3,7 +3,7 @@
 Two families:
 
 * **Providers** (``agrisim_physics``, ``agrisim_renderers``, ``agrisim_sensors``, ``agrisim_imagers``, ``agrisim_planners``,
-  ``agrisim_reconstructors``, ``agrisim_pose_sources``, ``agrisim_plants``, ``agrisim_rooms``, ``agrisim_sinks``, ``agrisim_bridges``,
+  ``agrisim_reconstructors``, ``agrisim_pose_sources``, ``agrisim_plants``, ``agrisim_plant_formats``, ``agrisim_rooms``, ``agrisim_sinks``, ``agrisim_bridges``,
   ``agrisim_exporters``) return a list of
   :class:`agrisim.BackendSpec`. Results of all plugins are concatenated; a name provided twice is
   an error naming both distributions. They are called once per run, never in the inner loop.
@@ -110,6 +110,14 @@ def agrisim_pose_sources() -> list[BackendSpec]:
     ``recon.poses`` (``colmap``; ``truth`` is the simulator's own). The core calls
     ``factory(options) -> PoseSource`` when ``agrisim recon`` reads a run; the result must be an
     :class:`agrisim.interfaces.PoseSource`, whose poses the views are fused at."""
+
+
+@hookspec
+def agrisim_plant_formats() -> list[BackendSpec]:
+    """Plant file formats: readers of the plant files ``--plant FILE`` names (glTF, OBJ, PLY,
+    PCD are agrisim's). The core calls ``factory(options) -> PlantReader`` and asks each reader
+    in turn, third parties' first, whether it claims the path; the first that does reads it. The
+    result must be an :class:`agrisim.interfaces.PlantReader`."""
 
 
 @hookspec

@@ -20,7 +20,7 @@ from agrisim.scene.camera import CameraModel
 from agrisim.scene.model import LabelTable, Mesh, Plant, Scene
 
 if TYPE_CHECKING:
-    from agrisim.config import RenderConfig
+    from agrisim.config import PlantFileConfig, RenderConfig
     from agrisim.scene.cell import Cell
 
 Validity = Callable[[np.ndarray], bool]
@@ -473,6 +473,28 @@ class Imager(ABC):
     @abstractmethod
     def describe(self) -> dict[str, Any]:
         """Its figures and settings, for the run's record (``run.json``, ``cameras.json``)."""
+
+
+class PlantReader(ABC):
+    """Reads the plant files of one format (``--plant FILE``): the first installed reader that
+    claims a path reads it, as pytest's collectors claim files (third parties' readers are asked
+    before agrisim's own). Built by ``factory(options)``."""
+
+    #: the file suffixes it claims (lower case, with the dot), for :meth:`claims` and messages
+    suffixes: tuple[str, ...] = ()
+    #: what its files hold: ``mesh`` (a surface) or ``point cloud`` (drawn as points)
+    holds: str = "mesh"
+
+    def claims(self, path: Path) -> bool:
+        """Whether it reads ``path`` (by default: by its suffix; it need not exist yet)."""
+        return path.suffix.lower() in self.suffixes
+
+    @abstractmethod
+    def read(self, path: Path, settings: PlantFileConfig, *, place: bool = True) -> Plant:
+        """The plant in ``path``, read as the run's ``[plant_file]`` settings say (up axis,
+        scale, labels, the root it must lie in), moved into the plant frame (lowest point at
+        z = 0, centred in x and y) unless ``place`` is False. Bad input raises
+        :class:`agrisim.errors.UserError` naming the file and the problem."""
 
 
 class PoseSource(ABC):

@@ -20,6 +20,7 @@ from agrisim.interfaces import (
     Imager,
     PhysicsBackend,
     Planner,
+    PlantReader,
     PlantSpecies,
     PoseSource,
     Reconstructor,
@@ -41,7 +42,7 @@ class KindInfo:
     """The provider hook returning its :class:`BackendSpec` list."""
     section: str | None
     """The configuration section choosing one (``[physics] backend = ...``); None: not chosen
-    by a section's ``backend`` (an imager by ``[imager] model``, a pose source by ``recon.poses``, every plant is selectable by
+    by a section's ``backend`` (an imager by ``[imager] model``, a pose source by ``recon.poses``, a plant file's format by the first reader that claims it, every plant is selectable by
     name, every sink is on, an exporter is named on the command line: ``agrisim export NAME``)."""
     abc: type | None
     """The ABC every factory result must be an instance of (None: any object, as a sink is a
@@ -68,6 +69,8 @@ KINDS: dict[str, KindInfo] = {
                       "factory(options) -> PoseSource"),
     "plant": KindInfo("agrisim_plants", None, PlantSpecies,
                       "factory(options) -> PlantSpecies"),
+    "format": KindInfo("agrisim_plant_formats", None, PlantReader,
+                       "factory(options) -> PlantReader"),
     "room": KindInfo("agrisim_rooms", "room", Room,
                      "factory(cell: Cell, options) -> Room"),
     "sink": KindInfo("agrisim_sinks", None, None,

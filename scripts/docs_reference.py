@@ -36,7 +36,7 @@ PACKAGES = {
     "agrisim.evaluation": "Accuracy against the true surface, views back-projected, the reconstruction session.",
     "agrisim.scene": "The scene: camera, lens, imager, meshes, plants, colours.",
     "agrisim.robot": "The arms: URDF, kinematics (Pinocchio), setpoints, trajectories, TF.",
-    "agrisim.files": "The run directory's files: dataset, glTF, PNG/EXR, point clouds, exports.",
+    "agrisim.files": "The run directory's files: its layout, writer and readers, GLB, PNG/EXR, PLY, exports.",
     "agrisim.plugins.rooms.lab": "The lab room around the cell: room, clutter, textures.",
     "agrisim.testing": "The contract suite a backend is checked against, and perturbations for tests.",
     "agrisim.util": "Small helpers: caches, native output.",

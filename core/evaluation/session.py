@@ -187,20 +187,31 @@ _EMPTY_PLY = (
 # -------------------------------------------------------------------- from a saved run
 
 
-def truth_from_run(run_dir: Path, samples: int, seed: int = 0) -> GroundTruth | None:
+def truth_from_run(run_dir: Path, samples: int, seed: int = 0, registry: Registry | None = None) -> GroundTruth | None:
     """The ground truth of a saved run: its ``scene/plant.glb`` (world coordinates), or for a
-    scanned point plant its ``scene/plant_points.ply``."""
-    from agrisim.files.plant_asset import load_plant
-    from agrisim.files.point_cloud import load_point_plant
+    scanned point plant its ``scene/plant_points.ply``, read by the installed readers of those
+    formats (``registry``'s; default: every installed plugin's)."""
+    from agrisim.config import PlantFileConfig
+    from agrisim.registry import make_plugin_manager
+    from agrisim.scene.plant_choice import reader_for
 
-    path = run_dir / layout.PLANT_GLB
-    if path.is_file():
-        return GroundTruth.sample(load_plant(path, place=False).mesh, samples, seed)
-    points = run_dir / layout.PLANT_POINTS
-    if points.is_file():
-        cloud = load_point_plant(points, place=False, up="z").points
-        assert cloud is not None
-        return GroundTruth.of_points(cloud, samples, seed)
+    if registry is None:
+        from agrisim.registry import Registry
+
+        registry = Registry(make_plugin_manager())
+    for path, settings in (
+        (run_dir / layout.PLANT_GLB, PlantFileConfig()),
+        (run_dir / layout.PLANT_POINTS, PlantFileConfig(up="z")),
+    ):
+        if not path.is_file():
+            continue
+        reader = reader_for(registry, path)
+        if reader is None:
+            raise UserError(f"{path}: no installed plant-file reader reads it (see agrisim plugins)")
+        plant = reader.read(path, settings, place=False)
+        if plant.points is not None and not len(plant.mesh.faces):
+            return GroundTruth.of_points(plant.points, samples, seed)
+        return GroundTruth.sample(plant.mesh, samples, seed)
     return None
 
 
@@ -312,7 +323,7 @@ def reconstruct_saved_run(
     # Accuracy against the true surface needs Open3D (Embree's closest points); a GPU machine's
     # minimal install reconstructs without it and says so in metrics.json.
     measurable = importlib.util.find_spec("open3d") is not None
-    truth = truth_from_run(run_dir, config.metrics.truth_samples) if measurable else None
+    truth = truth_from_run(run_dir, config.metrics.truth_samples, registry=registry) if measurable else None
     estimated = None
     if source is not None:
         with blame("poses", source, f" reading {run_dir}"):

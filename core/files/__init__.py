@@ -1,1 +1,3 @@
-"""File formats and the run directory: plant assets (glTF, OBJ), the GLB writer, atomic writes, image encodings, the run directory's writer and readers (the exports are plugins: agrisim.plugins.exporters)."""
+"""The run directory: its layout, writer and readers, the GLB and PLY it writes, atomic writes,
+image encodings (the plant file readers and the exports are plugins: agrisim.plugins.formats,
+agrisim.plugins.exporters)."""

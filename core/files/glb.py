@@ -1,7 +1,7 @@
 """agrisim's GLB writer: any :class:`Mesh` as a binary glTF that any viewer shows and that
-:func:`agrisim.files.plant_asset.load_plant` reads back exactly (textures, alpha settings,
+:func:`agrisim.plugins.formats.plant_asset.load_plant` reads back exactly (textures, alpha settings,
 label textures, the label table and leaf instances in ``extras``; the format is described in
-:mod:`agrisim.files.plant_asset`).
+:mod:`agrisim.plugins.formats.plant_asset`).
 
 The document is pygltflib's object model, which it serializes into the binary glTF. What goes in
 it is agrisim's: trimesh's exporter writes one vertex array per primitive (agrisim's primitives

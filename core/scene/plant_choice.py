@@ -1,6 +1,7 @@
-"""The plant a run names (``--plant``): a registered species grown from the run's seed, a
-glTF/GLB/OBJ file read with the ``[plant_file]`` settings, or a point cloud (PLY, PCD); then
-drawn as points when ``[points]`` says so (``--as-points``, ``--point-size``)."""
+"""The plant a run names (``--plant``): a registered species grown from the run's seed, or a
+file read with the ``[plant_file]`` settings by the first installed reader that claims it (a
+glTF/GLB/OBJ mesh, a PLY/PCD point cloud, or a plugin's format); then drawn as points when
+``[points]`` says so (``--as-points``, ``--point-size``)."""
 
 from __future__ import annotations
 
@@ -8,17 +9,45 @@ from pathlib import Path
 
 from agrisim.config import RunConfig, backend_options
 from agrisim.errors import UserError
-from agrisim.files.plant_asset import FORMATS, load_plant
-from agrisim.files.point_cloud import POINT_FORMATS, load_point_plant
-from agrisim.registry import Registry, blame
+from agrisim.interfaces import PlantReader
+from agrisim.registry import DISTRIBUTION, Registry, blame
 from agrisim.scene.model import Plant
 from agrisim.scene.plant_cache import grown
 from agrisim.scene.points import as_points, check_count, check_size
 
 
-def draws_points(config: RunConfig) -> bool:
+def plant_readers(registry: Registry) -> list[PlantReader]:
+    """Every installed plant-file reader in the order they are asked: third parties' first (so
+    that a plugin can take a suffix over), then agrisim's own, each group by name."""
+    specs = list(registry.specs("format").values())
+    own = [s for s in specs if s.distribution.startswith(f"{DISTRIBUTION} ")]
+    readers = []
+    for spec in [s for s in specs if s not in own] + own:
+        with blame("format", spec, " opening"):
+            readers.append(registry.build("format", spec, spec.options_model()))
+    return readers
+
+
+def reader_for(registry: Registry, path: Path) -> PlantReader | None:
+    """The first installed reader that claims ``path``, or None."""
+    return next((r for r in plant_readers(registry) if r.claims(path)), None)
+
+
+def file_formats(registry: Registry) -> str:
+    """The installed readers' suffixes as messages name them: ``a .glb/.gltf/.obj mesh or
+    .ply/.pcd point cloud``."""
+    held: dict[str, list[str]] = {}
+    for reader in plant_readers(registry):
+        held.setdefault(reader.holds, []).extend(reader.suffixes)
+    return "a " + " or ".join(f"{'/'.join(suffixes)} {what}" for what, suffixes in held.items())
+
+
+def draws_points(registry: Registry, config: RunConfig) -> bool:
     """Is the run's plant drawn as points (a point-cloud file, or ``--as-points``)?"""
-    return config.points.count is not None or Path(config.plant).suffix.lower() in POINT_FORMATS
+    if config.points.count is not None:
+        return True
+    reader = None if config.plant in registry.specs("plant") else reader_for(registry, Path(config.plant))
+    return reader is not None and reader.holds == "point cloud"
 
 
 def _check_points(config: RunConfig) -> None:
@@ -36,7 +65,7 @@ def check_plant_name(registry: Registry, config: RunConfig) -> None:
     if name in registry.specs("plant"):
         return
     path = Path(name)
-    if path.suffix.lower() in FORMATS + POINT_FORMATS:
+    if reader_for(registry, path) is not None:
         root = config.plant_file.root
         if (root / path if root is not None and not path.is_absolute() else path).is_file():
             return
@@ -44,42 +73,16 @@ def check_plant_name(registry: Registry, config: RunConfig) -> None:
     resolve_plant(registry, config)  # raises the unknown-plant error with the species list
 
 
-def _label_names(config: RunConfig) -> dict[int | str, str] | None:
-    names = config.plant_file.label_names
-    if names is None:
-        return None
-    return {int(k) if k.strip().isdigit() else k: v for k, v in names.items()}
-
-
-def _read_file(config: RunConfig) -> Plant:
+def _read_file(registry: Registry, config: RunConfig, reader: PlantReader | None) -> Plant:
     name = config.plant
     table = config.plants.get(name) or {}
     if "age" in table:
         raise UserError(f"--plant-age: plant file {name} has no age; it applies to species that grow (helios:*)")
     if table:
         raise UserError(f"[plants.{name!r}]: a plant file takes no species options; [plant_file] reads it")
-    f = config.plant_file
-    if Path(name).suffix.lower() in POINT_FORMATS:
-        if f.label_texture is not None or f.material_labels is not None or f.alpha_cutoff is not None:
-            raise UserError(
-                f"{name}: a point cloud has no textures or materials; [plant_file] label_names names its labels"
-            )
-        return load_point_plant(Path(name), label_names=_label_names(config), up=f.up, scale=f.scale, root=f.root)
-    names = _label_names(config)
-    if names is not None and f.label_texture is None:
-        raise UserError(
-            f"{name}: [plant_file] label_names names a label texture's ids or a point cloud's labels; give label_texture too"
-        )
-    return load_plant(
-        Path(name),
-        label_texture=f.label_texture,
-        label_names=names,
-        material_labels=f.material_labels,
-        alpha_cutoff=f.alpha_cutoff,
-        up=f.up,
-        scale=f.scale,
-        root=f.root,
-    )
+    if reader is None:  # a file of a format no reader claims
+        raise UserError(f"{name}: not a plant file format agrisim reads (use {file_formats(registry)})")
+    return reader.read(Path(name), config.plant_file)
 
 
 def plant_seed(name: str, value: object) -> int:
@@ -105,14 +108,12 @@ def resolve_plant(registry: Registry, config: RunConfig) -> Plant:
         options = backend_options(spec.options_model, table, f"plant {name!r}")
         with blame("plant", spec, f" growing {name!r}"):
             plant: Plant = grown(name, options, seed, registry.build("plant", spec, options).build)
-    elif Path(name).suffix.lower() in FORMATS + POINT_FORMATS or Path(name).exists():
-        plant = _read_file(config)
+    elif (reader := reader_for(registry, Path(name))) is not None or Path(name).exists():
+        plant = _read_file(registry, config, reader)
     else:
         hint = registry.pm.hook.agrisim_plant_unavailable(name=name)  # e.g. a missing optional extra
         if hint:
             raise UserError(hint)
         available = ", ".join(species) or "none installed"
-        raise UserError(
-            f"unknown plant {name!r}; species: {available}; or a .glb/.gltf/.obj mesh or .ply/.pcd point cloud"
-        )
+        raise UserError(f"unknown plant {name!r}; species: {available}; or {file_formats(registry)}")
     return as_points(plant, config.points.count, config.points.size, seed=config.seed)

@@ -38,6 +38,7 @@ from agrisim.scene.transforms import look_at
 __all__ = [
     "check",
     "check_exporter",
+    "check_format",
     "check_imager",
     "check_physics",
     "check_planner",
@@ -288,6 +289,38 @@ def check_room(registry: Registry, spec: BackendSpec, options: Any) -> None:
         ), "the same seed gave another scene"
 
 
+def check_format(registry: Registry, spec: BackendSpec, options: Any) -> None:
+    """Claims files by their path alone, and refuses a file it claims but cannot read.
+
+    * its suffixes are lower case with their dot, and it holds a ``mesh`` or a ``point cloud``;
+    * it claims a path with each of its suffixes (in any case) that does not exist yet, and no
+      path without a suffix;
+    * asked to read a claimed path that does not exist, or that holds garbage, it raises a
+      :class:`agrisim.errors.UserError` naming the file, in one line.
+    """
+    from agrisim.config import PlantFileConfig
+
+    reader = registry.build("format", spec, options)
+    assert reader.suffixes and all(x.startswith(".") and x == x.lower() for x in reader.suffixes), (
+        f"suffixes must be lower case with their dot, got {reader.suffixes!r}"
+    )
+    assert reader.holds in ("mesh", "point cloud"), f"holds must be 'mesh' or 'point cloud', got {reader.holds!r}"
+    with tempfile.TemporaryDirectory() as tmp:
+        for suffix in reader.suffixes:
+            for name in (f"plant{suffix}", f"PLANT{suffix.upper()}"):
+                assert reader.claims(Path(tmp) / name), f"it does not claim {name}"
+        assert not reader.claims(Path(tmp) / "plant"), "it claims a path without a suffix"
+        missing, garbage = Path(tmp) / f"missing{reader.suffixes[0]}", Path(tmp) / f"garbage{reader.suffixes[0]}"
+        garbage.write_bytes(bytes(range(256)) * 4)
+        for path in (missing, garbage):
+            try:
+                reader.read(path, PlantFileConfig())
+            except UserError as exc:
+                assert path.name in str(exc) and "\n" not in str(exc).strip(), f"its refusal of {path.name}: {exc!r}"
+            else:
+                raise AssertionError(f"it read {path.name}, which holds no plant")
+
+
 def check_poses(registry: Registry, spec: BackendSpec, options: Any) -> None:
     """Asked for the poses of a run it has estimated none for (a run directory of a run that
     saved no view), it refuses with a :class:`agrisim.errors.UserError` of one line and writes
@@ -502,5 +535,6 @@ CHECKS: dict[str, Callable[[Registry, BackendSpec, Any], None]] = {
     "room": check_room,
     "poses": check_poses,
     "exporter": check_exporter,
+    "format": check_format,
 }
 assert set(CHECKS) <= set(KINDS)

@@ -21,7 +21,7 @@ def _traits_arguments(traits: argparse.ArgumentParser) -> None:
     traits.add_argument(
         "target",
         metavar="PLANT|RUN",
-        help="a species (agrisim plants), a plant file (glTF/GLB/OBJ whose leaves are instances), or a run's directory",
+        help="a species (agrisim plants), a plant file (its leaves: its instances, else its connected pieces), or a run's directory",
     )
     traits.add_argument(
         "--seed", type=int, default=None, metavar="N", help="seed to grow a species with (0; a run's own for a run)"

@@ -273,7 +273,7 @@ def _check_cell(registry: Any, config: RunConfig) -> None:
             registry.specs("renderer"),
             [config.render.seg_mode],
             config.render.labels,
-            points=draws_points(config),
+            points=draws_points(registry, config),
             lens=not camera.pinhole,
         )
 

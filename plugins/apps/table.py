@@ -108,7 +108,7 @@ def plant_key(plant: str) -> str:
 
 def is_file_plant(plant: str) -> bool:
     """Does ``plant`` name an asset file (by its extension) rather than a species?"""
-    from agrisim.files.plant_asset import FORMATS
+    from agrisim.plugins.formats.plant_asset import FORMATS
 
     return Path(plant).suffix.lower() in FORMATS
 

@@ -120,6 +120,23 @@ def test_a_pose_source_that_answers_for_a_run_it_never_saw_breaks_its_contract()
         _broken("poses", "colmap", wrap)
 
 
+def test_a_format_that_swallows_a_bad_file_breaks_its_contract() -> None:
+    def wrap(reader):
+        read = reader.read
+
+        def lenient(path, settings, **kw):
+            try:
+                return read(path, settings, **kw)
+            except Exception:  # noqa: BLE001 - the breakage under test
+                return None  # as if an unreadable file were an empty plant
+
+        reader.read = lenient
+        return reader
+
+    with pytest.raises(AssertionError, match="holds no plant"):
+        _broken("format", "gltf", wrap)
+
+
 def test_a_planner_that_ignores_collisions_breaks_its_contract() -> None:
     def wrap(planner):
         planner.plan = lambda start, goal, *rest: np.array([start, goal])

@@ -9,7 +9,7 @@ from PIL import Image
 
 from agrisim.config import build_config
 from agrisim.episode import Episode
-from agrisim.files.plant_asset import load_plant
+from agrisim.plugins.formats.plant_asset import load_plant
 
 
 def test_files_match_the_rendered_frames(tmp_path, frames):

@@ -18,8 +18,8 @@ from PIL import Image
 
 from agrisim.config import build_config
 from agrisim.episode import Episode
-from agrisim.files.plant_asset import load_plant
 from agrisim.plugins.exporters.nerfstudio import ExportError, opencv_to_opengl, write_nerfstudio
+from agrisim.plugins.formats.plant_asset import load_plant
 from agrisim.scene.model import Mesh
 from agrisim.scene.texturing import interpolate_uv, opaque, opaque_samples, sample_surface
 

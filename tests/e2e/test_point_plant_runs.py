@@ -13,8 +13,8 @@ from scipy.spatial import cKDTree
 
 from agrisim.evaluation.views import load_view
 from agrisim.files import layout
-from agrisim.files.point_cloud import load_point_plant
 from agrisim.files.rundir import camera_from_json
+from agrisim.plugins.formats.point_cloud import load_point_plant
 
 
 @pytest.fixture(scope="module")

@@ -18,9 +18,9 @@ from test_cli_errors import assert_one_line_error, snapshot
 
 from agrisim.errors import UserError
 from agrisim.files import layout
-from agrisim.files.plant_asset import load_plant
 from agrisim.files.rundir import read_json
 from agrisim.plugins.apps.traits.estimate import fuse_views, plant_T_world
+from agrisim.plugins.formats.plant_asset import load_plant
 
 
 @pytest.fixture(scope="module")

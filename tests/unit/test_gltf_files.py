@@ -14,8 +14,8 @@ import pytest
 from test_plant_files import edit_glb, expect_error, own_card_glb
 
 from agrisim.files.glb import export_glb
-from agrisim.files.plant_asset import load_plant
 from agrisim.files.scene_glb import scene_glb_bytes
+from agrisim.plugins.formats.plant_asset import load_plant
 from agrisim.scene.model import LabelTable, Light, Material, Mesh, Scene
 from agrisim.scene.texturing import interpolate_uv, opaque, sample_surface
 

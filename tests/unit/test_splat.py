@@ -207,7 +207,7 @@ def test_plant_init_draws_its_share_of_the_initial_gaussians_on_the_plant(runs: 
     from agrisim.evaluation.views import load_view
     from agrisim.files import layout
     from agrisim.files.rundir import camera_from_json
-    from agrisim.files.scene_glb import read_scene
+    from agrisim.plugins.formats.scene_glb import read_scene
     from agrisim.plugins.recon.splat.options import SplatOptions
     from agrisim.plugins.recon.splat.reconstructor import SplatReconstructor
 

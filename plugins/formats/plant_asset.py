@@ -76,7 +76,7 @@ from typing import Literal
 import numpy as np
 from PIL import Image
 
-from agrisim.files.asset_reading import (
+from agrisim.plugins.formats.asset_reading import (
     AssetError,
     RawMesh,
     check_scale,
@@ -89,8 +89,8 @@ from agrisim.files.asset_reading import (
     unit_hint,
     y_up_to_z_up,
 )
-from agrisim.files.gltf import read_gltf
-from agrisim.files.obj import read_obj
+from agrisim.plugins.formats.gltf import read_gltf
+from agrisim.plugins.formats.obj import read_obj
 from agrisim.scene.model import Label, LabelTable, Material, Mesh, Plant
 from agrisim.scene.palette import BACKGROUND, PALETTE, PAPER
 
@@ -198,12 +198,42 @@ def load_plant(
         v = v - plant_frame_offset(lo, hi)
 
     plant_name = name or Path(path).stem
+    instances = raw.face_instance
+    if instances is None and raw.labels is None:  # a plain file, not agrisim's own
+        instances = leaf_pieces(v, raw.faces, materials, raw.face_material)
     try:
-        mesh = Mesh(plant_name, v, raw.faces, materials, raw.face_material, raw.uvs, raw.face_instance, raw.colors)
+        mesh = Mesh(plant_name, v, raw.faces, materials, raw.face_material, raw.uvs, instances, raw.colors)
     except ValueError as e:  # anything the checks above missed
         raise AssetError(f"{shown}: {e}") from None
     organs = sum(1 for lab in table.labels if lab.id != 0) > 1
     return Plant(plant_name, mesh, table, organs=organs)
+
+
+def leaf_pieces(
+    vertices: np.ndarray, faces: np.ndarray, materials: list[Material], face_material: np.ndarray
+) -> np.ndarray | None:
+    """Leaf instances of a plain mesh file (no agrisim extras): each connected piece of surface
+    is one, 1, 2, ... in the order of its first triangle; triangles of background materials (a
+    pot, soil: label 0 throughout) are none (0). Pieces are joined across vertices that sit at the
+    same position, as files split them at texture seams. None where there is no piece."""
+    import trimesh
+
+    if not len(faces):
+        return None
+    mesh = trimesh.Trimesh(vertices, faces, process=False)
+    mesh.merge_vertices(merge_tex=True, merge_norm=True)  # seams: one vertex per position
+    piece = trimesh.graph.connected_component_labels(mesh.face_adjacency, node_count=len(faces))
+    background = np.array([m.label == 0 and (m.labels is None or not np.any(m.labels)) for m in materials])
+    kept = ~background[face_material] if len(materials) else np.ones(len(faces), bool)
+    if not kept.any():
+        return None
+    # numbered in the order of each piece's first kept triangle
+    order = {int(p): i + 1 for i, p in enumerate(dict.fromkeys(piece[kept].tolist()))}
+    if len(order) > 65535:
+        return None  # more pieces than instance ids: a scan's triangle soup, not leaves
+    instances = np.array([order.get(int(p), 0) for p in piece], np.uint16)
+    instances[~kept] = 0
+    return instances
 
 
 # --------------------------------------------------------------------------------------------

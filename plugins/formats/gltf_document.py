@@ -20,7 +20,7 @@ import numpy as np
 from PIL import Image
 from pygltflib import GLTF2, Attributes  # type: ignore[import-untyped]  # (pygltflib ships no type hints)
 
-from agrisim.files.asset_reading import AssetError, decode_image, locate, read_bytes_of
+from agrisim.plugins.formats.asset_reading import AssetError, decode_image, locate, read_bytes_of
 
 _COMPONENT = {5120: "<i1", 5121: "<u1", 5122: "<i2", 5123: "<u2", 5125: "<u4", 5126: "<f4"}
 _NCOMP = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4, "MAT2": 4, "MAT3": 9, "MAT4": 16}

@@ -1,9 +1,9 @@
 """The glTF 2.0 reader (``.gltf`` with external or embedded buffers, and ``.glb``): the scene's
 nodes and triangle primitives, with their transforms, materials and agrisim's own ``extras``,
-into one :class:`RawMesh`. :mod:`agrisim.files.plant_asset` documents what is honoured.
+into one :class:`RawMesh`. :mod:`agrisim.plugins.formats.plant_asset` documents what is honoured.
 
-The document comes from :mod:`agrisim.files.gltf_document` (pygltflib), the materials from
-:mod:`agrisim.files.gltf_materials`. The walk over the nodes is agrisim's: it keeps every
+The document comes from :mod:`agrisim.plugins.formats.gltf_document` (pygltflib), the materials from
+:mod:`agrisim.plugins.formats.gltf_materials`. The walk over the nodes is agrisim's: it keeps every
 primitive's vertices and triangles in file order (one vertex array per shared accessor, as
 agrisim's writer shares one among a mesh's primitives), bit for bit, reads triangle fans and
 refuses node cycles, where trimesh's reader gives each primitive its own copy of a shared vertex
@@ -20,9 +20,9 @@ from typing import Any
 import numpy as np
 
 from agrisim.errors import UserError
-from agrisim.files.asset_reading import RawMesh
-from agrisim.files.gltf_document import GltfDocument, get
-from agrisim.files.gltf_materials import ReadMaterial, default_material, read_material
+from agrisim.plugins.formats.asset_reading import RawMesh
+from agrisim.plugins.formats.gltf_document import GltfDocument, get
+from agrisim.plugins.formats.gltf_materials import ReadMaterial, default_material, read_material
 from agrisim.scene.model import LabelTable, Material
 
 __all__ = ["read_gltf"]

@@ -16,8 +16,8 @@ from typing import Any
 
 import numpy as np
 
-from agrisim.files.asset_reading import label_ids_plain, rgba_array
-from agrisim.files.gltf_document import GltfDocument, get
+from agrisim.plugins.formats.asset_reading import label_ids_plain, rgba_array
+from agrisim.plugins.formats.gltf_document import GltfDocument, get
 from agrisim.scene.colour import linear_to_srgb, srgb_to_linear
 from agrisim.scene.model import Material
 

@@ -1,5 +1,5 @@
 """The Wavefront OBJ + MTL reader: positions, UVs, faces and materials with their textures and
-opacity maps, into a :class:`RawMesh`. :mod:`agrisim.files.plant_asset` documents what is honoured.
+opacity maps, into a :class:`RawMesh`. :mod:`agrisim.plugins.formats.plant_asset` documents what is honoured.
 
 By hand, not trimesh's OBJ loader (``bench/gltf_equality.py --why-not-trimesh`` shows the
 first, the indices and the split): it takes a ``map_Kd``'s options as part of the file name and
@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 from PIL import Image
 
-from agrisim.files.asset_reading import AssetError, RawMesh, decode_image, locate, read_bytes_of, rgba_array
+from agrisim.plugins.formats.asset_reading import AssetError, RawMesh, decode_image, locate, read_bytes_of, rgba_array
 from agrisim.scene.model import Material
 
 # --------------------------------------------------------------------------------------------
