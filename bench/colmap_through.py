@@ -78,11 +78,11 @@ def draw_one(
     denoiser's guides go to ``out/noisy/<frame>.npz`` for ``develop`` instead."""
     from saved_run import drawn_views
 
-    from agrisim.app.arguments import apply_sets
     from agrisim.files import layout
     from agrisim.files.atomic import write_json
     from agrisim.files.dataset import write_frame
     from agrisim.files.rundir import camera_to_json
+    from agrisim.plugins.apps.flags import apply_sets
 
     overrides: dict = {}
     apply_sets(overrides, sets)

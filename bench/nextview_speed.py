@@ -66,7 +66,7 @@ def end_episode(env: Any) -> float | str:
 
 
 def main() -> None:
-    from agrisim.app.arguments import apply_sets
+    from agrisim.plugins.apps.flags import apply_sets
     from agrisim.plugins.apps.nextview.env import PlantViewEnv
 
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])

@@ -8,7 +8,7 @@
   its hook, setting, contract and factory, and the backends this installation registers.
 
 mkdocstrings reads the package from ``scripts/docs-src/agrisim``, laid out here as it is installed
-(``core/`` with ``plugins/`` inside it as ``agrisim.plugins``): links, rebuilt at every build.
+(``core/`` with ``plugins/`` and ``testing/`` inside it as ``agrisim.plugins`` and ``agrisim.testing``): links, rebuilt at every build.
 """
 
 from __future__ import annotations
@@ -51,8 +51,9 @@ def source_tree() -> None:
     tree.mkdir(parents=True, exist_ok=True)
     entries = {p.name: p for p in (REPO / "core").iterdir() if p.name != "__pycache__"}
     entries["plugins"] = REPO / "plugins"
-    for old in tree.iterdir():
-        if old.name not in entries:
+    entries["testing"] = REPO / "testing"
+    for old in tree.iterdir():  # (a link left by an older layout, e.g. a folder that moved)
+        if old.name not in entries or old.readlink() != entries[old.name]:
             old.unlink()
     for name, target in entries.items():
         link = tree / name

@@ -1,6 +1,6 @@
 """The ``agrisim`` command line's grammar: the top-level parser and a subparser for each
-installed command (:class:`agrisim.commands.Command`, from the ``agrisim_commands`` hook).
-The flags several commands share, and the config they make, are :mod:`agrisim.app.flags`'.
+installed command (:class:`agrisim.commands.Command`, from the ``agrisim_commands`` hook), and
+the one-line failure every command exits with.
 
 Bad flags exit with status 2 and one line (no usage dump).
 """
@@ -8,33 +8,29 @@ Bad flags exit with status 2 and one line (no usage dump).
 from __future__ import annotations
 
 import argparse
+import sys
 from collections.abc import Iterable
-from typing import Any
+from typing import Any, NoReturn
 
-from agrisim.app.flags import (
-    COMPARE_EPISODE_FLAGS,
-    PROG,
-    Parser,
-    apply_sets,
-    fail,
-    overrides_from_args,
-    parse_value,
-    set_dotted,
-)
 from agrisim.commands import Command
 from agrisim.errors import UserError
 
-__all__ = [
-    "COMPARE_EPISODE_FLAGS",
-    "PROG",
-    "apply_sets",
-    "build_parser",
-    "fail",
-    "installed_commands",
-    "overrides_from_args",
-    "parse_value",
-    "set_dotted",
-]
+__all__ = ["PROG", "Parser", "build_parser", "fail", "installed_commands"]
+
+PROG = "agrisim"
+
+
+class Parser(argparse.ArgumentParser):
+    """argparse with one-line errors (no usage dump), exit status 2."""
+
+    def error(self, message: str) -> NoReturn:
+        fail(message)
+
+
+def fail(message: str, status: int = 2) -> NoReturn:
+    """Exit with ``status`` after one line on stderr: ``agrisim: error: <message>``."""
+    sys.stderr.write(f"{PROG}: error: {message}\n")
+    raise SystemExit(status)
 
 
 def installed_commands() -> dict[str, Command]:

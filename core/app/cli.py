@@ -12,8 +12,7 @@ import sys
 import traceback
 from collections.abc import Sequence
 
-from agrisim.app.arguments import build_parser, installed_commands
-from agrisim.app.flags import PROG, fail
+from agrisim.app.arguments import PROG, build_parser, fail, installed_commands
 from agrisim.errors import BackendFailure, UserError
 
 

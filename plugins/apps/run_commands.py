@@ -9,19 +9,19 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from agrisim.app.flags import (
+from agrisim.app.arguments import fail
+from agrisim.commands import Command
+from agrisim.config import RunConfig, build_config, first_difference, load_toml, outcome_settings
+from agrisim.errors import UserError
+from agrisim.files import layout
+from agrisim.plugins.apps.flags import (
     apply_sets,
     episode_flags,
-    fail,
     overrides_from_args,
     parse_value,
     set_dotted,
     set_flag,
 )
-from agrisim.commands import Command
-from agrisim.config import RunConfig, build_config, first_difference, load_toml, outcome_settings
-from agrisim.errors import UserError
-from agrisim.files import layout
 from agrisim.plugins.apps.web import web_address, web_flags
 
 

@@ -9,19 +9,17 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from agrisim.app.flags import (
-    COMPARE_EPISODE_FLAGS,
-    PROG,
-    Parser,
-    apply_sets,
-    fail,
-    overrides_from_args,
-    set_flag,
-)
+from agrisim.app.arguments import PROG, Parser, fail
 from agrisim.commands import Command
 from agrisim.config import load_toml
 from agrisim.errors import UserError
 from agrisim.plugins.apps import run_commands
+from agrisim.plugins.apps.flags import (
+    COMPARE_EPISODE_FLAGS,
+    apply_sets,
+    overrides_from_args,
+    set_flag,
+)
 
 
 def _nextview_arguments(nextview: argparse.ArgumentParser) -> None:

@@ -30,11 +30,11 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from agrisim.app.flags import apply_sets, set_dotted
 from agrisim.config import RunConfig, backend_options, build_config, load_toml
 from agrisim.errors import ConfigError, OutputError, UserError
 from agrisim.files import layout
 from agrisim.plugins.apps.compare_plan import check_backends, check_same_settings, run_dir_state
+from agrisim.plugins.apps.flags import apply_sets, set_dotted
 
 #: the follow-ups a spec's ``[sweep] after`` may name: what ``agrisim colmap``, ``agrisim export
 #: coco`` and ``agrisim export nerfstudio`` do (the last two through their installed exporters),

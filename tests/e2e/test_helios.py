@@ -15,10 +15,11 @@ import numpy as np
 import pytest
 from conftest import isolated_env
 
-from agrisim.app.arguments import build_parser, overrides_from_args
+from agrisim.app.arguments import build_parser
 from agrisim.config import RenderConfig, RunConfig, build_config
 from agrisim.episode import Episode
 from agrisim.errors import UserError
+from agrisim.plugins.apps.flags import overrides_from_args
 from agrisim.plugins.plants import helios as H
 from agrisim.plugins.plants.helios import convert as hc
 from agrisim.registry import Registry, make_plugin_manager

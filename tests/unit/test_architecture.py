@@ -11,7 +11,7 @@ from pathlib import Path
 import pytest
 
 REPO = Path(__file__).resolve().parents[2]
-PACKAGES = {"agrisim": REPO / "core", "agrisim.plugins": REPO / "plugins"}
+PACKAGES = {"agrisim": REPO / "core", "agrisim.testing": REPO / "testing", "agrisim.plugins": REPO / "plugins"}
 HEAVY = ("open3d", "pybullet", "pinocchio", "coal", "ompl", "rerun", "ray")
 
 
@@ -184,7 +184,8 @@ FORMAT_LIBRARIES = ("rosbags", "pycocotools")
 
 
 def core_modules() -> list[str]:
-    """Every module of the core (agrisim, not agrisim.plugins), but ``agrisim.__main__``."""
+    """Every module of the core and its test harness (agrisim, agrisim.testing; not
+    agrisim.plugins), but ``agrisim.__main__``."""
     return sorted(name for name in modules() if not name.startswith("agrisim.plugins") and name != "agrisim.__main__")
 
 

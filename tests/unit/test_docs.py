@@ -137,12 +137,12 @@ def test_one_version_everywhere() -> None:
 
 
 def test_every_package_goes_into_the_wheel() -> None:
-    """pyproject.toml lists every folder of core/ and plugins/ that is a package (a package
+    """pyproject.toml lists every folder of core/, testing/ and plugins/ that is a package (a package
     left out installs fine in editable mode and is missing from the wheel)."""
     project = tomllib.loads((REPO / "pyproject.toml").read_text())
     listed = set(project["tool"]["setuptools"]["packages"])
     found = set()
-    for folder, name in (("core", "agrisim"), ("plugins", "agrisim.plugins")):
+    for folder, name in (("core", "agrisim"), ("testing", "agrisim.testing"), ("plugins", "agrisim.plugins")):
         for init in (REPO / folder).rglob("__init__.py"):
             parts = init.parent.relative_to(REPO / folder).parts
             found.add(".".join((name, *parts)))

@@ -195,9 +195,9 @@ def test_broken_set_flags_are_refused(key: str, text: str, sandbox: Path, cli) -
     or the KEY itself is misspelt."""
     out = str(sandbox / f"out-{uuid.uuid4().hex}")
     base = ["run", "--renderer", "none", "--physics", "kinematic", "--setpoints", "1x1", "--out", out]
-    from agrisim.app.arguments import parse_value
     from agrisim.config import build_config
     from agrisim.errors import UserError
+    from agrisim.plugins.apps.flags import parse_value
 
     tree: dict[str, Any] = {}
     _set(tree, key, parse_value(text))

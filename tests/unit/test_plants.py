@@ -110,9 +110,10 @@ def test_the_plant_seed_grows_another_individual_and_the_same_seed_the_same_byte
     from agrisim.scene.plant_cache import PLANT_CACHE_ENV
 
     monkeypatch.delenv(PLANT_CACHE_ENV, raising=False)
-    from agrisim.app.arguments import build_parser, overrides_from_args
+    from agrisim.app.arguments import build_parser
     from agrisim.config import build_config
     from agrisim.files.glb import export_glb
+    from agrisim.plugins.apps.flags import overrides_from_args
     from agrisim.scene.plant_choice import resolve_plant
 
     registry = Registry(make_plugin_manager())

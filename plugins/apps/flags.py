@@ -1,8 +1,5 @@
-"""The flags several ``agrisim`` commands share (the episode's, ``--set``),
-the nested config dictionary they make, and the one-line failure every command exits with.
-
-Bad flags exit with status 2 and one line (no usage dump).
-"""
+"""The flags several of agrisim's commands share (the episode's, ``--set``) and the nested
+config dictionary they make."""
 
 from __future__ import annotations
 
@@ -11,7 +8,7 @@ import re
 import sys
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Any, NoReturn
+from typing import Any
 
 from agrisim.errors import UserError
 
@@ -19,22 +16,6 @@ if sys.version_info >= (3, 11):
     import tomllib
 else:  # pragma: no cover
     import tomli as tomllib
-
-PROG = "agrisim"
-
-
-class Parser(argparse.ArgumentParser):
-    """argparse with one-line errors (no usage dump), exit status 2."""
-
-    def error(self, message: str) -> NoReturn:
-        fail(message)
-
-
-def fail(message: str, status: int = 2) -> NoReturn:
-    """Exit with ``status`` after one line on stderr: ``agrisim: error: <message>``."""
-    sys.stderr.write(f"{PROG}: error: {message}\n")
-    raise SystemExit(status)
-
 
 #: the episode options `compare` passes on (as `agrisim run` has them)
 COMPARE_EPISODE_FLAGS: list[tuple[str, str, Any, str]] = [
