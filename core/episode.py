@@ -19,13 +19,11 @@ from typing import Any
 
 import numpy as np
 import pluggy
-from pydantic import BaseModel
 
-from agrisim.capabilities import check_reconstructor, check_renderer, check_sensor
-from agrisim.config import BackendChoice, ImagerConfig, RunConfig, backend_options, depth_read
+from agrisim.config import ImagerConfig, RunConfig, depth_read
 from agrisim.errors import ConfigError
 from agrisim.evaluation.metrics import GroundTruth
-from agrisim.evaluation.session import ReconSession, pose_source, summary_metrics
+from agrisim.evaluation.session import ReconSession, summary_metrics
 from agrisim.evaluation.views import View, load_frame, view_from_capture, view_of
 from agrisim.files.atomic import remove_partial
 from agrisim.files.dataset import DatasetWriter
@@ -45,18 +43,17 @@ from agrisim.interfaces import (
     Trajectory,
     view_key,
 )
-from agrisim.kinds import KINDS
 from agrisim.records import Run, RunSummary, SetpointResult
-from agrisim.registry import BackendSpec, Registry, blame, loads_everything, make_plugin_manager
+from agrisim.registry import Registry, blame, make_plugin_manager
 from agrisim.robot.kinematics import ArmKinematics
 from agrisim.robot.segments import segment_is_valid
 from agrisim.robot.setpoints import Setpoint, routine
 from agrisim.robot.trajectory import Limits, TimedPath, time_parametrize
-from agrisim.scene.camera_choice import camera_of
 from agrisim.scene.cell import build_cell
 from agrisim.scene.model import Scene
-from agrisim.scene.plant_choice import check_plant_name, draws_points, resolve_plant
+from agrisim.scene.plant_choice import resolve_plant
 from agrisim.scene.transforms import pose_error
+from agrisim.validation import check_run, imager_spec
 
 #: rate at which planned trajectories are sampled for physics and sinks, Hz
 TRAJECTORY_RATE = 240.0
@@ -70,10 +67,13 @@ class Episode:
         self.pm = pm if pm is not None else make_plugin_manager()
         self.registry = Registry(self.pm)
         self._prep_wall: dict[str, float] = {}
-        self.physics_spec, self.physics_options = self._backend("physics", config.physics)
-        self.planner_spec, self.planner_options = self._backend("planner", config.planner)
-        self.out_dir = resolve_out_dir(config)  # before the slow parts: fail fast
-        self.sink_options = self._sink_options()
+        checked = check_run(self.registry, config)
+        self.physics_spec, self.physics_options = checked.physics
+        self.planner_spec, self.planner_options = checked.planner
+        self.sink_options = checked.sinks
+        self.camera = checked.camera
+        self.imager_spec = checked.imager
+        self.out_dir = resolve_out_dir(config)
         # --resume replays the episode deterministically (the robot side is cheap) and renders
         # only the frames that are not complete on disk yet.
         self.done_frames: set[str] = set()
@@ -83,7 +83,6 @@ class Episode:
             self.saved_frames = saved_frames(self.out_dir)
         self.cell = build_cell(config.cell)
         self.setpoints = routine(self.cell, config.routine)
-        self.camera = camera_of(config.camera)
         self.kinematics = {arm.name: ArmKinematics(arm) for arm in self.cell.arms}
         m = config.motion
         self.limits = {
@@ -94,59 +93,25 @@ class Episode:
             )
             for name, k in self.kinematics.items()
         }
-        # Rendering needs a plant and the lab around it; a robot-only run (renderer "none")
-        # builds neither, but a plant it names must still exist.
-        self.renderer_spec = None
-        self.sensor_spec = None
-        self.recon_spec = None
+        # Rendering needs a plant and the room around it; a robot-only run (renderer "none")
+        # builds neither (check_run has looked the plant up).
+        self.renderer_spec = self.sensor_spec = self.recon_spec = None
         self.scene: Scene | None = None
-        if config.recon.poses != "truth":  # a pose source estimates from the finished views
-            pose_source(self.registry, config.recon.poses)
-            raise ConfigError(
-                f"recon.poses = {config.recon.poses!r} needs the finished run: agrisim colmap RUN, then "
-                f"agrisim recon RUN --set recon.poses={config.recon.poses}; a run reconstructs on the true poses"
-            )
         self.imagers: dict[str, Imager] = {}
-        self.imager_spec = imager_spec(self.registry, config.imager)
-        if config.renderer.backend == "none":
-            if config.imager.model != "none":
-                raise ConfigError(f"imager {config.imager.model!r} needs a renderer (renderer is 'none')")
-            check_plant_name(self.registry, config)
-            # nothing renders, but a typo or a bad value in an option table is still refused
-            config.renderer.check_tables("renderer", self.registry.specs("renderer"))
-            config.sensor.check_tables("sensor", self.registry.specs("sensor"))
-            config.recon.check_tables("recon", self.registry.specs("reconstructor"))
-            config.room.check_tables("room", self.registry.specs("room"))
-        else:
-            self.renderer_spec, self.renderer_options = self._backend("renderer", config.renderer)
-            check_renderer(
-                self.renderer_spec,
-                self.registry.specs("renderer"),
-                [config.render.seg_mode],
-                config.render.labels,
-                points=draws_points(self.registry, config),
-                lens=not self.camera.pinhole,
-                radiance=config.imager.model != "none",
-            )
-            self._open_imagers()
-            self.sensor_spec, self.sensor_options = self._backend("sensor", config.sensor)
-            check_sensor(self.sensor_spec, self.registry.specs("sensor"), points=draws_points(self.registry, config))
-            with _timed(self._prep_wall, "plant"):
-                self.plant = resolve_plant(self.registry, config)
-            room_spec, room_options = self._backend("room", config.room)
-            with _timed(self._prep_wall, "scene"), blame("room", room_spec, " building the scene"):
-                room = self.registry.build("room", room_spec, self.cell, room_options)
-                self.scene = room.scene(self.plant, seed=config.pcg_seed, labels=config.render.labels)
-            # Reconstruction fuses rendered views; without a renderer there is nothing to fuse.
-            if config.recon.backend != "none":
-                check_reconstructor(
-                    self.registry.get("reconstructor", config.recon.backend),
-                    config.render.hide_robots,
-                    lens=not self.camera.pinhole,
-                )
-                self.recon_spec, self.recon_options = self._backend("reconstructor", config.recon)
-            else:
-                config.recon.check_tables("recon", self.registry.specs("reconstructor"))
+        if checked.renderer is None:
+            return
+        self.renderer_spec, self.renderer_options = checked.renderer
+        self._open_imagers()
+        assert checked.sensor is not None and checked.room is not None
+        self.sensor_spec, self.sensor_options = checked.sensor
+        with _timed(self._prep_wall, "plant"):
+            self.plant = resolve_plant(self.registry, config)
+        room_spec, room_options = checked.room
+        with _timed(self._prep_wall, "scene"), blame("room", room_spec, " building the scene"):
+            room = self.registry.build("room", room_spec, self.cell, room_options)
+            self.scene = room.scene(self.plant, seed=config.pcg_seed, labels=config.render.labels)
+        if checked.recon is not None:
+            self.recon_spec, self.recon_options = checked.recon
 
     def _open_imagers(self) -> None:
         """One imager per arm's camera (each has its own auto-exposure), fed the renderer's
@@ -168,35 +133,6 @@ class Episode:
                 shot = self.saved_frames.get(sp.frame, {}).get("exposure")
                 if sp.frame in self.done_frames and shot is not None:
                     self.imagers[sp.robot].resume_from(Exposure.from_json(shot))
-
-    def _sink_options(self) -> dict[str, BaseModel]:
-        """Every installed sink's options from ``[sink.NAME]``, validated and pre-flighted: a
-        table for a sink that is not installed is refused, as a typo would otherwise be lost
-        (unless plugins were selected, ``AGRISIM_LOAD_PLUGINS``: a sink left out ignores its
-        settings, ``--no-rrd`` among them)."""
-        specs = self.registry.specs("sink")
-        for name in self.config.sink:
-            if name not in specs and loads_everything(self.pm):
-                raise ConfigError(f"[sink.{name}]: no such sink; installed: {', '.join(specs) or 'none'}")
-        options = {}
-        for name, spec in specs.items():
-            options[name] = backend_options(spec.options_model, self.config.sink.get(name, {}), f"sink {name!r}")
-            if spec.preflight is not None:
-                with blame("sink", spec, " checking its settings"):
-                    spec.preflight(self.config, options[name])
-        return options
-
-    def _backend(self, kind: str, choice: BackendChoice) -> tuple[BackendSpec, BaseModel]:
-        """The chosen backend of ``kind`` and its options, validated by its own model."""
-        spec = self.registry.get(kind, choice.backend)
-        section = KINDS[kind].section
-        assert section is not None  # only a kind that a setting chooses has a BackendChoice
-        choice.check_tables(section, self.registry.specs(kind))
-        options = backend_options(spec.options_model, choice.options_for(spec.name), f"{kind} backend {spec.name!r}")
-        if spec.preflight is not None:  # e.g. a GPU it needs, a file it reads
-            with blame(kind, spec, " checking its settings"):
-                spec.preflight(self.config, options)
-        return spec, options
 
     # ------------------------------------------------------------------ running
     def run(self, progress: Callable[[int, int], None] | None = None) -> tuple[Run, RunSummary]:
@@ -683,20 +619,6 @@ class Episode:
         }
 
 
-def imager_spec(registry: Registry, settings: ImagerConfig) -> BackendSpec | None:
-    """The imager backend ``[imager] model`` names (None for ``none``); an unknown name is
-    refused as an invalid setting, listing the installed imagers."""
-    if settings.model == "none":
-        return None
-    specs = registry.specs("imager")
-    if settings.model not in specs:
-        imagers = ", ".join(["none", *specs])
-        raise ConfigError(
-            f"invalid setting 'imager.model': unknown imager {settings.model!r}; imagers: {imagers} (got {settings.model!r})"
-        )
-    return specs[settings.model]
-
-
 def open_imager(registry: Registry, settings: ImagerConfig, seed: int) -> Imager | None:
     """The imager of a run's ``[imager]`` settings and seed (None for ``none``): what each arm's
     camera shoots through."""
@@ -722,4 +644,4 @@ def run_episode(config: RunConfig, *, pm: pluggy.PluginManager | None = None) ->
     return Episode(config, pm).run()
 
 
-__all__ = ["TRAJECTORY_RATE", "Episode", "imager_spec", "open_imager", "run_episode"]
+__all__ = ["TRAJECTORY_RATE", "Episode", "open_imager", "run_episode"]

@@ -16,7 +16,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from agrisim.capabilities import check_reconstructor
-from agrisim.errors import ConfigError, OutputError, UserError
+from agrisim.errors import OutputError, UserError
 from agrisim.evaluation.metrics import GroundTruth, ViewStats, evaluate
 from agrisim.evaluation.views import View, load_view
 from agrisim.files import layout
@@ -26,7 +26,6 @@ from agrisim.interfaces import ALL, Cloud, Reconstruction, Reconstructor, Surfac
 from agrisim.scene.model import LabelTable
 
 if TYPE_CHECKING:
-    from agrisim.kinds import BackendSpec
     from agrisim.registry import Registry
 
 CloudCallback = Callable[[str, Cloud, bool], None]
@@ -251,17 +250,6 @@ def rebuild(
     return session
 
 
-def pose_source(registry: Registry, name: str) -> BackendSpec:
-    """The pose source ``recon.poses`` names; an unknown name is refused, listing them."""
-    sources = registry.specs("poses")
-    if name not in sources:
-        known = ", ".join(["truth", *sources])
-        raise ConfigError(
-            f"invalid setting 'recon.poses': unknown pose source {name!r}; pose sources: {known} (got {name!r})"
-        )
-    return sources[name]
-
-
 def check_writable(out_dir: Path, labels: LabelTable, overwrite: bool, folder: str | None = None) -> None:
     """Refuse, before any work, to replace a reconstruction's outputs (and the reconstructor's
     own ``folder``) unless ``overwrite``."""
@@ -296,6 +284,7 @@ def reconstruct_saved_run(
     """
     from agrisim.config import backend_options, build_config, depth_read
     from agrisim.registry import Registry, blame, make_plugin_manager
+    from agrisim.validation import pose_source
 
     unknown = set(overrides) - {"recon", "metrics"}
     if unknown:

@@ -5,11 +5,16 @@ glTF/GLB/OBJ mesh, a PLY/PCD point cloud, or a plugin's format); then drawn as p
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from pathlib import Path
+from typing import Any
+
+from pydantic import BaseModel
 
 from agrisim.config import RunConfig, backend_options
 from agrisim.errors import UserError
 from agrisim.interfaces import PlantReader
+from agrisim.kinds import BackendSpec
 from agrisim.registry import DISTRIBUTION, Registry, blame
 from agrisim.scene.model import Plant
 from agrisim.scene.plant_cache import grown
@@ -92,6 +97,16 @@ def plant_seed(name: str, value: object) -> int:
     return value
 
 
+def species_options(spec: BackendSpec, name: str, table: Mapping[str, Any], default_seed: int) -> tuple[int, BaseModel]:
+    """(seed, options) of species ``name`` from its ``[plants.NAME]`` table: ``seed`` (every
+    species takes it; default: the run's) and the species' own options, validated."""
+    table = dict(table)
+    if "age" in table and "age" not in spec.options_model.model_fields:  # --plant-age's usual slip
+        raise UserError(f"--plant-age: plant {name!r} has no age; it applies to species that grow (helios:*)")
+    seed = plant_seed(name, table.pop("seed", default_seed))
+    return seed, backend_options(spec.options_model, table, f"plant {name!r}")
+
+
 def resolve_plant(registry: Registry, config: RunConfig) -> Plant:
     """The plant ``config.plant`` names: a registered species grown from its ``seed`` (its
     table's, else ``config.seed``), or a
@@ -101,11 +116,7 @@ def resolve_plant(registry: Registry, config: RunConfig) -> Plant:
     species = registry.specs("plant")
     if name in species:
         spec = species[name]
-        table = dict(config.plants.get(name, {}))
-        if "age" in table and "age" not in spec.options_model.model_fields:  # --plant-age's usual slip
-            raise UserError(f"--plant-age: plant {name!r} has no age; it applies to species that grow (helios:*)")
-        seed = plant_seed(name, table.pop("seed", config.seed))
-        options = backend_options(spec.options_model, table, f"plant {name!r}")
+        seed, options = species_options(spec, name, config.plants.get(name, {}), config.seed)
         with blame("plant", spec, f" growing {name!r}"):
             plant: Plant = grown(name, options, seed, registry.build("plant", spec, options).build)
     elif (reader := reader_for(registry, Path(name))) is not None or Path(name).exists():

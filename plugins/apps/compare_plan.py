@@ -14,7 +14,6 @@ from typing import Any
 
 from agrisim.capabilities import check_renderer
 from agrisim.config import (
-    BackendChoice,
     RunConfig,
     backend_options,
     build_config,
@@ -24,8 +23,8 @@ from agrisim.config import (
 )
 from agrisim.errors import ConfigError, OutputError, UserError
 from agrisim.files import layout
-from agrisim.kinds import SECTIONS
 from agrisim.plugins.apps.table import SEG_MODES, is_file_plant, plant_key
+from agrisim.validation import check_run
 
 #: the ten procedural species, in the row order of the paper's Table 2
 PAPER_PLANTS: tuple[str, ...] = (
@@ -247,9 +246,9 @@ def plan_compare(
     clash = sorted({k for k in keys if keys.count(k) > 1})
     if clash:
         raise UserError(f"--plants: two plants would share the run directory {clash[0]!r}")
-    check_backends(registry, probe)
     renderer = registry.get("renderer", probe.renderer.backend)
     check_renderer(renderer, registry.specs("renderer"), seg_modes, probe.render.labels, points=bool(sizes))
+    check_run(registry, probe, preflight=False)  # what each episode will check, but what only its host can
     if sizes and "points" in base:
         raise UserError("--point-sizes sets each episode's points: leave [points] out of the shared settings")
 
@@ -294,20 +293,6 @@ def plan_compare(
         as_points=as_points,
         point_sizes=sizes,
     )
-
-
-def check_backends(registry: Any, config: RunConfig) -> None:
-    """Every chosen backend exists and its options validate, the imager too (the workers would
-    fail late)."""
-    from agrisim.episode import imager_spec
-
-    for name, kind in SECTIONS.items():
-        choice = getattr(config, name, None)
-        if not isinstance(choice, BackendChoice) or choice.backend == "none":
-            continue
-        spec = registry.get(kind, choice.backend)
-        backend_options(spec.options_model, choice.options_for(spec.name), f"{kind} backend {spec.name!r}")
-    imager_spec(registry, config.imager)
 
 
 def check_out(out: Path, *, overwrite: bool, resume: bool) -> None:

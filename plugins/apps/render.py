@@ -89,8 +89,8 @@ class RenderPlan:
         self, run_dir: Path, renderer: str, overrides: dict[str, Any], out: Path | None, overwrite: bool
     ) -> None:
         from agrisim.config import backend_options, build_config
-        from agrisim.episode import imager_spec
         from agrisim.registry import Registry, make_plugin_manager
+        from agrisim.validation import imager_spec
 
         self.run_dir = Path(run_dir).expanduser()
         run, self.cameras = read_run(self.run_dir)

@@ -31,10 +31,11 @@ from pathlib import Path
 from typing import Any
 
 from agrisim.config import RunConfig, backend_options, build_config, load_toml
-from agrisim.errors import ConfigError, OutputError, UserError
+from agrisim.errors import OutputError, UserError
 from agrisim.files import layout
-from agrisim.plugins.apps.compare_plan import check_backends, check_same_settings, run_dir_state
+from agrisim.plugins.apps.compare_plan import check_same_settings, run_dir_state
 from agrisim.plugins.apps.flags import apply_sets, set_dotted
+from agrisim.validation import check_run
 
 #: the follow-ups a spec's ``[sweep] after`` may name: what ``agrisim colmap``, ``agrisim export
 #: coco`` and ``agrisim export nerfstudio`` do (the last two through their installed exporters),
@@ -245,39 +246,6 @@ def _device(config: RunConfig, registry: Any, gpu: bool | None) -> str:
     return {"cuda": "gpu", "auto": "auto"}.get(str(variant), "cpu")
 
 
-def _check_cell(registry: Any, config: RunConfig) -> None:
-    """What :class:`agrisim.episode.Episode` would refuse, checked without building the plant,
-    the scene or any backend: names, every backend's and the species' options, the camera, what
-    the renderer can draw."""
-    from agrisim.capabilities import check_renderer
-    from agrisim.scene.camera_choice import camera_of
-    from agrisim.scene.plant_choice import check_plant_name, draws_points, plant_seed
-
-    check_backends(registry, config)
-    for section, kind in (("physics", "physics"), ("planner", "planner"), ("renderer", "renderer")):
-        getattr(config, section).check_tables(section, registry.specs(kind))
-    config.recon.check_tables("recon", registry.specs("reconstructor"))
-    check_plant_name(registry, config)
-    species = registry.specs("plant")
-    for name, table in config.plants.items():
-        if name in species:  # (every species takes ``seed`` beside its own options)
-            plant_seed(name, table.get("seed", config.seed))
-            options = {k: v for k, v in table.items() if k != "seed"}
-            backend_options(species[name].options_model, options, f"plant {name!r}")
-    camera = camera_of(config.camera)
-    if config.recon.poses != "truth":
-        raise ConfigError(f"recon.poses = {config.recon.poses!r}: a run reconstructs on the true poses")
-    if config.renderer.backend != "none":
-        check_renderer(
-            registry.get("renderer", config.renderer.backend),
-            registry.specs("renderer"),
-            [config.render.seg_mode],
-            config.render.labels,
-            points=draws_points(registry, config),
-            lens=not camera.pinhole,
-        )
-
-
 def _base(spec: SweepSpec, registry: Any) -> dict[str, Any]:
     """The spec's base configuration as every run shares it: no output folder of its own, and
     no recording unless the spec asks for one (a grid of recordings is rarely wanted)."""
@@ -327,7 +295,7 @@ def plan_sweep(
         run_dir = out / name
         try:
             config = build_config(base, layer, {"output": {"out": str(run_dir)}})
-            _check_cell(registry, config)
+            check_run(registry, config, preflight=False)  # the cell runs elsewhere: its host checks the rest
             device = _device(config, registry, spec.gpu)
         except UserError as exc:
             raise UserError(f"sweep cell {name}: {exc}") from None

@@ -121,6 +121,7 @@ def test_doctor_tells_the_truth_about_this_machine(tmp_path: Path) -> None:
         ("reconstructor", "pointcloud"),
         ("sink", "rerun"),
         ("plant", "indian_cress"),
+        ("room", "lab"),
     } == defaults
     for kind, name in defaults:
         assert rows(report, kind)[name]["usable"], (kind, name)

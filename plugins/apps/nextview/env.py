@@ -36,10 +36,9 @@ from agrisim.plugins.apps.nextview.occupancy import VoxelMap
 from agrisim.registry import Registry, make_plugin_manager
 from agrisim.robot.kinematics import ArmKinematics
 from agrisim.robot.setpoints import Setpoint, hemisphere
-from agrisim.scene.camera_choice import camera_of
 from agrisim.scene.cell import build_cell, soil_pose
-from agrisim.scene.plant_choice import check_plant_name
 from agrisim.scene.transforms import look_at
+from agrisim.validation import check_run
 
 #: the continuous action's radius range, m
 RADIUS_M = (0.3, 0.8)
@@ -110,10 +109,9 @@ class PlantViewEnv(gym.Env[dict[str, np.ndarray], Any]):
         self._base = merge(base, config or {})
         #: the settings every episode starts from (checked here, before any episode)
         self.config = build_config(self._base)
-        check_plant_name(Registry(make_plugin_manager()), self.config)
+        self.camera = check_run(Registry(make_plugin_manager()), self.config).camera
         cell = build_cell(self.config.cell)
         self.arms = [arm.name for arm in cell.arms]
-        self.camera = camera_of(self.config.camera)
         routine = self.config.routine
         self.candidates: list[Setpoint] = [
             sp for pair in zip(*hemisphere(cell, routine).values(), strict=True) for sp in pair
