@@ -138,13 +138,13 @@ def _develop_run(run: Path) -> str:
     import pyoidn
 
     from agrisim.config import ImagerConfig, build_config
-    from agrisim.episode import open_imager
     from agrisim.files import layout
     from agrisim.files.atomic import write_json
     from agrisim.files.dataset import write_png
     from agrisim.interfaces import Imager, view_key
     from agrisim.registry import Registry, make_plugin_manager
     from agrisim.scene.colour import encode_srgb8
+    from agrisim.validation import open_imager
 
     doc = json.loads((run / "drawn.json").read_text())
     config = build_config(json.loads((run / layout.RUN_JSON).read_text())["config"])

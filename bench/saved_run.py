@@ -14,7 +14,6 @@ from typing import Any
 import numpy as np
 
 from agrisim.config import ImagerConfig, RenderConfig, build_config
-from agrisim.episode import open_imager
 from agrisim.evaluation.session import capture_order
 from agrisim.files import layout
 from agrisim.files.rundir import camera_from_json
@@ -24,6 +23,7 @@ from agrisim.plugins.formats.scene_glb import read_scene
 from agrisim.registry import Registry, make_plugin_manager
 from agrisim.scene.camera import CameraModel, preset
 from agrisim.scene.model import Scene
+from agrisim.validation import open_imager
 
 
 @dataclass

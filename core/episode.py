@@ -13,17 +13,17 @@ import datetime as _dt
 import functools
 import time
 from collections.abc import Callable, Iterator
-from contextlib import contextmanager
+from contextlib import ExitStack, contextmanager
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pluggy
 
-from agrisim.config import ImagerConfig, RunConfig, depth_read
+from agrisim.config import RunConfig
 from agrisim.errors import ConfigError
 from agrisim.evaluation.metrics import GroundTruth
-from agrisim.evaluation.session import ReconSession, summary_metrics
+from agrisim.evaluation.session import ReconSession, metrics_meta, summary_metrics
 from agrisim.evaluation.views import View, load_frame, view_from_capture, view_of
 from agrisim.files.atomic import remove_partial
 from agrisim.files.dataset import DatasetWriter
@@ -44,16 +44,16 @@ from agrisim.interfaces import (
     view_key,
 )
 from agrisim.records import Run, RunSummary, SetpointResult
-from agrisim.registry import Registry, blame, make_plugin_manager
+from agrisim.registry import BackendSpec, Registry, blame, make_plugin_manager
 from agrisim.robot.kinematics import ArmKinematics
-from agrisim.robot.segments import segment_is_valid
+from agrisim.robot.segments import arms_stay_apart, segment_is_valid
 from agrisim.robot.setpoints import Setpoint, routine
 from agrisim.robot.trajectory import Limits, TimedPath, time_parametrize
 from agrisim.scene.cell import build_cell
 from agrisim.scene.model import Scene
 from agrisim.scene.plant_choice import resolve_plant
 from agrisim.scene.transforms import pose_error
-from agrisim.validation import check_run, imager_spec
+from agrisim.validation import check_run, open_imager
 
 #: rate at which planned trajectories are sampled for physics and sinks, Hz
 TRAJECTORY_RATE = 240.0
@@ -157,45 +157,51 @@ class Episode:
             summary = self.close(status, error)
         return run, summary
 
-    # Long on purpose: the backends, the run and the sinks are built in order, and undone in the
-    # same order when one fails.
     def open(self) -> Run:
         """Build the backends, the output directory and the sinks; nothing has moved yet.
         :meth:`start` puts the arms home, :meth:`step` runs one setpoint, :meth:`close` reports
         and closes (an episode is opened once)."""
-        # Backends first: if one cannot be built, nothing has been written yet.
-        with blame("physics", self.physics_spec, " to start"):
-            physics: PhysicsBackend = self.registry.build("physics", self.physics_spec, self.cell, self.physics_options)
-        renderer: Renderer | None = None
-        sensor: DepthSensor | None = None
-        try:
-            with blame("planner", self.planner_spec, " to start"):
-                planner: Planner = self.registry.build("planner", self.planner_spec, self.planner_options)
-            if self.renderer_spec is not None:
-                with blame("renderer", self.renderer_spec, " to start"):
-                    renderer = self.registry.build(
-                        "renderer", self.renderer_spec, self.scene, self.cell, self.config.render, self.renderer_options
-                    )
-            if self.sensor_spec is not None:
-                with blame("sensor", self.sensor_spec, " to start"):
-                    sensor = self.registry.build(
-                        "sensor", self.sensor_spec, self.scene, self.cell, self.config.render, self.sensor_options
-                    )
+        # Backends first: if one cannot be built, nothing has been written yet. What is opened
+        # is closed by close(), or here, in reverse, as soon as opening fails half-way.
+        with ExitStack() as opened:
+            physics: PhysicsBackend = self._build(opened, "physics", self.physics_spec, self.cell, self.physics_options)
+            planner: Planner = self._build(None, "planner", self.planner_spec, self.planner_options)
+            renderer: Renderer | None = None
+            sensor: DepthSensor | None = None
             recon: Reconstructor | None = None
+            if self.renderer_spec is not None:
+                args = (self.scene, self.cell, self.config.render)
+                renderer = self._build(opened, "renderer", self.renderer_spec, *args, self.renderer_options)
+            if self.sensor_spec is not None:
+                sensor = self._build(
+                    opened, "sensor", self.sensor_spec, self.scene, self.cell, self.config.render, self.sensor_options
+                )
             if self.recon_spec is not None:
                 assert self.scene is not None  # a reconstructor is chosen only with a renderer, which has a scene
-                with blame("reconstructor", self.recon_spec, " to start"):
-                    recon = self.registry.build("reconstructor", self.recon_spec, self.scene.labels, self.recon_options)
+                recon = self._build(None, "reconstructor", self.recon_spec, self.scene.labels, self.recon_options)
             prepare_out_dir(self.out_dir, self.config)
             if self.config.output.resume:
                 remove_partial(self.out_dir)  # half-written files of a killed run
-        except BaseException:
-            physics.close()
-            for backend in (renderer, sensor):
-                if backend is not None:
-                    backend.close()
-            raise
+            run = self._new_run(renderer, sensor, recon)
+            self._sinks = self._register_sinks(run, opened)
+            self._opened = opened.pop_all()  # (kept open: close() closes them)
         self._renderer, self._sensor = renderer, sensor
+        self._physics, self._planner, self._run = physics, planner, run
+        self._views: list[View] = []  # the last step's views (visit returns them)
+        self._rng = np.random.default_rng(self.config.seed)
+        return run
+
+    def _build(self, opened: ExitStack | None, kind: str, spec: BackendSpec, *args: Any) -> Any:
+        """Backend ``kind`` built from ``spec`` (its failure blamed on it); closed with the
+        episode where ``opened`` is given."""
+        with blame(kind, spec, " to start"):
+            backend = self.registry.build(kind, spec, *args)
+        if opened is not None:
+            opened.callback(backend.close)
+        return backend
+
+    def _new_run(self, renderer: Renderer | None, sensor: DepthSensor | None, recon: Reconstructor | None) -> Run:
+        """The run as events and sinks see it, and the reconstruction session of ``recon``."""
         run = Run(
             config=self.config,
             cell=self.cell,
@@ -245,17 +251,6 @@ class Episode:
                 ),
                 merged_every=self.config.recon.merged_every,
             )
-        self._physics, self._planner, self._run = physics, planner, run
-        self._views: list[View] = []  # the last step's views (visit returns them)
-        self._rng = np.random.default_rng(self.config.seed)
-        try:
-            self._sinks = self._register_sinks(run)
-        except BaseException:
-            physics.close()
-            for backend in (renderer, sensor):
-                if backend is not None:
-                    backend.close()
-            raise
         return run
 
     def start(self) -> None:
@@ -291,7 +286,7 @@ class Episode:
         if self._session is None or self.recon_spec is None:
             return None
         with self._stage("metrics"), blame("reconstructor", self.recon_spec, " to finish"):
-            run.reconstruction, run.metrics = self._session.finish(self._metrics_meta())
+            run.reconstruction, run.metrics = self._session.finish(metrics_meta(self.config))
         return run.metrics
 
     def look_from(self, world_T_camera: np.ndarray) -> View:
@@ -327,33 +322,24 @@ class Episode:
             error=error,
             metrics=summary_metrics(run.metrics) if run.metrics is not None else None,
         )
-        try:
+        with self._opened:  # the sinks unregistered, then the backends closed, last opened first
             self.pm.hook.agrisim_run_finished(run=run, summary=summary)
-        finally:
-            physics.close()
-            for backend in (self._renderer, self._sensor):
-                if backend is not None:
-                    backend.close()
-            for sink in self._sinks:
-                self.pm.unregister(sink)
         return summary
 
-    def _register_sinks(self, run: Run) -> list[object]:
-        # The run directory's writer first, always: resume, recon, export and compare need its files.
+    def _register_sinks(self, run: Run, opened: ExitStack) -> list[object]:
+        """The run directory's writer first, always (resume, recon, export and compare need its
+        files), then every installed sink; each unregistered when the episode closes."""
         writer = DatasetWriter(run, self._run_exports())
-        self.pm.register(writer, name=f"dataset:{run.run_id}")
         sinks: list[object] = [writer]
-        try:
-            for spec in self.registry.specs("sink").values():
-                sink = self.registry.build("sink", spec, run, self.sink_options[spec.name])
-                if sink is not None:
-                    self.pm.register(sink, name=f"sink:{spec.name}:{run.run_id}")
-                    sinks.append(sink)
-            self.pm.check_pending()
-        except BaseException:
-            for sink in sinks:
-                self.pm.unregister(sink)
-            raise
+        self.pm.register(writer, name=f"dataset:{run.run_id}")
+        opened.callback(self.pm.unregister, writer)
+        for spec in self.registry.specs("sink").values():
+            sink = self.registry.build("sink", spec, run, self.sink_options[spec.name])
+            if sink is not None:
+                self.pm.register(sink, name=f"sink:{spec.name}:{run.run_id}")
+                opened.callback(self.pm.unregister, sink)
+                sinks.append(sink)
+        self.pm.check_pending()
         return sinks
 
     def _run_exports(self) -> list[Callable[[Path], object]]:
@@ -451,21 +437,6 @@ class Episode:
             timed = time_parametrize(path, self.limits[sp.robot])
         return path, timed
 
-    def _jointly_free(self, moves: dict[str, TimedPath]) -> bool:
-        """Do the arms' trajectories, played together, stay clear of each other?"""
-        if len(moves) < 2:
-            return True
-        step = self.config.motion.collision_check_step
-        vmax = max(float(np.max(self.limits[r].velocity)) for r in moves)
-        dt = step / vmax  # no joint moves more than `step` between samples
-        horizon = max(m.duration for m in moves.values())
-        robots = list(moves)
-        with self._stage("joint_check"):
-            for t in np.append(np.arange(0.0, horizon, dt), horizon):
-                if self._physics.arms_in_collision({r: moves[r].sample(float(t))[0] for r in robots}):
-                    return False
-        return True
-
     def _step(self, targets: dict[str, Setpoint]) -> None:
         self._views = []
         results = {r: SetpointResult(r, sp.index, sp.frame, reached=False) for r, sp in targets.items()}
@@ -474,7 +445,10 @@ class Episode:
             move = self._prepare_move(sp, results[robot])
             if move is not None:
                 moves[robot] = move
-        if self._jointly_free({r: m[1] for r, m in moves.items()}):
+        timed = {r: m[1] for r, m in moves.items()}
+        with self._stage("joint_check"):
+            apart = arms_stay_apart(self._physics, timed, self.limits, self.config.motion.collision_check_step)
+        if apart:
             self._execute(targets, moves, results)
         else:
             # Together they would collide: the first arm moves, the others wait and re-plan.
@@ -607,28 +581,6 @@ class Episode:
             images.radiance = None
         capture.exposure = shot.exposure.to_json()
 
-    def _metrics_meta(self) -> dict[str, Any]:
-        c = self.config
-        return {
-            "plant": c.plant,
-            "seg_mode": c.render.seg_mode,
-            "labels_mode": c.render.labels,
-            "recon": c.recon.backend,
-            "depth": depth_read(c),
-            "seed": c.seed,
-        }
-
-
-def open_imager(registry: Registry, settings: ImagerConfig, seed: int) -> Imager | None:
-    """The imager of a run's ``[imager]`` settings and seed (None for ``none``): what each arm's
-    camera shoots through."""
-    spec = imager_spec(registry, settings)
-    if spec is None:
-        return None
-    with blame("imager", spec, " opening"):
-        imager: Imager = registry.build("imager", spec, settings, seed, spec.options_model())
-    return imager
-
 
 @contextmanager
 def _timed(store: dict[str, float], name: str) -> Iterator[None]:
@@ -644,4 +596,4 @@ def run_episode(config: RunConfig, *, pm: pluggy.PluginManager | None = None) ->
     return Episode(config, pm).run()
 
 
-__all__ = ["TRAJECTORY_RATE", "Episode", "open_imager", "run_episode"]
+__all__ = ["TRAJECTORY_RATE", "Episode", "run_episode"]

@@ -16,13 +16,14 @@ from pydantic import BaseModel
 from agrisim.capabilities import check_reconstructor, check_renderer, check_sensor
 from agrisim.config import BackendChoice, ImagerConfig, RunConfig, backend_options
 from agrisim.errors import ConfigError
+from agrisim.interfaces import Imager
 from agrisim.kinds import KINDS, BackendSpec
 from agrisim.registry import Registry, blame, loads_everything
 from agrisim.scene.camera import CameraModel
 from agrisim.scene.camera_choice import camera_of
 from agrisim.scene.plant_choice import check_plant_name, draws_points, species_options
 
-__all__ = ["Chosen", "Validated", "check_run", "imager_spec", "pose_source"]
+__all__ = ["Chosen", "Validated", "check_run", "imager_spec", "open_imager", "pose_source"]
 
 #: (the backend, its options validated by its own model)
 Chosen = tuple[BackendSpec, BaseModel]
@@ -150,6 +151,17 @@ def imager_spec(registry: Registry, settings: ImagerConfig) -> BackendSpec | Non
             f"invalid setting 'imager.model': unknown imager {settings.model!r}; imagers: {imagers} (got {settings.model!r})"
         )
     return specs[settings.model]
+
+
+def open_imager(registry: Registry, settings: ImagerConfig, seed: int) -> Imager | None:
+    """The imager of a run's ``[imager]`` settings and seed (None for ``none``): what each arm's
+    camera shoots through."""
+    spec = imager_spec(registry, settings)
+    if spec is None:
+        return None
+    with blame("imager", spec, " opening"):
+        imager: Imager = registry.build("imager", spec, settings, seed, spec.options_model())
+    return imager
 
 
 def pose_source(registry: Registry, name: str) -> BackendSpec:

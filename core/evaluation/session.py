@@ -16,6 +16,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from agrisim.capabilities import check_reconstructor
+from agrisim.config import depth_read
 from agrisim.errors import OutputError, UserError
 from agrisim.evaluation.metrics import GroundTruth, ViewStats, evaluate
 from agrisim.evaluation.views import View, load_view
@@ -26,6 +27,7 @@ from agrisim.interfaces import ALL, Cloud, Reconstruction, Reconstructor, Surfac
 from agrisim.scene.model import LabelTable
 
 if TYPE_CHECKING:
+    from agrisim.config import RunConfig
     from agrisim.registry import Registry
 
 CloudCallback = Callable[[str, Cloud, bool], None]
@@ -118,6 +120,19 @@ def summary_metrics(metrics: dict[str, Any]) -> dict[str, Any]:
 
 
 # ------------------------------------------------------------------------------ files
+
+
+def metrics_meta(config: RunConfig) -> dict[str, Any]:
+    """What a run's metrics.json says of the run it measures: the plant, the labels, the
+    reconstructor, the depth it read, the seed."""
+    return {
+        "plant": config.plant,
+        "seg_mode": config.render.seg_mode,
+        "labels_mode": config.render.labels,
+        "recon": config.recon.backend,
+        "depth": depth_read(config),
+        "seed": config.seed,
+    }
 
 
 def output_files(out_dir: Path, result: Reconstruction) -> list[Path]:
@@ -282,7 +297,7 @@ def reconstruct_saved_run(
     is the run's saved configuration. Writes into ``out_dir`` (default: the run directory) and
     returns it with the metrics. Every input is checked before any work or write.
     """
-    from agrisim.config import backend_options, build_config, depth_read
+    from agrisim.config import backend_options, build_config
     from agrisim.registry import Registry, blame, make_plugin_manager
     from agrisim.validation import pose_source
 

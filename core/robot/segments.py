@@ -2,11 +2,16 @@
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from agrisim.interfaces import PlanningFailed
+
+if TYPE_CHECKING:
+    from agrisim.interfaces import PhysicsBackend
+    from agrisim.robot.trajectory import Limits, TimedPath
 
 
 def require_within_limits(goal: np.ndarray, lower: np.ndarray, upper: np.ndarray) -> None:
@@ -52,3 +57,19 @@ def _bisection_order(n: int) -> list[int]:
             stack.append((lo, mid))
             stack.append((mid, hi))
     return order
+
+
+def arms_stay_apart(
+    physics: PhysicsBackend, moves: Mapping[str, TimedPath], limits: Mapping[str, Limits], step: float
+) -> bool:
+    """Do the arms' trajectories, played together, stay clear of each other? Sampled so that no
+    joint moves more than ``step`` between two checks."""
+    if len(moves) < 2:
+        return True
+    dt = step / max(float(np.max(limits[r].velocity)) for r in moves)
+    horizon = max(m.duration for m in moves.values())
+    robots = list(moves)
+    for t in np.append(np.arange(0.0, horizon, dt), horizon):
+        if physics.arms_in_collision({r: moves[r].sample(float(t))[0] for r in robots}):
+            return False
+    return True
