@@ -80,7 +80,8 @@ def _cmd_plugins(args: argparse.Namespace) -> int:
 def _cmd_doctor(args: argparse.Namespace) -> int:
     import json
 
-    from agrisim.plugins.apps.doctor import gather, render_text
+    from agrisim.plugins.apps.doctor import gather
+    from agrisim.plugins.apps.doctor_report import render_text
 
     report = gather(timing=not args.no_timing)
     if args.json:

@@ -24,7 +24,8 @@ from typing import Any
 import pytest
 from browser import browser
 
-from agrisim.plugins.apps.doctor import IK_COLD, IK_WARM, RAYCAST_VIEW, REFERENCE_MACHINE, cpu_facts, render_text
+from agrisim.plugins.apps.doctor import cpu_facts
+from agrisim.plugins.apps.doctor_report import IK_COLD, IK_WARM, RAYCAST_VIEW, REFERENCE_MACHINE, render_text
 
 REPO = Path(__file__).resolve().parents[2]
 CPUINFO = Path("/proc/cpuinfo")
