@@ -32,13 +32,13 @@ from machine import cpu_model  # noqa: E402
 WORKER = r"""
 import sys, numpy as np
 from agrisim.config import CellConfig, RenderConfig, RoutineConfig, build_config
-from agrisim.scene.plant_choice import resolve_plant
+from agrisim.plant_choice import resolve_plant
 from agrisim.plugins.rooms.lab.room import build_scene
 from agrisim.registry import Registry, make_plugin_manager
 from agrisim.robot.kinematics import ArmKinematics
 from agrisim.robot.setpoints import hemisphere
 from agrisim.scene.camera import preset
-from agrisim.scene.cell import build_cell
+from agrisim.robot.cell import build_cell
 from agrisim.plugins.render.raycast import RaycastOptions
 from agrisim.plugins.render.raycast.renderer import RaycastRenderer
 plant, resolution, samples, seeds, seg_mode, out = sys.argv[1], sys.argv[2], int(sys.argv[3]), [int(s) for s in sys.argv[4].split(",")], sys.argv[5], sys.argv[6]

@@ -19,7 +19,7 @@ from mpl_toolkits.mplot3d.art3d import Poly3DCollection  # noqa: E402
 from agrisim.config import build_config  # noqa: E402
 from agrisim.episode import Episode  # noqa: E402
 from agrisim.registry import hookimpl  # noqa: E402
-from agrisim.scene.cell import Box, Cylinder  # noqa: E402
+from agrisim.robot.cell import Box, Cylinder  # noqa: E402
 
 COLORS = {"r1": "#e07828", "r2": "#2882e6"}
 

@@ -20,7 +20,7 @@ import numpy as np  # noqa: E402
 from PIL import Image  # noqa: E402
 
 from agrisim.evaluation.metrics import SurfaceDistance  # noqa: E402
-from agrisim.evaluation.session import truth_from_run  # noqa: E402
+from agrisim.plugins.apps.recon import truth_from_run  # noqa: E402
 from agrisim.plugins.exporters.rosbag import read_cloud  # noqa: E402
 
 MAX_MM = 10.0  # colour scale of the clouds: distances beyond this are drawn as this

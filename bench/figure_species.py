@@ -19,11 +19,11 @@ import numpy as np
 from PIL import Image, ImageDraw
 
 from agrisim.config import RenderConfig, build_config
+from agrisim.plant_choice import resolve_plant
 from agrisim.plugins.plants.procedural.species import SPECIES
 from agrisim.plugins.rooms.lab.room import build_scene
+from agrisim.robot.cell import soil_pose
 from agrisim.scene.camera import from_fov
-from agrisim.scene.cell import soil_pose
-from agrisim.scene.plant_choice import resolve_plant
 from agrisim.scene.texturing import label_at
 from agrisim.scene.transforms import look_at
 

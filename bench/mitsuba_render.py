@@ -25,17 +25,17 @@ sys.path.insert(0, str(Path(__file__).parent))
 from machine import cpu_model  # noqa: E402
 
 from agrisim.config import CellConfig, RenderConfig, RoutineConfig, build_config  # noqa: E402
+from agrisim.plant_choice import resolve_plant  # noqa: E402
 from agrisim.plugins.render.mitsuba.options import MitsubaOptions  # noqa: E402
 from agrisim.plugins.render.mitsuba.renderer import MitsubaRenderer  # noqa: E402
 from agrisim.plugins.render.raycast import RaycastOptions  # noqa: E402
 from agrisim.plugins.render.raycast.renderer import RaycastRenderer  # noqa: E402
 from agrisim.plugins.rooms.lab.room import build_scene  # noqa: E402
 from agrisim.registry import Registry, make_plugin_manager  # noqa: E402
+from agrisim.robot.cell import build_cell  # noqa: E402
 from agrisim.robot.kinematics import ArmKinematics  # noqa: E402
 from agrisim.robot.setpoints import hemisphere  # noqa: E402
 from agrisim.scene.camera import preset  # noqa: E402
-from agrisim.scene.cell import build_cell  # noqa: E402
-from agrisim.scene.plant_choice import resolve_plant  # noqa: E402
 
 
 def main() -> None:

@@ -26,13 +26,13 @@ from machine import cpu_model  # noqa: E402
 def one(plant_name: str, count: int, size: float, views: int, resolution: str) -> dict:
     """Render ``views`` views of the plant as ``count`` points of ``size`` (count 0: the mesh)."""
     from agrisim.config import CellConfig, RenderConfig, RoutineConfig, build_config
+    from agrisim.plant_choice import resolve_plant
     from agrisim.plugins.rooms.lab.room import build_scene
     from agrisim.registry import Registry, make_plugin_manager
+    from agrisim.robot.cell import build_cell
     from agrisim.robot.kinematics import ArmKinematics
     from agrisim.robot.setpoints import hemisphere
     from agrisim.scene.camera import preset
-    from agrisim.scene.cell import build_cell
-    from agrisim.scene.plant_choice import resolve_plant
 
     registry = Registry(make_plugin_manager())
     cell = build_cell(CellConfig())

@@ -21,14 +21,14 @@ from agrisim.config import CellConfig, RenderConfig, RoutineConfig, build_config
 from agrisim.evaluation.metrics import GroundTruth
 from agrisim.evaluation.session import ReconSession
 from agrisim.evaluation.views import View, backproject
+from agrisim.plant_choice import resolve_plant
 from agrisim.plugins.recon.pointcloud import PointCloudReconstructor
 from agrisim.plugins.recon.tsdf import TsdfReconstructor
 from agrisim.plugins.rooms.lab.room import build_scene
 from agrisim.registry import Registry, make_plugin_manager
+from agrisim.robot.cell import build_cell
 from agrisim.robot.setpoints import hemisphere
 from agrisim.scene.camera import preset
-from agrisim.scene.cell import build_cell
-from agrisim.scene.plant_choice import resolve_plant
 
 
 def _pcd(points: np.ndarray) -> o3d.geometry.PointCloud:

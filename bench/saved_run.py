@@ -14,9 +14,8 @@ from typing import Any
 import numpy as np
 
 from agrisim.config import ImagerConfig, RenderConfig, build_config
-from agrisim.evaluation.session import capture_order
 from agrisim.files import layout
-from agrisim.files.rundir import camera_from_json
+from agrisim.files.rundir import camera_from_json, capture_order
 from agrisim.interfaces import Imager, View, view_key
 from agrisim.plugins.apps.render import RenderPlan
 from agrisim.plugins.formats.scene_glb import read_scene

@@ -33,16 +33,15 @@ from pathlib import Path
 import numpy as np
 from PIL import Image
 
-from agrisim.evaluation.session import capture_order
 from agrisim.evaluation.views import load_depth
 from agrisim.files import layout
-from agrisim.files.encoding import mm_to_depth
-from agrisim.files.rundir import camera_from_json
+from agrisim.files.rundir import camera_from_json, capture_order
 from agrisim.interfaces import Frame, View
 from agrisim.plugins.apps.flags import apply_sets, parse_value
 from agrisim.plugins.poses.colmap.photogrammetry import estimated_poses
 from agrisim.plugins.recon.splat.options import SplatOptions
 from agrisim.plugins.recon.splat.reconstructor import SplatReconstructor
+from agrisim.scene.encoding import mm_to_depth
 from agrisim.scene.model import LabelTable
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))

@@ -33,9 +33,9 @@ SENSORS = "exact,azure-kinect-nfov,d435,d415,d405"
 def _truth(run: Path) -> Any:
     """The run's plant traits, grown again from its config (its own seed) in the plant frame."""
     from agrisim.config import build_config
+    from agrisim.plant_choice import resolve_plant
     from agrisim.plugins.apps.traits.truth import plant_traits
     from agrisim.registry import Registry, make_plugin_manager
-    from agrisim.scene.plant_choice import resolve_plant
 
     config = build_config(json.loads((run / "run.json").read_text())["config"])
     return plant_traits(resolve_plant(Registry(make_plugin_manager()), config))

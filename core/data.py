@@ -11,8 +11,8 @@ from typing import Any
 
 import numpy as np
 
-from agrisim.files.encoding import depth_to_mm, mm_to_depth
 from agrisim.scene.camera import CameraModel
+from agrisim.scene.encoding import depth_to_mm, mm_to_depth
 
 __all__ = [
     "Capture",

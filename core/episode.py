@@ -43,15 +43,15 @@ from agrisim.interfaces import (
     Trajectory,
     view_key,
 )
+from agrisim.plant_choice import resolve_plant
 from agrisim.records import Run, RunSummary, SetpointResult
 from agrisim.registry import BackendSpec, Registry, blame, make_plugin_manager
+from agrisim.robot.cell import build_cell
 from agrisim.robot.kinematics import ArmKinematics
 from agrisim.robot.segments import arms_stay_apart, segment_is_valid
 from agrisim.robot.setpoints import Setpoint, routine
 from agrisim.robot.trajectory import Limits, TimedPath, time_parametrize
-from agrisim.scene.cell import build_cell
 from agrisim.scene.model import Scene
-from agrisim.scene.plant_choice import resolve_plant
 from agrisim.scene.transforms import pose_error
 from agrisim.validation import check_run, open_imager
 

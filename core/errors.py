@@ -28,3 +28,8 @@ class BackendFailure(RuntimeError):
     """A backend (built-in or a third-party plugin) raised unexpectedly during a run. The message
     names it (kind, name, distribution); the run is marked ``failed``, its finished frames stay,
     and the CLI exits 1."""
+
+
+class PlanningFailed(RuntimeError):
+    """The planner found no path; the message is the reason recorded for the setpoint (served by
+    :mod:`agrisim.interfaces` too, beside the planner's contract)."""

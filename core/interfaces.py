@@ -28,12 +28,13 @@ from agrisim.data import (
     View,
     view_key,
 )
+from agrisim.errors import PlanningFailed
 from agrisim.scene.camera import CameraModel
 from agrisim.scene.model import LabelTable, Mesh, Plant, Scene
 
 if TYPE_CHECKING:
     from agrisim.config import PlantFileConfig, RenderConfig
-    from agrisim.scene.cell import Cell
+    from agrisim.robot.cell import Cell
 
 __all__ = [
     "ALL",
@@ -149,10 +150,6 @@ class Planner(ABC):
 
         Raises :class:`PlanningFailed` when there is none within the planner's budget.
         """
-
-
-class PlanningFailed(RuntimeError):
-    """The planner found no path; the message is the reason recorded for the setpoint."""
 
 
 class Renderer(ABC):
@@ -348,7 +345,7 @@ class Room(ABC):
     @abstractmethod
     def scene(self, plant: Plant, *, seed: int, labels: str) -> Scene:
         """Everything a renderer draws besides the arms, in world coordinates, with ``plant``
-        on the cell's soil as :func:`agrisim.scene.cell.place_plant` puts it for the run's
+        on the cell's soil as :func:`agrisim.robot.cell.place_plant` puts it for the run's
         ``labels`` (``plant`` or ``organs``; everything else is background, label 0).
         ``seed``: the run's ``pcg_seed``, from which a room draws what it randomizes."""
 

@@ -13,10 +13,10 @@ from typing import TYPE_CHECKING, Any
 if TYPE_CHECKING:
     from agrisim.config import RunConfig
     from agrisim.interfaces import Reconstruction, SensorGeometry
+    from agrisim.robot.cell import Cell
     from agrisim.robot.kinematics import ArmKinematics
     from agrisim.robot.setpoints import Setpoint
     from agrisim.scene.camera import CameraModel
-    from agrisim.scene.cell import Cell
     from agrisim.scene.model import LabelTable, Scene
 
 

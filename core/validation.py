@@ -13,15 +13,15 @@ from dataclasses import dataclass, field
 
 from pydantic import BaseModel
 
+from agrisim.camera_choice import camera_of
 from agrisim.capabilities import check_reconstructor, check_renderer, check_sensor
 from agrisim.config import BackendChoice, ImagerConfig, RunConfig, backend_options
 from agrisim.errors import ConfigError
 from agrisim.interfaces import Imager
 from agrisim.kinds import KINDS, BackendSpec
+from agrisim.plant_choice import check_plant_name, draws_points, species_options
 from agrisim.registry import Registry, blame, loads_everything
 from agrisim.scene.camera import CameraModel
-from agrisim.scene.camera_choice import camera_of
-from agrisim.scene.plant_choice import check_plant_name, draws_points, species_options
 
 __all__ = ["Chosen", "Validated", "check_run", "imager_spec", "open_imager", "pose_source"]
 

@@ -29,9 +29,9 @@ from agrisim.errors import UserError
 from agrisim.interfaces import ALL, Exposure, Frame, JointTrajectory, PlanningFailed, View, view_key
 from agrisim.kinds import KINDS, BackendSpec
 from agrisim.registry import Registry
+from agrisim.robot.cell import Cell, build_cell
 from agrisim.robot.segments import path_is_valid
 from agrisim.scene.camera import CameraModel, from_fov
-from agrisim.scene.cell import Cell, build_cell
 from agrisim.scene.model import PLANT_FIT_HEIGHT, PLANT_FIT_RADIUS, Label, LabelTable, Plant
 from agrisim.scene.transforms import look_at
 
@@ -258,11 +258,11 @@ def check_room(registry: Registry, spec: BackendSpec, options: Any) -> None:
     With the hydrangea (four organs) in the paper's cell, for each labels mode:
 
     * one mesh is the plant: named as the scene says, exactly where and as
-      :func:`agrisim.scene.cell.place_plant` puts it (its vertices, its label table);
+      :func:`agrisim.robot.cell.place_plant` puts it (its vertices, its label table);
     * every other mesh is background: label 0, no label texture other than zeros;
     * there is a light; the same seed gives the same scene.
     """
-    from agrisim.scene.cell import place_plant
+    from agrisim.robot.cell import place_plant
     from agrisim.scene.model import Scene
 
     cell = build_cell(CellConfig())

@@ -34,8 +34,8 @@ import pytest
 from agrisim.config import CellConfig
 from agrisim.interfaces import Frame
 from agrisim.registry import hookimpl
+from agrisim.robot.cell import Cell, build_cell
 from agrisim.robot.kinematics import ArmKinematics
-from agrisim.scene.cell import Cell, build_cell
 from agrisim.scene.model import Label, LabelTable, Material, Mesh
 
 

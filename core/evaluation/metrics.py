@@ -30,8 +30,8 @@ from typing import Any
 import numpy as np
 
 from agrisim.evaluation.views import View
-from agrisim.files.encoding import depth_to_mm
 from agrisim.interfaces import ALL, Reconstruction
+from agrisim.scene.encoding import depth_to_mm
 from agrisim.scene.model import LabelTable, Mesh, PointSet, Scene
 from agrisim.scene.texturing import labels_at_samples, opaque_samples, sample_surface, sample_triangles
 

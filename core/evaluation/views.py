@@ -17,9 +17,9 @@ from PIL import Image
 
 from agrisim.errors import UserError
 from agrisim.files import layout
-from agrisim.files.encoding import mm_to_depth
 from agrisim.files.exr import read_exr
 from agrisim.interfaces import CameraModel, Capture, Frame, View
+from agrisim.scene.encoding import mm_to_depth
 from agrisim.scene.lens import Distortion
 
 

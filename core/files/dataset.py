@@ -33,19 +33,19 @@ from typing import Any
 
 import numpy as np
 
-from agrisim.evaluation.session import write_reconstruction
 from agrisim.files import json_text, layout
 from agrisim.files.atomic import to_json, write_bytes, write_json
-from agrisim.files.encoding import depth_to_mm
 from agrisim.files.exr import write_exr
 from agrisim.files.glb import export_glb
 from agrisim.files.png import encode_png
 from agrisim.files.point_cloud import write_points_ply
+from agrisim.files.reconstruction import write_reconstruction
 from agrisim.files.rundir import camera_to_json
 from agrisim.files.scene_glb import write_scene
 from agrisim.interfaces import CameraModel, Capture, Frame, JointTrajectory, Trajectory
 from agrisim.records import Run, RunSummary, SetpointResult
 from agrisim.registry import hookimpl
+from agrisim.scene.encoding import depth_to_mm
 from agrisim.version import __version__
 
 #: distributions whose versions a run records

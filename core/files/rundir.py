@@ -13,6 +13,7 @@ import datetime as _dt
 import json
 import os
 import shutil
+from collections.abc import Iterable
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -156,3 +157,11 @@ def prepare_out_dir(out: Path, config: RunConfig) -> None:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
         raise OutputError(f"cannot create --out {out}: {exc}") from None
+
+
+def capture_order(run: dict[str, Any], frames: Iterable[str]) -> list[str]:
+    """``frames`` in the order they were captured: as run.json's results list them, then any
+    others by name."""
+    wanted = set(frames)
+    order = [r["frame"] for r in run.get("results", []) if r.get("frame") in wanted]
+    return order + sorted(wanted - set(order))

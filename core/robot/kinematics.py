@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import pinocchio as pin
 
-from agrisim.scene.cell import Arm
+from agrisim.robot.cell import Arm
 
 #: damped least squares: J J^T + this (6 x 6) is never singular
 _DAMPING = 1e-6 * np.eye(6)

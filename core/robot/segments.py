@@ -3,15 +3,20 @@
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Protocol
 
 import numpy as np
 
-from agrisim.interfaces import PlanningFailed
+from agrisim.errors import PlanningFailed
 
 if TYPE_CHECKING:
-    from agrisim.interfaces import PhysicsBackend
     from agrisim.robot.trajectory import Limits, TimedPath
+
+
+class ArmsCollide(Protocol):
+    """What :func:`arms_stay_apart` asks of a physics backend (its contract's method)."""
+
+    def arms_in_collision(self, configs: Mapping[str, np.ndarray]) -> bool: ...
 
 
 def require_within_limits(goal: np.ndarray, lower: np.ndarray, upper: np.ndarray) -> None:
@@ -60,7 +65,7 @@ def _bisection_order(n: int) -> list[int]:
 
 
 def arms_stay_apart(
-    physics: PhysicsBackend, moves: Mapping[str, TimedPath], limits: Mapping[str, Limits], step: float
+    physics: ArmsCollide, moves: Mapping[str, TimedPath], limits: Mapping[str, Limits], step: float
 ) -> bool:
     """Do the arms' trajectories, played together, stay clear of each other? Sampled so that no
     joint moves more than ``step`` between two checks."""

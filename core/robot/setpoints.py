@@ -10,7 +10,7 @@ import numpy as np
 
 from agrisim.config import RoutineConfig, parse_grid
 from agrisim.errors import UserError
-from agrisim.scene.cell import Cell
+from agrisim.robot.cell import Cell
 from agrisim.scene.transforms import look_at, pose, rpy_matrix
 
 

@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 from ruckig import InputParameter, Result, Ruckig, Synchronization, Trajectory
 
-from agrisim.interfaces import JointTrajectory
+from agrisim.data import JointTrajectory
 
 
 class Limits:

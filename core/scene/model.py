@@ -1,7 +1,7 @@
 """The visual scene as plain data: textured triangle meshes, materials, lights, labels.
 
 One backend-free model that plant generators and asset loaders produce and that every renderer,
-exporter and sink consumes (as :mod:`agrisim.scene.cell` is for physics).
+exporter and sink consumes (as :mod:`agrisim.robot.cell` is for physics).
 
 Conventions
 -----------

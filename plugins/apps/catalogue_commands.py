@@ -128,12 +128,12 @@ def _cmd_traits(args: argparse.Namespace) -> int:
     from agrisim.errors import OutputError
     from agrisim.files.atomic import write_json
     from agrisim.files.rundir import read_json
+    from agrisim.plant_choice import check_plant_name, resolve_plant
     from agrisim.plugins.apps.progress import EpisodeProgress
     from agrisim.plugins.apps.traits.document import traits_document
     from agrisim.plugins.apps.traits.estimate import measurable_frames, measure
     from agrisim.plugins.apps.traits.truth import plant_traits
     from agrisim.registry import Registry, make_plugin_manager
-    from agrisim.scene.plant_choice import check_plant_name, resolve_plant
 
     target = Path(args.target)
     if args.seed is not None and args.seed < 0:

@@ -438,9 +438,9 @@ def _time_ik() -> dict[str, Any]:
         import numpy as np
 
         from agrisim.config import CellConfig
+        from agrisim.robot.cell import build_cell
         from agrisim.robot.kinematics import ArmKinematics
         from agrisim.robot.setpoints import random_views
-        from agrisim.scene.cell import build_cell
 
         cell = build_cell(CellConfig())
         k = ArmKinematics(cell.arms[0])

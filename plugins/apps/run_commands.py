@@ -292,8 +292,8 @@ def _cmd_view(args: argparse.Namespace) -> int:
 
 
 def _cmd_recon(args: argparse.Namespace) -> int:
-    from agrisim.evaluation.session import reconstruct_saved_run
     from agrisim.plugins.apps.progress import EpisodeProgress
+    from agrisim.plugins.apps.recon import reconstruct_saved_run
 
     overrides: dict[str, Any] = {}
     if args.recon:

@@ -52,11 +52,11 @@ from agrisim import BackendSpec, hookimpl
 from agrisim.errors import OutputError, UserError
 from agrisim.files import layout
 from agrisim.files.atomic import staged_dir
-from agrisim.files.calibration import ros_distortion
-from agrisim.files.encoding import rep118
 from agrisim.files.rundir import read_json, read_run
 from agrisim.interfaces import Exporter
 from agrisim.robot.tf_tree import WORLD, ArmFrames, quaternions
+from agrisim.scene.calibration import ros_distortion
+from agrisim.scene.encoding import rep118
 
 ROSBAG_DIR = layout.ROSBAG
 CLOUD_TOPIC = "/reconstruction/cloud"
@@ -301,8 +301,8 @@ class RosbagExport:
 
     def __init__(self, run_dir: Path) -> None:
         from agrisim.config import build_config
+        from agrisim.robot.cell import build_cell
         from agrisim.robot.kinematics import ArmKinematics
-        from agrisim.scene.cell import build_cell
 
         self.run_dir = Path(run_dir)
         self.run, self.cameras = read_run(self.run_dir, rendered=False)

@@ -13,12 +13,12 @@ from typing import Any
 import numpy as np
 
 from agrisim import hookimpl
-from agrisim.files.calibration import ros_distortion
-from agrisim.files.encoding import rep118
 from agrisim.interfaces import Bridge, Capture
 from agrisim.plugins.ros.live import LiveSession, Refused
 from agrisim.records import Run
 from agrisim.robot.tf_tree import ArmFrames, quaternions
+from agrisim.scene.calibration import ros_distortion
+from agrisim.scene.encoding import rep118
 
 from . import BridgeOptions
 

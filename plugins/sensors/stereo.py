@@ -53,8 +53,8 @@ from agrisim.config import RenderConfig
 from agrisim.errors import ConfigError
 from agrisim.options import Options
 from agrisim.plugins.sensors.traced import TracedSensor
+from agrisim.robot.cell import Cell
 from agrisim.scene.camera import CameraModel
-from agrisim.scene.cell import Cell
 from agrisim.scene.model import Scene
 
 

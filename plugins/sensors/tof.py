@@ -38,8 +38,8 @@ from pydantic import Field
 from agrisim.config import RenderConfig
 from agrisim.options import Options
 from agrisim.plugins.sensors.traced import TracedSensor
+from agrisim.robot.cell import Cell
 from agrisim.scene.camera import CameraModel
-from agrisim.scene.cell import Cell
 from agrisim.scene.model import Scene
 
 #: speed of light, m/s

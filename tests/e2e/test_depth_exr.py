@@ -15,10 +15,10 @@ from PIL import Image
 from agrisim.evaluation.metrics import GroundTruth, SurfaceDistance
 from agrisim.evaluation.views import backproject, load_view
 from agrisim.files import layout
-from agrisim.files.encoding import depth_to_mm
 from agrisim.files.exr import read_exr
 from agrisim.files.rundir import camera_from_json, read_run
 from agrisim.plugins.formats.plant_asset import load_plant
+from agrisim.scene.encoding import depth_to_mm
 
 
 @pytest.fixture(scope="module")

@@ -12,7 +12,7 @@ import pytest
 from conftest import small_run
 from PIL import Image
 
-from agrisim.evaluation.session import reconstruct_saved_run
+from agrisim.plugins.apps.recon import reconstruct_saved_run
 from agrisim.plugins.sensors import tof
 
 SENSOR = {"backend": "azure-kinect-nfov"}

@@ -13,7 +13,7 @@ from agrisim.episode import Episode
 from agrisim.plugins.physics.kinematic import KinematicOptions
 from agrisim.plugins.physics.kinematic.backend import KinematicPhysics
 from agrisim.registry import hookimpl
-from agrisim.scene.cell import build_cell
+from agrisim.robot.cell import build_cell
 from agrisim.scene.transforms import pose_error
 
 

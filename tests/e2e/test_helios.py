@@ -19,13 +19,13 @@ from agrisim.app.arguments import build_parser
 from agrisim.config import RenderConfig, RunConfig, build_config
 from agrisim.episode import Episode
 from agrisim.errors import UserError
+from agrisim.plant_choice import resolve_plant
 from agrisim.plugins.apps.flags import overrides_from_args
 from agrisim.plugins.plants import helios as H
 from agrisim.plugins.plants.helios import convert as hc
 from agrisim.registry import Registry, make_plugin_manager
 from agrisim.scene.model import PLANT_FIT_HEIGHT as FIT_HEIGHT
 from agrisim.scene.model import PLANT_FIT_RADIUS as FIT_RADIUS
-from agrisim.scene.plant_choice import resolve_plant
 from agrisim.scene.texturing import interpolate_uv, opaque
 
 # No skip without PyHelios: CI installs the extra (scripts/setup.sh), and without it these tests

@@ -21,7 +21,7 @@ import pytest
 from conftest import small_run
 from test_exports import _doc, _first_plant_hit, _image, _plant_mesh
 
-from agrisim.files.calibration import read_calibration
+from agrisim.scene.calibration import read_calibration
 
 K = np.array([[150.0, 0.0, 159.5], [0.0, 150.0, 89.5], [0.0, 0.0, 1.0]])
 D = np.array([-0.25, 0.06, 0.001, -0.001, -0.005])  # strong barrel: 10% at the corners

@@ -32,9 +32,9 @@ from agrisim.plugins.physics.kinematic import KinematicOptions
 from agrisim.plugins.physics.kinematic.backend import KinematicPhysics
 from agrisim.plugins.planners.direct import DirectPlanner
 from agrisim.registry import PROVIDER_HOOKS, NoOptions, Registry, make_plugin_manager
+from agrisim.robot.cell import build_cell
 from agrisim.robot.kinematics import ArmKinematics
 from agrisim.robot.segments import path_is_valid, segment_samples
-from agrisim.scene.cell import build_cell
 
 if sys.version_info >= (3, 11):
     import tomllib

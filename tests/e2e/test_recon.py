@@ -19,16 +19,16 @@ from agrisim.evaluation.session import ReconSession
 from agrisim.evaluation.views import View, backproject, load_view
 from agrisim.files.rundir import camera_from_json, read_run
 from agrisim.interfaces import Cloud, Reconstruction
+from agrisim.plant_choice import resolve_plant
 from agrisim.plugins.plants.procedural.species import SPECIES
 from agrisim.plugins.recon.pointcloud import PointCloudReconstructor
 from agrisim.plugins.recon.voxel_grid import VoxelGrid
 from agrisim.plugins.rooms.lab.room import build_scene
 from agrisim.registry import Registry, make_plugin_manager
+from agrisim.robot.cell import build_cell
 from agrisim.robot.setpoints import hemisphere
 from agrisim.scene.camera import preset
-from agrisim.scene.cell import build_cell
 from agrisim.scene.model import Label, LabelTable, Material, Mesh
-from agrisim.scene.plant_choice import resolve_plant
 
 
 @pytest.fixture(scope="module")
@@ -337,7 +337,7 @@ def test_incomplete_runs_are_refused(run_dir: Path, tmp_path: Path, capsys: pyte
 def test_cloud_ply_is_open3ds_own_bytes(tmp_path: Path) -> None:
     """Clouds are written without Open3D (a GPU machine's minimal install writes them too), in
     the very bytes Open3D's writer gives, every colour value included."""
-    from agrisim.evaluation.session import cloud_ply
+    from agrisim.files.reconstruction import cloud_ply
 
     rng = np.random.default_rng(5)
     colors = np.stack([np.arange(256)] * 3, 1).astype(np.uint8)

@@ -31,10 +31,10 @@ from agrisim.plugins.sinks.rerun_sink.entities import paths  # noqa: E402
 from agrisim.records import Run, RunSummary, SetpointResult  # noqa: E402
 from agrisim.registry import make_plugin_manager  # noqa: E402
 from agrisim.robot import meshes as robot_meshes  # noqa: E402
+from agrisim.robot.cell import build_cell  # noqa: E402
 from agrisim.robot.kinematics import ArmKinematics  # noqa: E402
 from agrisim.robot.setpoints import routine  # noqa: E402
 from agrisim.scene.camera import preset  # noqa: E402
-from agrisim.scene.cell import build_cell  # noqa: E402
 
 UR10_MESH_LINKS = {
     "base_link",

@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 
 from agrisim.config import RenderConfig, build_config
+from agrisim.plant_choice import resolve_plant
 from agrisim.plugins.render.raycast import RaycastOptions, culling
 from agrisim.plugins.render.raycast.renderer import RaycastRenderer
 from agrisim.plugins.render.raycast.tracing import SceneTracer
@@ -19,7 +20,6 @@ from agrisim.plugins.rooms.lab.room import build_scene
 from agrisim.registry import Registry, make_plugin_manager
 from agrisim.robot.setpoints import hemisphere
 from agrisim.scene.camera import preset
-from agrisim.scene.plant_choice import resolve_plant
 
 CAMERA = preset("rpi3-wide-1080p", "64x36")
 NEAR = 0.01

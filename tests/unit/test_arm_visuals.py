@@ -26,8 +26,8 @@ from agrisim.config import CellConfig
 from agrisim.plugins.render.mitsuba.options import MitsubaOptions
 from agrisim.plugins.render.raycast import RaycastOptions
 from agrisim.robot import visuals
+from agrisim.robot.cell import build_cell
 from agrisim.robot.urdf import ur10_with_camera
-from agrisim.scene.cell import build_cell
 
 
 @pytest.fixture
@@ -194,7 +194,7 @@ from agrisim.plugins.render.raycast import RaycastOptions
 from agrisim.plugins.render.raycast.renderer import RaycastRenderer
 from agrisim.robot.kinematics import ArmKinematics
 from agrisim.scene.camera import from_fov
-from agrisim.scene.cell import build_cell
+from agrisim.robot.cell import build_cell
 from agrisim.scene.model import LabelTable, Light, Scene
 cell = build_cell(CellConfig())
 poses = {a.name: ArmKinematics(a).link_poses(np.array(a.home)) for a in cell.arms}

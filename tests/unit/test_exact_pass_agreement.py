@@ -19,6 +19,7 @@ import pytest
 from reference_tracer import ReferenceTracer
 
 from agrisim.config import RoutineConfig, build_config
+from agrisim.plant_choice import resolve_plant
 from agrisim.plugins.plants.procedural.species import SPECIES as PROCEDURAL
 from agrisim.plugins.render.raycast import RaycastOptions
 from agrisim.plugins.render.raycast.tracing import SceneTracer, label_map
@@ -27,7 +28,6 @@ from agrisim.registry import Registry, make_plugin_manager
 from agrisim.robot.setpoints import hemisphere
 from agrisim.robot.visuals import arm_link_meshes
 from agrisim.scene.camera import preset
-from agrisim.scene.plant_choice import resolve_plant
 
 SPECIES = sorted(PROCEDURAL)
 CAMERA = preset("rpi3-wide-1080p", "320x180")

@@ -9,7 +9,7 @@ import pytest
 from agrisim.config import CellConfig
 from agrisim.plugins.rooms.lab import clutter
 from agrisim.plugins.rooms.lab import room as lab
-from agrisim.scene.cell import Box, Cylinder, build_cell
+from agrisim.robot.cell import Box, Cylinder, build_cell
 from agrisim.scene.model import Label, LabelTable, Material, Mesh, Plant
 
 # ---------------------------------------------------------------------------------------------

@@ -14,10 +14,10 @@ from conftest import isolated_env
 
 from agrisim.config import build_config
 from agrisim.files.glb import export_glb
+from agrisim.plant_choice import resolve_plant
 from agrisim.registry import Registry, make_plugin_manager
 from agrisim.scene import plant_cache
 from agrisim.scene.plant_cache import PLANT_CACHE_ENV
-from agrisim.scene.plant_choice import resolve_plant
 
 
 def scene_file(plant, path: Path) -> bytes:  # noqa: ANN001
@@ -35,7 +35,7 @@ def counted(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> list[tuple[str, 
     def grown(species, options, seed, grow):  # noqa: ANN001, ANN202
         return real(species, options, seed, lambda s: grows.append((species, s)) or grow(s))
 
-    monkeypatch.setattr("agrisim.scene.plant_choice.grown", grown)
+    monkeypatch.setattr("agrisim.plant_choice.grown", grown)
     return grows
 
 
@@ -86,8 +86,8 @@ def test_another_process_reads_what_this_one_kept(counted, tmp_path: Path) -> No
         "from agrisim.config import build_config\n"
         "from agrisim.files.glb import export_glb\n"
         "from agrisim.registry import Registry, make_plugin_manager\n"
-        "from agrisim.scene.plant_choice import resolve_plant\n"
-        "import agrisim.scene.plant_choice as pc\n"
+        "from agrisim.plant_choice import resolve_plant\n"
+        "import agrisim.plant_choice as pc\n"
         "real = pc.grown\n"
         "pc.grown = lambda species, options, seed, grow: real(species, options, seed, refuse)\n"
         "p = resolve_plant(Registry(make_plugin_manager()), build_config({'plant': 'indian_cress', 'seed': 5}))\n"

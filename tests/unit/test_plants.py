@@ -113,8 +113,8 @@ def test_the_plant_seed_grows_another_individual_and_the_same_seed_the_same_byte
     from agrisim.app.arguments import build_parser
     from agrisim.config import build_config
     from agrisim.files.glb import export_glb
+    from agrisim.plant_choice import resolve_plant
     from agrisim.plugins.apps.flags import overrides_from_args
-    from agrisim.scene.plant_choice import resolve_plant
 
     registry = Registry(make_plugin_manager())
 

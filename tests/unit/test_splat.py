@@ -14,7 +14,7 @@ from conftest import small_run
 from skimage.metrics import peak_signal_noise_ratio, structural_similarity
 
 from agrisim.errors import OutputError, UserError
-from agrisim.evaluation.session import check_writable
+from agrisim.plugins.apps.recon import check_writable
 from agrisim.plugins.recon.splat.cameras import downscale_image, gsplat_camera
 from agrisim.plugins.recon.splat.ply import splat_ply
 from agrisim.plugins.recon.splat.quality import psnr, ssim
@@ -185,7 +185,7 @@ def test_training_recording_reads_back_with_rerun(tmp_path: Path) -> None:
 
 
 def test_a_replaced_folder_keeps_nothing_stale(tmp_path: Path) -> None:
-    from agrisim.evaluation.session import write_reconstruction
+    from agrisim.files.reconstruction import write_reconstruction
     from agrisim.interfaces import Reconstruction
 
     write_reconstruction(tmp_path, Reconstruction(files={"splat/test/a.png": b"1", "splat/split.json": b"{}"}), {})

@@ -34,9 +34,9 @@ from agrisim.evaluation.views import View
 from agrisim.plugins.apps.nextview.coverage import SurfaceCoverage
 from agrisim.plugins.apps.nextview.occupancy import VoxelMap
 from agrisim.registry import Registry, make_plugin_manager
+from agrisim.robot.cell import build_cell, soil_pose
 from agrisim.robot.kinematics import ArmKinematics
 from agrisim.robot.setpoints import Setpoint, hemisphere
-from agrisim.scene.cell import build_cell, soil_pose
 from agrisim.scene.transforms import look_at
 from agrisim.validation import check_run
 

@@ -53,8 +53,8 @@ def check_request(plants: Sequence[str], policies: Sequence[str], views: int) ->
 def reachable_candidates(env: Any) -> int:
     """How many of ``env``'s candidates an arm's IK reaches (collisions aside): a set none of
     them reaches is refused before any episode runs."""
+    from agrisim.robot.cell import build_cell
     from agrisim.robot.kinematics import ArmKinematics
-    from agrisim.scene.cell import build_cell
 
     cell = build_cell(env.config.cell)
     kins = {arm.name: (ArmKinematics(arm), np.array(arm.home)) for arm in cell.arms}

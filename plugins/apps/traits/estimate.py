@@ -28,10 +28,9 @@ from typing import Any
 import numpy as np
 
 from agrisim.errors import UserError
-from agrisim.evaluation.session import capture_order
 from agrisim.evaluation.views import backproject, load_view
 from agrisim.files import layout
-from agrisim.files.rundir import camera_from_json, read_run
+from agrisim.files.rundir import camera_from_json, capture_order, read_run
 
 #: voxel of the merged clouds, m (the paper's 1 mm)
 VOXEL_M = 1e-3
@@ -83,7 +82,7 @@ def plant_T_world(run: dict[str, Any]) -> np.ndarray:
     """The plant's frame (the soil at the pot's centre, z up) from the world, by the cell of
     ``run`` (its run.json)."""
     from agrisim.config import build_config
-    from agrisim.scene.cell import build_cell, soil_pose
+    from agrisim.robot.cell import build_cell, soil_pose
 
     return np.linalg.inv(soil_pose(build_cell(build_config(run["config"]).cell)))
 

@@ -14,7 +14,7 @@ import pinocchio as pin
 
 from agrisim.interfaces import Execution, JointTrajectory, PhysicsBackend
 from agrisim.plugins.physics.kinematic import KinematicOptions
-from agrisim.scene.cell import Box, Cell, Cylinder, Obstacle
+from agrisim.robot.cell import Box, Cell, Cylinder, Obstacle
 
 
 @dataclass(frozen=True)
@@ -67,7 +67,7 @@ def _robust(request: coal.CollisionRequest) -> None:
 class KinematicPhysics(PhysicsBackend):
     """Arms that track their plans exactly; collisions from Pinocchio + coal.
 
-    Built from a :class:`agrisim.scene.cell.Cell`; arms start at their ``home`` configuration.
+    Built from a :class:`agrisim.robot.cell.Cell`; arms start at their ``home`` configuration.
     """
 
     def __init__(self, cell: Cell, options: KinematicOptions | None = None) -> None:

@@ -11,7 +11,7 @@ import numpy as np
 
 from agrisim.interfaces import Execution, JointTrajectory, PhysicsBackend
 from agrisim.plugins.physics.pybullet_physics import BulletOptions
-from agrisim.scene.cell import Box, Cell, Cylinder
+from agrisim.robot.cell import Box, Cell, Cylinder
 from agrisim.scene.transforms import quat_xyzw
 from agrisim.util.native_output import native_output_silenced
 

@@ -15,8 +15,8 @@ import numpy as np
 from agrisim.config import RenderConfig
 from agrisim.errors import ConfigError
 from agrisim.interfaces import CameraModel, Frame, Renderer
+from agrisim.robot.cell import Cell
 from agrisim.scene.camera import view_seed
-from agrisim.scene.cell import Cell
 from agrisim.scene.colour import encode_srgb8
 from agrisim.scene.model import Mesh, Scene
 

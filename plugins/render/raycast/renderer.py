@@ -16,9 +16,9 @@ from agrisim.plugins.render.raycast import RaycastOptions
 from agrisim.plugins.render.raycast.lights import LightTable
 from agrisim.plugins.render.raycast.shading import Shader
 from agrisim.plugins.render.raycast.tracing import SceneTracer, label_map
+from agrisim.robot.cell import Cell
 from agrisim.robot.visuals import arm_link_meshes
 from agrisim.scene.camera import view_seed
-from agrisim.scene.cell import Cell
 from agrisim.scene.colour import srgb_to_linear
 from agrisim.scene.model import Mesh, Scene
 

@@ -9,7 +9,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from agrisim.scene.cell import Cell, Cylinder
+from agrisim.robot.cell import Cell, Cylinder
 from agrisim.scene.transforms import translation, yaw_matrix
 
 NOT_DRAWN = ("floor", "plant_keepout")

@@ -5,7 +5,7 @@ Backend-free (numpy only). Everything is built in world coordinates:
 
 * a room (10 x 8 m, 3 m high by default, centred on the plant) with a tiled floor, painted
   walls with a skirting board and an acoustic-tile ceiling;
-* the table, the pot and the robot stands drawn from :attr:`agrisim.scene.cell.Cell.obstacles`, with
+* the table, the pot and the robot stands drawn from :attr:`agrisim.robot.cell.Cell.obstacles`, with
   exactly the physics bodies' sizes and poses (renders and collisions agree); the pot is a clay
   shell with a rim and a soil disc set ``SOIL_INSET`` below its rim;
 * the plant moved from its own frame (origin at the centre of the soil surface) onto the soil;
@@ -32,7 +32,7 @@ from agrisim import interfaces
 from agrisim.plugins.rooms.lab import textures as tex
 from agrisim.plugins.rooms.lab.clutter import NOT_DRAWN, Item, Room, cell_keepouts, clutter_layout, room_for
 from agrisim.plugins.rooms.lab.primitives import annulus, box, cylinder_side, disc, quad
-from agrisim.scene.cell import SOIL_INSET, Box, Cell, Cylinder, place_plant, soil_pose
+from agrisim.robot.cell import SOIL_INSET, Box, Cell, Cylinder, place_plant, soil_pose
 from agrisim.scene.mesh_builder import MeshBuilder
 from agrisim.scene.model import Light, Material, Mesh, Plant, Scene
 from agrisim.scene.transforms import translation, yaw_matrix

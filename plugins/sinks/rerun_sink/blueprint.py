@@ -11,7 +11,7 @@ import rerun.blueprint as rrb
 from .entities import paths
 
 if TYPE_CHECKING:
-    from agrisim.scene.cell import Cell
+    from agrisim.robot.cell import Cell
 
 #: where the 3D view's eye starts, from the plant (metres, world z up)
 EYE_OFFSET = np.array([0.4, -2.2, 1.1])

@@ -15,9 +15,9 @@ from urllib.parse import urlparse
 import numpy as np
 
 from agrisim import hookimpl
-from agrisim.files.encoding import depth_to_mm
 from agrisim.robot import meshes as robot_meshes
 from agrisim.scene.colour import linear_to_srgb
+from agrisim.scene.encoding import depth_to_mm
 
 from .entities import (
     APPLICATION_ID,
@@ -47,7 +47,7 @@ if TYPE_CHECKING:
 
     from agrisim.interfaces import Capture, Frame, Trajectory
     from agrisim.records import Run, RunSummary, SetpointResult
-    from agrisim.scene.cell import Box, Cylinder
+    from agrisim.robot.cell import Box, Cylinder
     from agrisim.scene.model import Scene
 
     from .options import RerunOptions
@@ -183,7 +183,7 @@ class RerunSink:
     # ------------------------------------------------------------------ static scene
     def _log_obstacle(self, ob: Box | Cylinder) -> None:
         assert self.rec is not None
-        from agrisim.scene.cell import Box
+        from agrisim.robot.cell import Box
 
         path = paths.obstacle(ob.name)
         T = np.asarray(ob.world_T, float)

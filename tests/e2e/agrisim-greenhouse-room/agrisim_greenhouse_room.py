@@ -11,7 +11,7 @@ from pydantic import Field
 
 from agrisim import BackendSpec, Options, hookimpl
 from agrisim.interfaces import Room
-from agrisim.scene.cell import Box, place_plant
+from agrisim.robot.cell import Box, place_plant
 from agrisim.scene.model import Light, Material, Mesh, Plant, Scene
 
 GRAVEL = Material("gravel", color=(0.45, 0.43, 0.40, 1.0), roughness=1.0)

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from agrisim.files.calibration import read_calibration
+from agrisim.scene.calibration import read_calibration
 from agrisim.scene.camera import CameraModel, preset
 
 
