@@ -80,9 +80,9 @@ def draw_one(
 
     from agrisim.files import layout
     from agrisim.files.atomic import write_json
-    from agrisim.files.dataset import write_frame
     from agrisim.files.rundir import camera_to_json
     from agrisim.plugins.apps.flags import apply_sets
+    from agrisim.plugins.sinks.dataset.writer import write_frame
 
     overrides: dict = {}
     apply_sets(overrides, sets)
@@ -140,8 +140,8 @@ def _develop_run(run: Path) -> str:
     from agrisim.config import ImagerConfig, build_config
     from agrisim.files import layout
     from agrisim.files.atomic import write_json
-    from agrisim.files.dataset import write_png
     from agrisim.interfaces import Imager, view_key
+    from agrisim.plugins.sinks.dataset.writer import write_png
     from agrisim.registry import Registry, make_plugin_manager
     from agrisim.scene.colour import encode_srgb8
     from agrisim.validation import open_imager

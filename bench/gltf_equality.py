@@ -93,7 +93,7 @@ def load_old(rev: str) -> types.SimpleNamespace:
         "_old_scene_glb",
         "core/files/scene_glb.py",
         {
-            "from agrisim.files.glb import": "from _old_glb import",
+            "from agrisim.plugins.sinks.dataset.glb import": "from _old_glb import",
             "from agrisim.plugins.formats.gltf import": "from _old_gltf import",
         },
     )

@@ -1,7 +1,7 @@
 """The rendering of ``agrisim run --renderer mitsuba`` on a GPU machine, from a saved run: per
 frame the arms posed, the exact pass (labels, depth, leaf instances) and the path-traced RGB, as
 :meth:`MitsubaRenderer.render` gives them to the episode, and every file of the frame written by
-one writer thread as the run's DatasetWriter does (:func:`agrisim.files.dataset.write_frame`:
+one writer thread as the run's DatasetWriter does (:func:`agrisim.plugins.sinks.dataset.writer.write_frame`:
 rgb, labels, labels_vis, depth, instances, link poses). What the rest of a run costs (IK,
 planning, physics, reconstruction: Pinocchio, OMPL, pybullet, Open3D) is measured on the CPU by
 bench/robot_episode.py and bench/recon_views.py. Prints figures; asserts nothing.
@@ -24,12 +24,12 @@ sys.path.insert(0, str(Path(__file__).parent))
 from machine import cpu_model, gpu_name  # noqa: E402
 from saved_run import saved_run  # noqa: E402
 
-from agrisim.files.dataset import write_frame  # noqa: E402
 from agrisim.interfaces import Frame  # noqa: E402
 from agrisim.plugins.apps.render import _link_poses  # noqa: E402
 from agrisim.plugins.render.mitsuba.options import MitsubaOptions  # noqa: E402
 from agrisim.plugins.render.mitsuba.renderer import MitsubaRenderer  # noqa: E402
 from agrisim.plugins.render.raycast.tracing import label_map  # noqa: E402
+from agrisim.plugins.sinks.dataset.writer import write_frame  # noqa: E402
 from agrisim.scene.model import LabelTable  # noqa: E402
 
 

@@ -26,7 +26,6 @@ from agrisim.evaluation.metrics import GroundTruth
 from agrisim.evaluation.session import ReconSession, metrics_meta, summary_metrics
 from agrisim.evaluation.views import View, load_frame, view_from_capture, view_of
 from agrisim.files.atomic import remove_partial
-from agrisim.files.dataset import DatasetWriter
 from agrisim.files.exports import RUN_EXPORTS, build_exporter, run_export
 from agrisim.files.rundir import prepare_out_dir, resolve_out_dir, saved_frames, saved_run
 from agrisim.interfaces import (
@@ -45,7 +44,7 @@ from agrisim.interfaces import (
 )
 from agrisim.plant_choice import resolve_plant
 from agrisim.records import Run, RunSummary, SetpointResult
-from agrisim.registry import BackendSpec, Registry, blame, make_plugin_manager
+from agrisim.registry import BackendSpec, Registry, blame, make_plugin_manager, with_own_plugins
 from agrisim.robot.cell import build_cell
 from agrisim.robot.kinematics import ArmKinematics
 from agrisim.robot.segments import arms_stay_apart, segment_is_valid
@@ -55,6 +54,8 @@ from agrisim.scene.model import Scene
 from agrisim.scene.transforms import pose_error
 from agrisim.validation import check_run, open_imager
 
+#: the entry point of the dataset sink (the run directory), which every run loads
+DATASET_SINK = "sink-dataset"
 #: rate at which planned trajectories are sampled for physics and sinks, Hz
 TRAJECTORY_RATE = 240.0
 
@@ -65,6 +66,7 @@ class Episode:
     def __init__(self, config: RunConfig, pm: pluggy.PluginManager | None = None) -> None:
         self.config = config
         self.pm = pm if pm is not None else make_plugin_manager()
+        with_own_plugins(self.pm, names=(DATASET_SINK,))  # the run directory, whatever plugins are chosen
         self.registry = Registry(self.pm)
         self._prep_wall: dict[str, float] = {}
         checked = check_run(self.registry, config)
@@ -224,6 +226,7 @@ class Episode:
             labels=self.scene.labels if self.scene is not None else None,
             wall_s=dict(self._prep_wall),
             plant_notes=list(self.plant.notes) if self.scene is not None else [],
+            exports=self._run_exports(),
         )
         if self.renderer_spec is not None:
             run.backends["renderer"] = self.renderer_spec.name
@@ -327,16 +330,14 @@ class Episode:
         return summary
 
     def _register_sinks(self, run: Run, opened: ExitStack) -> list[object]:
-        """The run directory's writer first, always (resume, recon, export and compare need its
-        files), then every installed sink; each unregistered when the episode closes."""
-        writer = DatasetWriter(run, self._run_exports())
-        sinks: list[object] = [writer]
-        self.pm.register(writer, name=f"dataset:{run.run_id}")
-        opened.callback(self.pm.unregister, writer)
-        for spec in self.registry.specs("sink").values():
-            sink = self.registry.build("sink", spec, run, self.sink_options[spec.name])
+        """The dataset sink first (the run directory: resume, recon, export and compare need its
+        files), then every other installed sink; each unregistered when the episode closes."""
+        specs = self.registry.specs("sink")
+        sinks: list[object] = []
+        for name in sorted(specs, key=lambda n: n != "dataset"):
+            sink = self.registry.build("sink", specs[name], run, self.sink_options[name])
             if sink is not None:
-                self.pm.register(sink, name=f"sink:{spec.name}:{run.run_id}")
+                self.pm.register(sink, name=f"sink:{name}:{run.run_id}")
                 opened.callback(self.pm.unregister, sink)
                 sinks.append(sink)
         self.pm.check_pending()

@@ -6,6 +6,7 @@ importing the episode machinery."""
 from __future__ import annotations
 
 import uuid
+from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -84,6 +85,9 @@ class Run:
     metrics: dict[str, Any] | None = None  # metrics.json's content
     #: files a sink writes, by what they are (``{"recording": Path}``), for the user to be told
     outputs: dict[str, Path] = field(default_factory=dict)
+    #: what writes the exports a rendered run makes itself (:data:`agrisim.files.exports.RUN_EXPORTS`)
+    #: into the run directory it is given, once the run's files are final (the dataset sink calls them)
+    exports: list[Callable[[Path], object]] = field(default_factory=list)
 
     @property
     def seed(self) -> int:

@@ -13,7 +13,7 @@ from __future__ import annotations
 import importlib
 import os
 import sys
-from collections.abc import Iterator
+from collections.abc import Collection, Iterator
 from contextlib import contextmanager
 from importlib import metadata
 from typing import Any
@@ -93,16 +93,17 @@ def make_plugin_manager(*, autoload: bool | None = None) -> pluggy.PluginManager
     return pm
 
 
-def with_own_plugins(pm: pluggy.PluginManager) -> list[object]:
-    """agrisim's own entry points' plugins (the distribution ``agrisim`` declares), registered
-    in ``pm`` where ``AGRISIM_LOAD_PLUGINS`` or ``AGRISIM_DISABLE_PLUGIN_AUTOLOAD`` left them out.
+def with_own_plugins(pm: pluggy.PluginManager, names: Collection[str] | None = None) -> list[object]:
+    """agrisim's own entry points' plugins (the distribution ``agrisim`` declares; ``names``:
+    only those entry points), registered in ``pm`` where ``AGRISIM_LOAD_PLUGINS`` or
+    ``AGRISIM_DISABLE_PLUGIN_AUTOLOAD`` left them out.
 
-    The command line's built-in commands come from them, so the switches that choose a run's
-    backends never take ``agrisim run`` away: pytest loads its built-ins whatever
-    ``PYTEST_DISABLE_PLUGIN_AUTOLOAD`` says, the same way."""
+    The command line's built-in commands come from them, and every run's dataset sink, so the
+    switches that choose a run's backends never take ``agrisim run`` or the run directory away:
+    pytest loads its built-ins whatever ``PYTEST_DISABLE_PLUGIN_AUTOLOAD`` says, the same way."""
     own = []
     for ep in metadata.entry_points(group=hookspecs.PROJECT):
-        if ep.dist is None or ep.dist.name != DISTRIBUTION:
+        if ep.dist is None or ep.dist.name != DISTRIBUTION or (names is not None and ep.name not in names):
             continue
         plugin = pm.get_plugin(ep.name)
         if plugin is None:

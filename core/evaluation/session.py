@@ -3,7 +3,7 @@
 :class:`ReconSession` feeds views to a reconstructor backend, counts what the metrics need, and
 passes per-view and merged clouds on (to the ``agrisim_cloud`` hook in a run). The episode uses
 it view by view; ``agrisim recon RUN_DIR`` replays a saved dataset through the same session;
-:mod:`agrisim.files.reconstruction` writes ``clouds/`` and ``metrics.json``.
+the dataset sink writes ``clouds/`` and ``metrics.json``.
 """
 
 from __future__ import annotations
@@ -11,11 +11,12 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
+import numpy as np
+
 from agrisim.config import depth_read
 from agrisim.evaluation.metrics import GroundTruth, ViewStats, evaluate
 from agrisim.evaluation.views import View
-from agrisim.files.reconstruction import vertex_colors
-from agrisim.interfaces import ALL, Cloud, Reconstruction, Reconstructor
+from agrisim.interfaces import ALL, Cloud, Reconstruction, Reconstructor, SurfaceMesh
 from agrisim.scene.model import LabelTable
 
 if TYPE_CHECKING:
@@ -97,6 +98,11 @@ class ReconSession:
         return result, metrics
 
 
+def vertex_colors(mesh: SurfaceMesh) -> np.ndarray:
+    """A reconstructed mesh's vertex colours (uint8 RGB), a light grey where it has none."""
+    return mesh.colors if mesh.colors is not None else np.full((len(mesh.vertices), 3), 200, np.uint8)
+
+
 def summary_metrics(metrics: dict[str, Any]) -> dict[str, Any]:
     """The headline numbers of ``metrics.json`` for ``run.json``'s summary: per label, points
     and precision/recall/F-score at each threshold."""
@@ -122,4 +128,4 @@ def metrics_meta(config: RunConfig) -> dict[str, Any]:
     }
 
 
-__all__ = ["ReconSession", "metrics_meta", "summary_metrics"]
+__all__ = ["ReconSession", "metrics_meta", "summary_metrics", "vertex_colors"]

@@ -18,9 +18,9 @@ from agrisim.evaluation.metrics import GroundTruth
 from agrisim.evaluation.session import ReconSession
 from agrisim.evaluation.views import load_view
 from agrisim.files import layout
-from agrisim.files.reconstruction import write_reconstruction
 from agrisim.files.rundir import camera_from_json, capture_order, read_run
 from agrisim.interfaces import ALL, Reconstructor
+from agrisim.plugins.sinks.dataset.reconstruction import write_reconstruction
 from agrisim.registry import Registry
 from agrisim.scene.model import LabelTable
 

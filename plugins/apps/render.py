@@ -36,12 +36,12 @@ import numpy as np
 from agrisim.errors import OutputError, UserError
 from agrisim.files import layout
 from agrisim.files.atomic import write_json
-from agrisim.files.dataset import write_png
 from agrisim.files.exr import write_exr
 from agrisim.files.rundir import camera_from_json, read_json, read_run
 from agrisim.interfaces import CameraModel, Renderer
 from agrisim.plugins.formats.point_cloud import load_point_plant
 from agrisim.plugins.formats.scene_glb import read_scene
+from agrisim.plugins.sinks.dataset.writer import write_png
 
 RENDER_JSON = "render.json"
 #: files of the source not carried into a re-rendered dataset (they show the old RGB)

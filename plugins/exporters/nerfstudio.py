@@ -1,7 +1,7 @@
 """The ``nerfstudio`` exporter: ``RUN_DIR/transforms.json`` plus ``RUN_DIR/masks/<frame>.png``,
 readable by nerfstudio's ``nerfstudio-data`` parser (``ns-train nerfacto --data RUN_DIR``;
 ``depth-nerfacto`` uses the depth). Every run with rendered frames writes it itself at its end
-(:data:`agrisim.files.dataset.RUN_EXPORTS`); ``agrisim export nerfstudio RUN_DIR`` writes it again.
+(:data:`agrisim.plugins.sinks.dataset.writer.RUN_EXPORTS`); ``agrisim export nerfstudio RUN_DIR`` writes it again.
 
 - Poses: ``transform_matrix`` is camera-to-world in the OpenGL/Blender convention nerfstudio uses
   (x right, y up, z back: the camera looks along -z), i.e. our OpenCV ``world_T_camera`` with

@@ -29,7 +29,7 @@ __all__ = ["read_gltf"]
 
 
 class GltfReader(GltfDocument):
-    """A glTF document read into agrisim's mesh (:mod:`agrisim.files.scene_glb` reads its
+    """A glTF document read into agrisim's mesh (:mod:`agrisim.plugins.sinks.dataset.scene_glb` reads its
     scenes through it too)."""
 
     def __init__(self, path: Path, shown: str, root: Path | None) -> None:

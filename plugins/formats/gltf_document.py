@@ -103,7 +103,7 @@ class GltfDocument:
 
     def plain_list(self, key: str) -> list[Any]:
         """The document's list ``key`` as the JSON objects it is in the file (how
-        :mod:`agrisim.files.scene_glb` reads its scenes' nodes)."""
+        :mod:`agrisim.plugins.sinks.dataset.scene_glb` reads its scenes' nodes)."""
         return [plain(x) for x in self.items(key)]
 
     def plain_item(self, key: str, index: Any) -> Any:

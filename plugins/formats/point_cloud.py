@@ -1,5 +1,5 @@
 """Point-cloud plants in: PLY (without faces) and PCD files as :class:`Plant` s drawn as points,
-agrisim's own PLY of a cloud (``scene/plant_points.ply``, :mod:`agrisim.files.point_cloud`) among
+agrisim's own PLY of a cloud (``scene/plant_points.ply``, :mod:`agrisim.plugins.sinks.dataset.point_cloud`) among
 them.
 
 Properties read (per point; names as PCL, CloudCompare and Open3D write them)
@@ -34,7 +34,6 @@ from typing import Any, Literal
 
 import numpy as np
 
-from agrisim.files.point_cloud import PLY_COMMENT
 from agrisim.plugins.formats.asset_reading import (
     AssetError,
     check_scale,
@@ -43,6 +42,7 @@ from agrisim.plugins.formats.asset_reading import (
     unit_hint,
     y_up_to_z_up,
 )
+from agrisim.plugins.sinks.dataset.point_cloud import PLY_COMMENT
 from agrisim.scene.model import Label, LabelTable, Mesh, Plant, PointSet
 from agrisim.scene.palette import BACKGROUND, PALETTE
 

@@ -1,5 +1,5 @@
 """Reads agrisim's saved scene back (``OUT/scene/lab.glb``, written by
-:mod:`agrisim.files.scene_glb`): every mesh, the arms' link meshes, the lights, the label table.
+:mod:`agrisim.plugins.sinks.dataset.scene_glb`): every mesh, the arms' link meshes, the lights, the label table.
 
 Reading gives back float32-exact vertices (the run's renderers see float64 world coordinates, but
 every renderer casts them to float32 as stored here), the same texels, the same material settings.
@@ -13,8 +13,8 @@ from typing import Any
 import numpy as np
 
 from agrisim.errors import UserError
-from agrisim.files.scene_glb import ARM_PREFIX, FORMAT
 from agrisim.plugins.formats.gltf import GltfReader
+from agrisim.plugins.sinks.dataset.scene_glb import ARM_PREFIX, FORMAT
 from agrisim.scene.model import LabelTable, Light, Material, Mesh, Scene
 
 __all__ = ["read_scene"]

@@ -67,9 +67,10 @@ def test_files_match_the_rendered_frames(tmp_path, frames):
 
 
 def test_the_run_directory_is_written_whatever_plugins_are_loaded(tmp_path, monkeypatch):
-    """The run directory is the core's: with only the backends a run needs loaded (no sink
-    plugin at all), run.json and cameras.json are still written, so --resume, recon, the
-    exports and compare keep working."""
+    """The run directory's writer, the dataset sink, is loaded by every run: with only the
+    backends a run needs chosen (AGRISIM_LOAD_PLUGINS names no sink: the Rerun recording is left
+    out), run.json and cameras.json are still written, so --resume, recon, the exports and
+    compare keep working."""
     monkeypatch.setenv("AGRISIM_LOAD_PLUGINS", "physics-kinematic,planner-ompl,plants-procedural")
     out = tmp_path / "run"
     config = build_config(
@@ -82,7 +83,7 @@ def test_the_run_directory_is_written_whatever_plugins_are_loaded(tmp_path, monk
         }
     )
     episode = Episode(config)
-    assert episode.registry.specs("sink") == {}
+    assert list(episode.registry.specs("sink")) == ["dataset"]
     run, summary = episode.run()
     doc = json.loads((out / "run.json").read_text())
     assert doc["status"] == summary.status == "complete"

@@ -120,6 +120,7 @@ def test_doctor_tells_the_truth_about_this_machine(tmp_path: Path) -> None:
         ("sensor", "exact"),
         ("planner", "ompl"),
         ("reconstructor", "pointcloud"),
+        ("sink", "dataset"),
         ("sink", "rerun"),
         ("plant", "indian_cress"),
         ("room", "lab"),

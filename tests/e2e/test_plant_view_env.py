@@ -126,7 +126,7 @@ def test_a_viewpoint_out_of_reach_moves_nothing() -> None:
 def test_a_leaf_card_is_covered_one_side_at_a_time(tmp_path: Path) -> None:
     """A square card standing 60 degrees from flat, facing +x (r1's side): the view from r1's
     side sees its front, half the card's surface (its two sides); r2's, from -x, the back."""
-    from agrisim.files.glb import export_glb
+    from agrisim.plugins.sinks.dataset.glb import export_glb
 
     card = leaf_card(0.1, np.full((8, 8), 255, np.uint8), 60.0, at=(0.0, 0.0, 0.1))
     turn = np.array([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])  # its normal from -y to +x

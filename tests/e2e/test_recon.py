@@ -337,7 +337,7 @@ def test_incomplete_runs_are_refused(run_dir: Path, tmp_path: Path, capsys: pyte
 def test_cloud_ply_is_open3ds_own_bytes(tmp_path: Path) -> None:
     """Clouds are written without Open3D (a GPU machine's minimal install writes them too), in
     the very bytes Open3D's writer gives, every colour value included."""
-    from agrisim.files.reconstruction import cloud_ply
+    from agrisim.plugins.sinks.dataset.reconstruction import cloud_ply
 
     rng = np.random.default_rng(5)
     colors = np.stack([np.arange(256)] * 3, 1).astype(np.uint8)

@@ -65,7 +65,7 @@ def test_a_tilted_cut_out_card_is_measured_from_the_views(tmp_path: Path, cli) -
     surface's area between 75% and 101% of the opaque half (measured 88%: what the views saw,
     less half a point spacing along the outline), and the plant's height (the card rests on the
     soil, its top edge 8 sin 30 = 4 cm up) within 1 mm (the depth's whole millimetres)."""
-    from agrisim.files.glb import export_glb
+    from agrisim.plugins.sinks.dataset.glb import export_glb
 
     alpha = np.zeros((64, 64), np.uint8)
     alpha[:, 32:] = 255

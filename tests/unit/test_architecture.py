@@ -195,15 +195,15 @@ def test_the_core_imports_no_plugin() -> None:
     imports one, at its top or inside a function."""
     graph = import_graph()
     core = core_modules()
-    assert len(core) > 60 and "agrisim.files.dataset" in core
+    assert len(core) > 60 and "agrisim.files.rundir" in core
     reached = {name: sorted(d for d in graph[name] if d.startswith("agrisim.plugins")) for name in core}
     assert {name: deps for name, deps in reached.items() if deps} == {}
 
 
 def test_the_plugin_check_catches_a_core_module_importing_a_plugin() -> None:
     graph = import_graph()
-    graph["agrisim.files.dataset"] = graph["agrisim.files.dataset"] | {"agrisim.plugins.exporters.nerfstudio"}
-    assert [d for d in graph["agrisim.files.dataset"] if d.startswith("agrisim.plugins")]
+    graph["agrisim.files.rundir"] = graph["agrisim.files.rundir"] | {"agrisim.plugins.exporters.nerfstudio"}
+    assert [d for d in graph["agrisim.files.rundir"] if d.startswith("agrisim.plugins")]
 
 
 @pytest.mark.parametrize(
@@ -361,7 +361,7 @@ def test_the_layer_check_catches_an_upward_import() -> None:
 #: the most lines a module may hold (a longer one does more than the one job its name says)
 MODULE_LINES = 600
 #: the core's size now (core/, in lines of Python); the goal is 7,000: lower this as it shrinks
-CORE_LINES = 8_600
+CORE_LINES = 7_600
 
 
 def test_no_module_is_over_600_lines() -> None:

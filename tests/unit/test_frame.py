@@ -52,8 +52,8 @@ def test_radiance_is_written_as_exact_float_exr(tmp_path) -> None:  # noqa: ANN0
     import OpenEXR
 
     from agrisim.files import layout
-    from agrisim.files.dataset import write_frame
     from agrisim.files.exr import read_exr
+    from agrisim.plugins.sinks.dataset.writer import write_frame
 
     rng = np.random.default_rng(4)
     radiance = (rng.random((6, 7, 3)) ** 3 * 50.0).astype(np.float32)  # above 1: not clipped

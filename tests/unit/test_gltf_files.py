@@ -13,9 +13,9 @@ import numpy as np
 import pytest
 from test_plant_files import edit_glb, expect_error, own_card_glb
 
-from agrisim.files.glb import export_glb
-from agrisim.files.scene_glb import scene_glb_bytes
 from agrisim.plugins.formats.plant_asset import load_plant
+from agrisim.plugins.sinks.dataset.glb import export_glb
+from agrisim.plugins.sinks.dataset.scene_glb import scene_glb_bytes
 from agrisim.scene.model import LabelTable, Light, Material, Mesh, Scene
 from agrisim.scene.texturing import interpolate_uv, opaque, sample_surface
 

@@ -8,8 +8,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from agrisim.files import json_text
 from agrisim.files.atomic import to_json
+from agrisim.plugins.sinks.dataset import json_text
 
 
 def _rows(n: int, rng: np.random.Generator) -> list[dict]:

@@ -13,8 +13,8 @@ import pytest
 from conftest import isolated_env
 
 from agrisim.config import build_config
-from agrisim.files.glb import export_glb
 from agrisim.plant_choice import resolve_plant
+from agrisim.plugins.sinks.dataset.glb import export_glb
 from agrisim.registry import Registry, make_plugin_manager
 from agrisim.scene import plant_cache
 from agrisim.scene.plant_cache import PLANT_CACHE_ENV
@@ -84,7 +84,7 @@ def test_another_process_reads_what_this_one_kept(counted, tmp_path: Path) -> No
         "from agrisim.scene import plant_cache\n"
         "def refuse(seed): raise SystemExit('grown again')\n"
         "from agrisim.config import build_config\n"
-        "from agrisim.files.glb import export_glb\n"
+        "from agrisim.plugins.sinks.dataset.glb import export_glb\n"
         "from agrisim.registry import Registry, make_plugin_manager\n"
         "from agrisim.plant_choice import resolve_plant\n"
         "import agrisim.plant_choice as pc\n"

@@ -22,8 +22,8 @@ from PIL import Image
 from trimesh.visual.material import PBRMaterial, SimpleMaterial
 
 from agrisim.errors import UserError
-from agrisim.files.glb import export_glb
 from agrisim.plugins.formats.plant_asset import load_plant
+from agrisim.plugins.sinks.dataset.glb import export_glb
 from agrisim.scene.model import Label, LabelTable, Material, Mesh
 from agrisim.scene.texturing import cutaway_fraction, interpolate_uv, label_at, opaque, sample_surface
 

@@ -112,9 +112,9 @@ def test_the_plant_seed_grows_another_individual_and_the_same_seed_the_same_byte
     monkeypatch.delenv(PLANT_CACHE_ENV, raising=False)
     from agrisim.app.arguments import build_parser
     from agrisim.config import build_config
-    from agrisim.files.glb import export_glb
     from agrisim.plant_choice import resolve_plant
     from agrisim.plugins.apps.flags import overrides_from_args
+    from agrisim.plugins.sinks.dataset.glb import export_glb
 
     registry = Registry(make_plugin_manager())
 

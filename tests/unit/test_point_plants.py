@@ -12,11 +12,11 @@ import numpy as np
 import pytest
 
 from agrisim.errors import UserError
-from agrisim.files.point_cloud import write_points_ply
 from agrisim.plugins.formats.point_cloud import load_point_plant
 from agrisim.plugins.render.raycast import RaycastOptions
 from agrisim.plugins.render.raycast.points import PointTracer
 from agrisim.plugins.render.raycast.tracing import SceneTracer, label_map
+from agrisim.plugins.sinks.dataset.point_cloud import write_points_ply
 from agrisim.scene.camera import CameraModel
 from agrisim.scene.colour import srgb_to_linear
 from agrisim.scene.model import Label, LabelTable, Material, Mesh, PointSet, Scene

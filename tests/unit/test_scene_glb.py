@@ -9,11 +9,11 @@ import numpy as np
 import pytest
 
 from agrisim.errors import UserError
-from agrisim.files.glb import export_glb
-from agrisim.files.scene_glb import write_scene
 from agrisim.plugins.formats.scene_glb import read_scene
 from agrisim.plugins.plants.procedural import grow
 from agrisim.plugins.rooms.lab.room import build_scene
+from agrisim.plugins.sinks.dataset.glb import export_glb
+from agrisim.plugins.sinks.dataset.scene_glb import write_scene
 from agrisim.robot.visuals import arm_link_meshes
 
 

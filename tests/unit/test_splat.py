@@ -185,8 +185,8 @@ def test_training_recording_reads_back_with_rerun(tmp_path: Path) -> None:
 
 
 def test_a_replaced_folder_keeps_nothing_stale(tmp_path: Path) -> None:
-    from agrisim.files.reconstruction import write_reconstruction
     from agrisim.interfaces import Reconstruction
+    from agrisim.plugins.sinks.dataset.reconstruction import write_reconstruction
 
     write_reconstruction(tmp_path, Reconstruction(files={"splat/test/a.png": b"1", "splat/split.json": b"{}"}), {})
     write_reconstruction(tmp_path, Reconstruction(files={"splat/test/b.png": b"2", "splat/split.json": b"[]"}), {})

@@ -13,11 +13,11 @@ from conftest import leaf_card as _card
 from conftest import rotation_x as _rotation_x
 
 from agrisim.errors import UserError
-from agrisim.files.glb import export_glb
 from agrisim.plugins.apps.traits.opaque_area import face_opaque_area, kept_texels
 from agrisim.plugins.apps.traits.truth import DE_WIT, INCLINATION_BINS, de_wit_shares, nearest_de_wit, plant_traits
 from agrisim.plugins.formats.plant_asset import load_plant
 from agrisim.plugins.plants.procedural import grow
+from agrisim.plugins.sinks.dataset.glb import export_glb
 from agrisim.scene.model import Mesh, Plant
 
 NUDGE = 1e-3 * np.sqrt(2)

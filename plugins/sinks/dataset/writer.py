@@ -24,7 +24,6 @@ from __future__ import annotations
 
 import platform
 import sys
-from collections.abc import Callable, Sequence
 from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import fields
 from importlib import metadata
@@ -33,16 +32,17 @@ from typing import Any
 
 import numpy as np
 
-from agrisim.files import json_text, layout
+from agrisim.files import layout
 from agrisim.files.atomic import to_json, write_bytes, write_json
 from agrisim.files.exr import write_exr
-from agrisim.files.glb import export_glb
 from agrisim.files.png import encode_png
-from agrisim.files.point_cloud import write_points_ply
-from agrisim.files.reconstruction import write_reconstruction
 from agrisim.files.rundir import camera_to_json
-from agrisim.files.scene_glb import write_scene
 from agrisim.interfaces import CameraModel, Capture, Frame, JointTrajectory, Trajectory
+from agrisim.plugins.sinks.dataset import json_text
+from agrisim.plugins.sinks.dataset.glb import export_glb
+from agrisim.plugins.sinks.dataset.point_cloud import write_points_ply
+from agrisim.plugins.sinks.dataset.reconstruction import write_reconstruction
+from agrisim.plugins.sinks.dataset.scene_glb import write_scene
 from agrisim.records import Run, RunSummary, SetpointResult
 from agrisim.registry import hookimpl
 from agrisim.scene.encoding import depth_to_mm
@@ -85,7 +85,7 @@ def write_png(path: Path, image: np.ndarray, palette: np.ndarray | None = None) 
 
 def _write_pretty(path: Path, doc: dict[str, Any]) -> None:
     """``doc`` as pretty JSON (the bytes :func:`~agrisim.files.atomic.write_json` writes),
-    atomically, its :class:`~agrisim.files.json_text.Spliced` members spliced in."""
+    atomically, its :class:`~agrisim.plugins.sinks.dataset.json_text.Spliced` members spliced in."""
     write_bytes(path, (json_text.dumps(doc, default=to_json) + "\n").encode())
 
 
@@ -107,11 +107,12 @@ class DatasetWriter:
     ``frames_complete`` only once all its files are on disk.
     """
 
-    def __init__(self, run: Run, exports: Sequence[Callable[[Path], object]] = ()) -> None:
+    def __init__(self, run: Run, options: object = None) -> None:
         self.out = run.out_dir
+        self.options = options
         #: what writes the exports the run makes itself (:data:`agrisim.files.exports.RUN_EXPORTS`)
         #: into the run directory it is given, once run.json is final
-        self.exports = tuple(exports)
+        self.exports = tuple(run.exports)
         self.frames: dict[str, dict[str, Any]] = {}
         self.status = "running"
         self.summary: dict[str, Any] | None = None

@@ -95,7 +95,7 @@ def glb_bytes(mesh: Mesh, labels: LabelTable) -> bytes:
 
 class GlbWriter:
     """Collects buffer views, accessors, images, textures and materials of one binary glTF
-    (:mod:`agrisim.files.scene_glb` writes its scenes through it too)."""
+    (:mod:`agrisim.plugins.sinks.dataset.scene_glb` writes its scenes through it too)."""
 
     def __init__(self) -> None:
         self.blob = bytearray()

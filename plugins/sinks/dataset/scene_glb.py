@@ -7,7 +7,7 @@ What it holds, and how:
 * every static mesh of the :class:`~agrisim.scene.model.Scene` (room, clutter, table, stands, pot,
   soil, lamp panels, the plant) as a node named after it, in world coordinates converted to
   glTF's y up ((x, y, z) -> (x, z, -y), exact in float32), with its materials as
-  :mod:`agrisim.files.glb` writes them (albedo, roughness, metallic, alpha cut-outs, label
+  :mod:`agrisim.plugins.sinks.dataset.glb` writes them (albedo, roughness, metallic, alpha cut-outs, label
   textures and translucency in ``extras``) and its leaf instances;
 * each arm link's visual mesh as a node ``arm:<robot>/<link>`` whose mesh is in the link's own
   frame, placed by the node's matrix at the pose of the first frame (so that a glTF viewer shows
@@ -28,7 +28,7 @@ from typing import Any
 import numpy as np
 
 from agrisim.files.atomic import write_bytes
-from agrisim.files.glb import GlbWriter
+from agrisim.plugins.sinks.dataset.glb import GlbWriter
 from agrisim.scene.model import Light, Scene
 
 FORMAT = 1

@@ -8,13 +8,10 @@ from typing import Any
 
 import numpy as np
 
-from agrisim.data import Cloud, Reconstruction, SurfaceMesh
+from agrisim.data import Cloud, Reconstruction
+from agrisim.evaluation.session import vertex_colors
 from agrisim.files import layout
 from agrisim.files.atomic import write_bytes, write_json, write_through
-
-
-def vertex_colors(mesh: SurfaceMesh) -> np.ndarray:
-    return mesh.colors if mesh.colors is not None else np.full((len(mesh.vertices), 3), 200, np.uint8)
 
 
 def output_files(out_dir: Path, result: Reconstruction) -> list[Path]:
