@@ -634,9 +634,9 @@ def main() -> None:
     print(f"JSON keys the new writer adds (pygltflib writes these spec defaults): {sorted(new_keys)}")
 
     from agrisim.config import CellConfig
+    from agrisim.plugins.render.arm_visuals import arm_link_meshes
     from agrisim.plugins.rooms.lab.room import build_scene
     from agrisim.robot.cell import build_cell
-    from agrisim.robot.visuals import arm_link_meshes
 
     cell = build_cell(CellConfig())
     arms = {a.name: [(lm.link, lm.mesh) for lm in arm_link_meshes(a.urdf, 30000)] for a in cell.arms}

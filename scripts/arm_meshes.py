@@ -1,7 +1,7 @@
-"""Makes ``core/robot/arm_meshes_ur10.npz`` again: the cell's arm (the UR10 with its camera,
+"""Makes ``plugins/render/arm_meshes_ur10.npz`` again: the cell's arm (the UR10 with its camera,
 :func:`agrisim.robot.urdf.ur10_with_camera`) decimated by Open3D to the renderers' default
 ``arm_triangles``, which agrisim ships so that the default run draws the arms it always drew
-without Open3D installed (``agrisim.robot.visuals``). Needs Open3D (the dev environment has it).
+without Open3D installed (``agrisim.plugins.render.arm_visuals``). Needs Open3D (the dev environment has it).
 
 Run it after the mesh files (example-robot-data), trimesh, Open3D or the default budget change;
 ``tests/unit/test_arm_visuals.py`` fails until then. The same inputs give the same bytes.
@@ -17,15 +17,15 @@ from importlib import metadata
 
 import numpy as np
 
+from agrisim.plugins.render import arm_visuals as visuals
 from agrisim.plugins.render.mitsuba.options import MitsubaOptions
 from agrisim.plugins.render.raycast import RaycastOptions
-from agrisim.robot import visuals
 from agrisim.robot.urdf import ur10_with_camera
 
 
 def open3d_decimate(v: np.ndarray, f: np.ndarray, target: float) -> tuple[np.ndarray, np.ndarray]:
     """Quadric edge-collapse decimation to about ``target`` triangles: Open3D's, as
-    ``agrisim.robot.visuals`` decimated every arm before these meshes were shipped."""
+    ``agrisim.plugins.render.arm_visuals`` decimated every arm before these meshes were shipped."""
     import open3d as o3d
 
     mesh = o3d.geometry.TriangleMesh(o3d.utility.Vector3dVector(v), o3d.utility.Vector3iVector(f.astype(np.int32)))

@@ -39,7 +39,7 @@ PACKAGES = {
     "agrisim.files": "The run directory's files: its layout, writer and readers, GLB, PNG/EXR, PLY, exports.",
     "agrisim.plugins.rooms.lab": "The lab room around the cell: room, clutter, textures.",
     "agrisim.testing": "The contract suite a backend is checked against, and perturbations for tests.",
-    "agrisim.util": "Small helpers: caches, native output.",
+    "agrisim.util": "Small helpers: caches on disk.",
 }
 
 

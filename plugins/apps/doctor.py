@@ -48,7 +48,7 @@ def gather(timing: bool = True) -> dict[str, Any]:
     Native libraries' prints to stdout are discarded meanwhile (pybullet's build time), so that
     ``--json`` output stays JSON.
     """
-    from agrisim.util.native_output import native_output_silenced
+    from agrisim.plugins.native_output import native_output_silenced
 
     llvm_path_before = os.environ.get("DRJIT_LIBLLVM_PATH")
     with native_output_silenced(stdout=True, stderr=False):

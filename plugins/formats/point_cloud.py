@@ -100,7 +100,7 @@ def _read_ply(real: Path, shown: str) -> dict[str, np.ndarray]:
 
 
 def _read_pcd(real: Path, shown: str) -> dict[str, np.ndarray]:
-    from agrisim.util.native_output import native_output_silenced
+    from agrisim.plugins.native_output import native_output_silenced
 
     with native_output_silenced():
         import open3d as o3d

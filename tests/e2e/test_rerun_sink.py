@@ -25,12 +25,12 @@ from rerun.chunk import RrdReader  # noqa: E402
 from agrisim.config import build_config  # noqa: E402
 from agrisim.episode import Episode  # noqa: E402
 from agrisim.interfaces import Capture, Frame, JointTrajectory, Trajectory  # noqa: E402
+from agrisim.plugins.render import robot_meshes  # noqa: E402
 from agrisim.plugins.sinks import rerun_sink  # noqa: E402
 from agrisim.plugins.sinks.rerun_sink import RerunOptions, entities, recording  # noqa: E402
 from agrisim.plugins.sinks.rerun_sink.entities import paths  # noqa: E402
 from agrisim.records import Run, RunSummary, SetpointResult  # noqa: E402
 from agrisim.registry import make_plugin_manager  # noqa: E402
-from agrisim.robot import meshes as robot_meshes  # noqa: E402
 from agrisim.robot.cell import build_cell  # noqa: E402
 from agrisim.robot.kinematics import ArmKinematics  # noqa: E402
 from agrisim.robot.setpoints import routine  # noqa: E402

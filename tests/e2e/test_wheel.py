@@ -62,7 +62,7 @@ def test_the_wheel_holds_every_module(wheel: Path) -> None:
     expected |= {
         f"agrisim/plugins/{p.relative_to(REPO / 'plugins').as_posix()}" for p in (REPO / "plugins").rglob("*.py")
     }
-    expected.add("agrisim/robot/arm_meshes_ur10.npz")  # package data: the cell's arm, decimated once
+    expected.add("agrisim/plugins/render/arm_meshes_ur10.npz")  # package data: the cell's arm, decimated once
     missing = sorted(expected - names)
     assert not missing, f"the wheel lacks {missing[:10]}"
     entry_points = (

@@ -1,4 +1,4 @@
-"""The arms' visual meshes (``agrisim.robot.visuals``). Kept on disk: a later process reads the
+"""The arms' visual meshes (``agrisim.plugins.render.arm_visuals``). Kept on disk: a later process reads the
 very meshes that loading the URDF's files and decimating them gives, and a change to anything
 they are made from (the URDF, the triangle budget, a mesh file) makes them anew. Shipped for the
 cell's arm at the renderers' default budget: exactly Open3D's decimation, read only for exactly
@@ -23,9 +23,9 @@ from scipy.spatial import cKDTree
 from trimesh.triangles import closest_point
 
 from agrisim.config import CellConfig
+from agrisim.plugins.render import arm_visuals as visuals
 from agrisim.plugins.render.mitsuba.options import MitsubaOptions
 from agrisim.plugins.render.raycast import RaycastOptions
-from agrisim.robot import visuals
 from agrisim.robot.cell import build_cell
 from agrisim.robot.urdf import ur10_with_camera
 
@@ -102,7 +102,7 @@ def test_a_broken_entry_is_made_again(cache: Path, tmp_path: Path) -> None:
 
 
 def open3d_decimate(v: np.ndarray, f: np.ndarray, target: float) -> tuple[np.ndarray, np.ndarray]:
-    """Open3D's quadric decimation exactly as ``agrisim.robot.visuals`` drew every arm before it
+    """Open3D's quadric decimation exactly as ``agrisim.plugins.render.arm_visuals`` drew every arm before it
     shipped them (the truth the shipped file must equal; the generator keeps its own copy)."""
     import open3d as o3d
 

@@ -21,12 +21,12 @@ from reference_tracer import ReferenceTracer
 from agrisim.config import RoutineConfig, build_config
 from agrisim.plant_choice import resolve_plant
 from agrisim.plugins.plants.procedural.species import SPECIES as PROCEDURAL
+from agrisim.plugins.render.arm_visuals import arm_link_meshes
 from agrisim.plugins.render.raycast import RaycastOptions
 from agrisim.plugins.render.raycast.tracing import SceneTracer, label_map
 from agrisim.plugins.rooms.lab.room import build_scene
 from agrisim.registry import Registry, make_plugin_manager
 from agrisim.robot.setpoints import hemisphere
-from agrisim.robot.visuals import arm_link_meshes
 from agrisim.scene.camera import preset
 
 SPECIES = sorted(PROCEDURAL)

@@ -555,7 +555,7 @@ def test_arms_posed_by_instances_match_arms_built_into_the_scene(cell, kin):
     static scene at the same link poses (world-frame vertices) give the same labels, depth to
     float32 rounding and RGB but for rounding (the arms' shadows on a cut-out card and a floor
     included)."""
-    from agrisim.robot.visuals import arm_link_meshes
+    from agrisim.plugins.render.arm_visuals import arm_link_meshes
 
     poses = {a.name: kin[a.name].link_poses(np.array(a.home)) for a in cell.arms}
     elbow = poses["r1"]["forearm_link"][:3, 3]

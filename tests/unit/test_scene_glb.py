@@ -11,10 +11,10 @@ import pytest
 from agrisim.errors import UserError
 from agrisim.plugins.formats.scene_glb import read_scene
 from agrisim.plugins.plants.procedural import grow
+from agrisim.plugins.render.arm_visuals import arm_link_meshes
 from agrisim.plugins.rooms.lab.room import build_scene
 from agrisim.plugins.sinks.dataset.glb import export_glb
 from agrisim.plugins.sinks.dataset.scene_glb import write_scene
-from agrisim.robot.visuals import arm_link_meshes
 
 
 @pytest.fixture(scope="module")

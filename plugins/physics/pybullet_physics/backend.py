@@ -10,10 +10,10 @@ from xml.etree import ElementTree
 import numpy as np
 
 from agrisim.interfaces import Execution, JointTrajectory, PhysicsBackend
+from agrisim.plugins.native_output import native_output_silenced
 from agrisim.plugins.physics.pybullet_physics import BulletOptions
 from agrisim.robot.cell import Box, Cell, Cylinder
 from agrisim.scene.transforms import quat_xyzw
-from agrisim.util.native_output import native_output_silenced
 
 with native_output_silenced():  # pybullet prints its build time on import
     import pybullet as pb

@@ -8,10 +8,10 @@ from ompl import geometric as og  # noqa: E402
 from ompl import util as ou  # noqa: E402
 
 from agrisim.interfaces import Planner, PlanningFailed, Validity
+from agrisim.plugins.native_output import silence_native_output_at_exit
 from agrisim.plugins.planners.ompl_planner import OmplOptions
 from agrisim.plugins.planners.ompl_planner.names import available_planners  # noqa: F401 - part of the backend's API
 from agrisim.robot.segments import path_is_valid, require_within_limits, segment_is_valid
-from agrisim.util.native_output import silence_native_output_at_exit
 
 _seeded = False
 

@@ -94,7 +94,7 @@ class MitsubaRenderer(Renderer):
             return scene.arms
         if cell is None:
             return {}
-        from agrisim.robot.visuals import arm_link_meshes
+        from agrisim.plugins.render.arm_visuals import arm_link_meshes
 
         return {
             a.name: [(lm.link, lm.mesh) for lm in arm_link_meshes(a.urdf, options.arm_triangles)] for a in cell.arms

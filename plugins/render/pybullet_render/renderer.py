@@ -11,12 +11,12 @@ from PIL import Image
 
 from agrisim.config import RenderConfig
 from agrisim.interfaces import CameraModel, Frame, Renderer
+from agrisim.plugins.native_output import native_output_silenced
+from agrisim.plugins.render import robot_meshes
 from agrisim.plugins.render.pybullet_render import PybulletRenderOptions
-from agrisim.robot import meshes as robot_meshes
 from agrisim.robot.cell import Cell
 from agrisim.scene.model import Mesh, Scene
 from agrisim.scene.transforms import quat_xyzw
-from agrisim.util.native_output import native_output_silenced
 
 with native_output_silenced():
     import pybullet as pb

@@ -12,12 +12,12 @@ import numpy as np
 
 from agrisim.config import RenderConfig
 from agrisim.interfaces import CameraModel, Frame, Renderer
+from agrisim.plugins.render.arm_visuals import arm_link_meshes
 from agrisim.plugins.render.raycast import RaycastOptions
 from agrisim.plugins.render.raycast.lights import LightTable
 from agrisim.plugins.render.raycast.shading import Shader
 from agrisim.plugins.render.raycast.tracing import SceneTracer, label_map
 from agrisim.robot.cell import Cell
-from agrisim.robot.visuals import arm_link_meshes
 from agrisim.scene.camera import view_seed
 from agrisim.scene.colour import srgb_to_linear
 from agrisim.scene.model import Mesh, Scene

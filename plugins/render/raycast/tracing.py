@@ -12,12 +12,12 @@ import drjit as dr
 import numpy as np
 
 from agrisim.errors import ConfigError
+from agrisim.plugins.render.arm_visuals import arm_link_meshes
 from agrisim.plugins.render.raycast import RaycastOptions, culling
 from agrisim.plugins.render.raycast.engine import Engine, Surface
 from agrisim.plugins.render.raycast.lights import SHADOW_TFAR, LightTable
 from agrisim.plugins.render.raycast.points import PointTracer
 from agrisim.robot.cell import Cell
-from agrisim.robot.visuals import arm_link_meshes
 from agrisim.scene.camera import CameraModel
 from agrisim.scene.model import Mesh, Scene
 

@@ -15,7 +15,7 @@ from urllib.parse import urlparse
 import numpy as np
 
 from agrisim import hookimpl
-from agrisim.robot import meshes as robot_meshes
+from agrisim.plugins.render import robot_meshes
 from agrisim.scene.colour import linear_to_srgb
 from agrisim.scene.encoding import depth_to_mm
 

@@ -30,7 +30,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from agrisim.robot import meshes as robot_meshes
+from agrisim.plugins.render import robot_meshes
 from agrisim.scene.colour import srgb_to_linear
 from agrisim.scene.model import Material, Mesh
 from agrisim.util import cache as util_cache
