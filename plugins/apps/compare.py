@@ -39,6 +39,7 @@ from typing import Any
 from agrisim.config import build_config
 from agrisim.errors import OutputError, UserError
 from agrisim.files.atomic import write_bytes, write_json
+from agrisim.plugins.apps.batch import first_line, run_batch
 from agrisim.plugins.apps.compare_plan import (  # noqa: F401 - planning is part of compare's API
     PAPER_PLANTS,
     ComparePlan,
@@ -236,30 +237,11 @@ def execute(
     records: dict[int, dict[str, Any]] = {}
 
     def _collect() -> None:
-        result.records = [
-            records.get(
-                i,
-                {
-                    "plant": e.plant,
-                    "seg_mode": e.seg_mode,
-                    **_variant(e),
-                    "run_dir": str(e.run_dir),
-                    "status": "not run",
-                },
-            )
-            for i, e in enumerate(plan.episodes)
-        ]
+        result.records = [records.get(i, {**_stub(e), "status": "not run"}) for i, e in enumerate(plan.episodes)]
 
     for i, e in enumerate(plan.episodes):
         if e.action == "skip":
-            records[i] = {
-                "plant": e.plant,
-                "seg_mode": e.seg_mode,
-                **_variant(e),
-                "run_dir": str(e.run_dir),
-                "status": "skipped",
-                "action": "skip",
-            }
+            records[i] = {**_stub(e), "status": "skipped", "action": "skip"}
     queue = [(i, e) for i, e in enumerate(plan.episodes) if e.action != "skip"]
     total, done = len(plan.episodes), len(records)
     if progress:
@@ -271,56 +253,46 @@ def execute(
     import ray
 
     result.ray = ray_info if ray_info is not None else start_ray(workers=workers, address=ray_address)
-    pending: dict[Any, tuple[int, EpisodePlan, float]] = {}
+    task = ray.remote(num_cpus=1, max_calls=1, max_retries=0)(run_episode_task)
+    t0 = time.perf_counter()
+    submitted: dict[int, float] = {}
+
+    def submit(item: tuple[int, EpisodePlan]) -> Any:
+        submitted[item[0]] = time.perf_counter() - t0
+        return task.remote(item[1].config)
+
+    def finished(item: tuple[int, EpisodePlan], rec: Any, error: BaseException | None) -> None:
+        nonlocal done
+        i, e = item
+        if error is not None:  # the worker died (OOM killer, segfault)
+            rec = {**_stub(e), "status": "failed", "error": first_line(error)}
+        rec["action"] = e.action
+        rec["submitted_s"] = round(submitted[i], 3)
+        rec["finished_s"] = round(time.perf_counter() - t0, 3)
+        rec["driver_rss_mb"] = _rss_mb()  # the driver must stay flat while records pile up
+        records[i] = rec
+        _collect()
+        done += 1
+        if progress:
+            progress(done, total)
+
+    def cancelled(item: tuple[int, EpisodePlan]) -> None:
+        records[item[0]] = {**_stub(item[1]), "status": "cancelled", "action": item[1].action}
+
     try:
-        task = ray.remote(num_cpus=1, max_calls=1, max_retries=0)(run_episode_task)
-        limit = workers or len(queue)
-        t0 = time.perf_counter()
-        while queue or pending:
-            while queue and len(pending) < limit:
-                i, e = queue.pop(0)
-                pending[task.remote(e.config)] = (i, e, time.perf_counter() - t0)
-            ready, _ = ray.wait(list(pending), num_returns=1)
-            for ref in ready:
-                i, e, submitted = pending.pop(ref)
-                try:
-                    rec = ray.get(ref)
-                except ray.exceptions.RayError as exc:  # the worker died (OOM killer, segfault)
-                    first = (str(exc).strip().splitlines() or [""])[0]
-                    rec = {
-                        "plant": e.plant,
-                        "seg_mode": e.seg_mode,
-                        **_variant(e),
-                        "run_dir": str(e.run_dir),
-                        "status": "failed",
-                        "error": f"{type(exc).__name__}: {first}",
-                    }
-                rec["action"] = e.action
-                rec["submitted_s"] = round(submitted, 3)
-                rec["finished_s"] = round(time.perf_counter() - t0, 3)
-                rec["driver_rss_mb"] = _rss_mb()  # the driver must stay flat while records pile up
-                records[i] = rec
-                _collect()
-                done += 1
-                if progress:
-                    progress(done, total)
+        run_batch(queue, submit, finished, limits={None: workers or len(queue)}, cancelled=cancelled)
     except KeyboardInterrupt:
         result.interrupted = True
-        for ref, (i, e, _) in pending.items():
-            ray.cancel(ref, force=True)
-            records[i] = {
-                "plant": e.plant,
-                "seg_mode": e.seg_mode,
-                **_variant(e),
-                "run_dir": str(e.run_dir),
-                "status": "cancelled",
-                "action": e.action,
-            }
         raise
     finally:
         _collect()
         stop_ray(result.ray)
     return result
+
+
+def _stub(e: EpisodePlan) -> dict[str, Any]:
+    """An episode's record before it has one of its own: what it is and where it goes."""
+    return {"plant": e.plant, "seg_mode": e.seg_mode, **_variant(e), "run_dir": str(e.run_dir)}
 
 
 # ---------------------------------------------------------------------------------- the table

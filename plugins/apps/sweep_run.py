@@ -26,6 +26,7 @@ from agrisim.config import build_config
 from agrisim.errors import UserError
 from agrisim.files import layout
 from agrisim.files.atomic import write_json
+from agrisim.plugins.apps.batch import first_line, run_batch
 from agrisim.plugins.apps.compare import prepare_out, probe, start_ray, stop_ray
 from agrisim.plugins.apps.compare_plan import run_dir_state
 from agrisim.plugins.apps.placement import task_resources
@@ -323,50 +324,45 @@ def _execute(
     }
     limit = {False: workers or len(cells), True: gpus or len(cells)}
     queue = [i for i, c in enumerate(cells) if c.action != "skip"]
-    pending: dict[Any, int] = {}
-    running = {False: 0, True: 0}
+    running: set[int] = set()  # the cells under way, whose views are polled
     views_total = sum(c.views for c in cells)
-    finished = len(cells) - len(queue)
+    finished_cells = len(cells) - len(queue)
     last_poll = 0.0
     # views saved per cell: read once for a cell that is not running, polled for one that is
     views = {i: cell_figures(c)["views"] for i, c in enumerate(cells)}
 
     def report_progress() -> None:
         if progress is not None:
-            for i in pending.values():
+            for i in running:
                 views[i] = cell_figures(cells[i])["views"]
-            progress(finished, len(cells), min(sum(views.values()), views_total), views_total)
+            progress(finished_cells, len(cells), min(sum(views.values()), views_total), views_total)
 
     report_progress()
-    try:
-        while queue or pending:
-            for i in list(queue):
-                gpu = on_gpu[i]
-                if running[gpu] < limit[gpu]:
-                    queue.remove(i)
-                    running[gpu] += 1
-                    c = cells[i]
-                    pending[remote[gpu].remote(c.config, list(plan.spec.after), plan.spec.colmap)] = i
-            ready, _ = ray.wait(list(pending), num_returns=1, timeout=1.0)
-            for ref in ready:
-                i = pending.pop(ref)
-                running[on_gpu[i]] -= 1
-                try:
-                    tasks[i] = ray.get(ref)
-                except ray.exceptions.RayError as exc:  # lost beyond its retries
-                    first = (str(exc).strip().splitlines() or [""])[0]
-                    tasks[i] = {"status": "failed", "error": f"{type(exc).__name__}: {first}"}
-                finished += 1
-                views[i] = cell_figures(cells[i])["views"]
-                write_manifest("running")
-            if ready or time.monotonic() - last_poll > 1.0:
-                last_poll = time.monotonic()
-                report_progress()
-    except KeyboardInterrupt:
-        for ref, i in pending.items():
-            ray.cancel(ref, force=True)
-            tasks[i] = {"status": "cancelled", "error": "interrupted"}
-        raise
+
+    def submit(i: int) -> Any:
+        running.add(i)
+        return remote[on_gpu[i]].remote(cells[i].config, list(plan.spec.after), plan.spec.colmap)
+
+    def finished(i: int, record: Any, error: BaseException | None) -> None:
+        nonlocal finished_cells
+        running.discard(i)
+        # lost beyond its retries: recorded as failed (an exception of the run itself is recorded
+        # by the task, never retried: it would fail the same way)
+        tasks[i] = record if error is None else {"status": "failed", "error": first_line(error)}
+        finished_cells += 1
+        views[i] = cell_figures(cells[i])["views"]
+        write_manifest("running")
+
+    def cancelled(i: int) -> None:
+        tasks[i] = {"status": "cancelled", "error": "interrupted"}
+
+    def tick(any_finished: bool) -> None:
+        nonlocal last_poll
+        if any_finished or time.monotonic() - last_poll > 1.0:
+            last_poll = time.monotonic()
+            report_progress()
+
+    run_batch(queue, submit, finished, limits=limit, slot=lambda i: on_gpu[i], cancelled=cancelled, tick=tick)
 
 
 __all__ = ["MAX_RETRIES", "SweepResult", "check_gpus", "run_cell_task", "sweep", "task_resources"]
