@@ -124,10 +124,12 @@ def isolated_env(**extra: str) -> dict[str, str]:
     return env
 
 
-def install_package(site: Path, package: Path) -> tuple[str, str]:
-    """A test package (a folder with its ``pyproject.toml`` and modules) laid out in ``site`` as
-    pip installs it: its modules, and a dist-info with its metadata and ``agrisim`` entry points.
-    Returns (distribution name, version). Put ``site`` on ``sys.path`` to install it."""
+@contextlib.contextmanager
+def installed(package: Path, site: Path, monkeypatch: pytest.MonkeyPatch) -> Iterator[tuple[str, str]]:
+    """A test package (a folder with its ``pyproject.toml`` and modules) installed as pip lays it
+    out, in ``site`` on ``sys.path``: its modules, a dist-info with its metadata and ``agrisim``
+    entry points. agrisim's plugin switches are cleared meanwhile; its modules are forgotten
+    afterwards. Yields (distribution name, version)."""
     import sys
 
     if sys.version_info >= (3, 11):
@@ -136,15 +138,22 @@ def install_package(site: Path, package: Path) -> tuple[str, str]:
         import tomli as tomllib
 
     pyproject = tomllib.loads((package / "pyproject.toml").read_text())
-    project = pyproject["project"]
+    project, modules = pyproject["project"], pyproject["tool"]["setuptools"]["py-modules"]
     info = site / f"{project['name'].replace('-', '_')}-{project['version']}.dist-info"
     info.mkdir(parents=True)
     (info / "METADATA").write_text(f"Metadata-Version: 2.1\nName: {project['name']}\nVersion: {project['version']}\n")
     points = "".join(f"{k} = {v}\n" for k, v in project["entry-points"]["agrisim"].items())
     (info / "entry_points.txt").write_text(f"[agrisim]\n{points}")
-    for module in pyproject["tool"]["setuptools"]["py-modules"]:
+    for module in modules:
         shutil.copyfile(package / f"{module}.py", site / f"{module}.py")
-    return project["name"], project["version"]
+    monkeypatch.syspath_prepend(str(site))
+    for var in ("AGRISIM_DISABLE_PLUGIN_AUTOLOAD", "AGRISIM_LOAD_PLUGINS", "AGRISIM_TRACE_PLUGINS"):
+        monkeypatch.delenv(var, raising=False)
+    try:
+        yield project["name"], project["version"]
+    finally:
+        for module in modules:
+            sys.modules.pop(module, None)
 
 
 @contextlib.contextmanager

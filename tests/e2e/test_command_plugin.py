@@ -10,16 +10,16 @@ from __future__ import annotations
 import json
 import re
 import sys
+from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import install_package
+from conftest import installed
 
 from agrisim.plugins.apps.commands import ORDER
 
 PACKAGE = Path(__file__).resolve().parent / "agrisim-frames-command"
-MODULE = "agrisim_frames_command"
 
 
 def install(root: Path, name: str, version: str, points: dict[str, str], modules: dict[str, str]) -> None:
@@ -33,16 +33,11 @@ def install(root: Path, name: str, version: str, points: dict[str, str], modules
 
 
 @pytest.fixture
-def site(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
+def site(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Iterator[Path]:
     """The test package installed in a fresh folder on ``sys.path``; forgotten afterwards."""
-    root = tmp_path / "site"
-    install_package(root, PACKAGE)
-    monkeypatch.syspath_prepend(str(root))
-    for var in ("AGRISIM_DISABLE_PLUGIN_AUTOLOAD", "AGRISIM_LOAD_PLUGINS", "AGRISIM_TRACE_PLUGINS"):
-        monkeypatch.delenv(var, raising=False)
-    yield root
-    for name in (MODULE, "agrisim_run_again"):
-        sys.modules.pop(name, None)
+    with installed(PACKAGE, tmp_path / "site", monkeypatch):
+        yield tmp_path / "site"
+    sys.modules.pop("agrisim_run_again", None)  # (installed beside it by a test)
 
 
 def test_a_plugins_command_runs_on_a_run(site: Path, saved_runs, cli) -> None:  # noqa: ANN001

@@ -13,15 +13,15 @@ rasterised by OpenCV and compared with its region, holes filled by SciPy. Bad in
 from __future__ import annotations
 
 import json
-import sys
 from collections import Counter
+from collections.abc import Iterator
 from pathlib import Path
 
 import cv2
 import numpy as np
 import pytest
 import yaml
-from conftest import install_package
+from conftest import installed
 from PIL import Image
 from scipy import ndimage
 
@@ -29,7 +29,6 @@ from agrisim.registry import Registry, make_plugin_manager
 from agrisim.testing.contracts import check
 
 PACKAGE = Path(__file__).resolve().parent / "agrisim-yolo-export"
-MODULE = "agrisim_yolo_export"
 
 
 @pytest.fixture(scope="module")
@@ -40,16 +39,11 @@ def run_dir(saved_runs) -> Path:  # noqa: ANN001
 
 
 @pytest.fixture
-def site(tmp_path: Path, monkeypatch: pytest.MonkeyPatch):
+def site(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Iterator[tuple[str, str]]:
     """The package installed as pip lays it out, in a fresh folder on ``sys.path``; its module
     is forgotten afterwards. Yields (distribution name, version)."""
-    root = tmp_path / "site"
-    name, version = install_package(root, PACKAGE)
-    monkeypatch.syspath_prepend(str(root))
-    for var in ("AGRISIM_DISABLE_PLUGIN_AUTOLOAD", "AGRISIM_LOAD_PLUGINS", "AGRISIM_TRACE_PLUGINS"):
-        monkeypatch.delenv(var, raising=False)
-    yield name, version
-    sys.modules.pop(MODULE, None)
+    with installed(PACKAGE, tmp_path / "site", monkeypatch) as dist:
+        yield dist
 
 
 def png(path: Path) -> np.ndarray:

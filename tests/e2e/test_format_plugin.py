@@ -13,20 +13,19 @@ its leaf instances from its connected pieces, so that ``agrisim traits`` measure
 from __future__ import annotations
 
 import json
-import sys
+from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
 import pytest
 import trimesh
-from conftest import install_package
+from conftest import installed
 
 from agrisim.files import layout
 from agrisim.registry import Registry, make_plugin_manager
 from agrisim.testing.contracts import check
 
 PACKAGE = Path(__file__).resolve().parent / "agrisim-stl-format"
-MODULE = "agrisim_stl_format"
 
 
 def two_cards() -> trimesh.Trimesh:
@@ -42,14 +41,10 @@ def two_cards() -> trimesh.Trimesh:
 
 
 @pytest.fixture
-def site(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
-    root = tmp_path / "site"
-    install_package(root, PACKAGE)
-    monkeypatch.syspath_prepend(str(root))
-    for var in ("AGRISIM_DISABLE_PLUGIN_AUTOLOAD", "AGRISIM_LOAD_PLUGINS", "AGRISIM_TRACE_PLUGINS"):
-        monkeypatch.delenv(var, raising=False)
-    yield root
-    sys.modules.pop(MODULE, None)
+def site(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Iterator[Path]:
+    """The test package installed in a fresh folder on ``sys.path``; forgotten afterwards."""
+    with installed(PACKAGE, tmp_path / "site", monkeypatch):
+        yield tmp_path / "site"
 
 
 def test_it_is_listed_keeps_the_format_contract_and_a_run_reads_it(site: Path, tmp_path: Path, cli) -> None:  # noqa: ANN001

@@ -7,30 +7,25 @@ a run: every view on disk is its grey (R = G = B) at its fixed exposure, which t
 from __future__ import annotations
 
 import json
-import sys
+from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import install_package
+from conftest import installed
 from PIL import Image
 
 from agrisim.registry import Registry, make_plugin_manager
 from agrisim.testing.contracts import check
 
 PACKAGE = Path(__file__).resolve().parent / "agrisim-mono-imager"
-MODULE = "agrisim_mono_imager"
 
 
 @pytest.fixture
-def site(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
-    root = tmp_path / "site"
-    install_package(root, PACKAGE)
-    monkeypatch.syspath_prepend(str(root))
-    for var in ("AGRISIM_DISABLE_PLUGIN_AUTOLOAD", "AGRISIM_LOAD_PLUGINS", "AGRISIM_TRACE_PLUGINS"):
-        monkeypatch.delenv(var, raising=False)
-    yield root
-    sys.modules.pop(MODULE, None)
+def site(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Iterator[Path]:
+    """The test package installed in a fresh folder on ``sys.path``; forgotten afterwards."""
+    with installed(PACKAGE, tmp_path / "site", monkeypatch):
+        yield tmp_path / "site"
 
 
 def test_it_is_listed_and_keeps_the_imager_contract(site: Path, cli) -> None:  # noqa: ANN001
