@@ -151,13 +151,16 @@ class MitsubaRenderer(Renderer):
         return sensor
 
     def _render(self, name: str, sensor, seed: int, integrator=None):  # noqa: ANN001, ANN202 - Mitsuba's types
-        """``mi.render`` of the scene, through a frozen function when ``freeze`` is on (the seed
-        an opaque variable: a new seed replays the recording rather than making another)."""
-        mi, o = self.mi, self.options
-        if o.freeze == "off" or (o.freeze == "auto" and not mi.variant().startswith("cuda")):
-            return mi.render(self.mi_scene, sensor=sensor, integrator=integrator, spp=o.spp, seed=seed)
+        """``mi.render`` of the scene, through a frozen function when ``freeze`` is on. The seed
+        is an opaque variable either way: a literal one is folded into the kernel, so each view's
+        seed would compile the path tracer anew (about 3 s on a CPU) where an opaque one reuses
+        it, from memory or Dr.Jit's disk cache; the images are the same bytes."""
         import drjit as dr
 
+        mi, o = self.mi, self.options
+        opaque_seed = dr.opaque(mi.UInt32, seed)
+        if o.freeze == "off" or (o.freeze == "auto" and not mi.variant().startswith("cuda")):
+            return mi.render(self.mi_scene, sensor=sensor, integrator=integrator, spp=o.spp, seed=opaque_seed)
         frozen = self._frozen.get(name)
         if frozen is None:
             spp = o.spp
@@ -166,7 +169,7 @@ class MitsubaRenderer(Renderer):
                 return mi.render(scene, sensor=sensor, integrator=integrator, spp=spp, seed=seed)
 
             frozen = self._frozen[name] = dr.freeze(render)
-        return frozen(self.mi_scene, sensor, dr.opaque(mi.UInt32, seed))  # type: ignore[operator]
+        return frozen(self.mi_scene, sensor, opaque_seed)  # type: ignore[operator]
 
     def radiance(self, camera: CameraModel, world_T_camera: np.ndarray) -> np.ndarray:
         """Linear RGB radiance, H x W x 3 float32, of one view (arms where last placed)."""
