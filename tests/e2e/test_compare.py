@@ -2,10 +2,12 @@
 
 The table logic (percentages, rows, markdown, CSV) is checked on small metrics dictionaries
 whose expected numbers the tests compute themselves. The end-to-end part runs two plants in
-both modes at a tiny size on a local Ray with two workers (about 15 s, mostly Ray and worker
-start-up), then one plant again with one worker, and checks that the episodes ran as Ray tasks in
-other processes, that the table's rows are the run directories' ``metrics.json`` figures, and
-that the worker count changes nothing. Full-size timing lives in ``bench/compare_plants.py``.
+both modes at a tiny size on the local Ray that compare starts with two workers (about 15 s,
+mostly Ray and worker start-up), then one plant again with one worker, and checks that the
+episodes ran as Ray tasks in other processes, that the table's rows are the run directories'
+``metrics.json`` figures, and that the worker count changes nothing. That second compare and
+Table 3's run on one Ray the module starts afterwards (``shared_ray``), which compare uses as it
+finds it. Full-size timing lives in ``bench/compare_plants.py``.
 """
 
 from __future__ import annotations
@@ -14,10 +16,12 @@ import csv
 import io
 import json
 import os
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
 import pytest
+from conftest import local_ray
 
 from agrisim.app.cli import main
 from agrisim.config import first_difference
@@ -295,9 +299,22 @@ def test_bad_input_exits_2_with_one_line(args, message, tmp_path, monkeypatch, c
 
 @pytest.fixture(scope="module")
 def two_workers(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, int]:
+    """Compare as a user runs it: it starts its own local Ray of two CPUs, and shuts it down."""
+    import ray
+
+    assert not ray.is_initialized(), "a Ray is running (shared_ray's?): compare would not start its own"
     out = tmp_path_factory.mktemp("compare") / "out"
     status = main(["compare", "--plants", ",".join(PLANTS), "--workers", "2", "--out", str(out), *TINY])
+    assert not ray.is_initialized()  # shut down again
     return out, status
+
+
+@pytest.fixture(scope="module")
+def shared_ray() -> Iterator[None]:
+    """One local Ray of two CPUs for the module's later compares (one Ray start, not one each):
+    compare uses a Ray it finds running, and leaves it running."""
+    with local_ray(__name__):
+        yield
 
 
 def test_compare_runs_episodes_as_ray_tasks(two_workers) -> None:
@@ -345,10 +362,21 @@ def test_table_rows_are_the_runs_metrics(two_workers) -> None:
     assert float(grass["precision_2mm_repopa"]) < float(grass["precision_2mm_texture"])
 
 
-def test_one_worker_gives_identical_results(two_workers, tmp_path: Path) -> None:
+def test_one_worker_gives_identical_results(two_workers, shared_ray, tmp_path: Path) -> None:
+    import ray
+
     out2, _ = two_workers
     out1 = tmp_path / "one"
     assert main(["compare", "--plants", "basket_grass", "--workers", "1", "--out", str(out1), *TINY]) == 0
+    report = json.loads((out1 / "compare.json").read_text())
+    assert report["ray"]["address"] == "existing" and not report["ray"]["owned"]
+    assert ray.is_initialized()  # a Ray compare found is left running
+    episodes = report["episodes"]
+    assert [e["status"] for e in episodes] == ["complete"] * 2
+    assert len({e["pid"] for e in episodes} | {os.getpid()}) == 3  # each in a fresh Ray worker
+    # one at a time: the second was submitted when the first had finished
+    first, second = sorted(episodes, key=lambda e: e["submitted_s"])
+    assert second["submitted_s"] >= first["finished_s"]
     for mode in cmp.SEG_MODES:
         a = json.loads((out1 / "basket_grass" / mode / "metrics.json").read_text())
         b = json.loads((out2 / "basket_grass" / mode / "metrics.json").read_text())
@@ -381,7 +409,7 @@ def test_existing_out_is_refused_and_resume_skips_complete_runs(two_workers, no_
 # ------------------------------------------------------------------ the paper's Table 3
 
 
-def test_table_3_runs_the_mesh_then_each_point_size(tmp_path: Path) -> None:
+def test_table_3_runs_the_mesh_then_each_point_size(shared_ray, tmp_path: Path) -> None:
     """Coltsfoot as its mesh and as points of two sizes: the table's figures are the runs'
     metrics, and bigger spheres label more pixels and stand further off the surface."""
     out = tmp_path / "t3"
