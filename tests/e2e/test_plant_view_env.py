@@ -19,13 +19,18 @@ from conftest import LEAF_LABELS, leaf_card
 from agrisim.files import layout
 from agrisim.plugins.apps.nextview.env import PlantViewEnv
 
-#: small and quick: kinematic arms, 160x90 views, a coarse map, few truth samples
+#: small and quick: kinematic arms, 160x90 views, a coarse map, few truth samples (the
+#: reward's and the reconstruction's metrics': 20k, not 500k, each reset samples them)
 SMALL = {
     "resolution": "160x90",
     "max_views": 3,
     "truth_samples": 20_000,
     "grid_cells": 16,
-    "config": {"physics": {"backend": "kinematic"}, "renderer": {"raycast": {"shadow_samples": 0}}},
+    "config": {
+        "physics": {"backend": "kinematic"},
+        "renderer": {"raycast": {"shadow_samples": 0}},
+        "metrics": {"truth_samples": 20_000},
+    },
 }
 
 
