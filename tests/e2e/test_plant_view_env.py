@@ -65,8 +65,8 @@ def test_it_is_registered_on_import_and_by_module_qualified_id(tmp_path: Path) -
 EPISODE = """
 import hashlib, json, sys
 sys.path[:0] = sys.argv[1:3]
-from test_plant_view_env import small_env
-env = small_env()
+from test_plant_view_env import SMALL, small_env
+env = small_env(config={**SMALL["config"], "recon": {"backend": "none"}})  # compared: what the agent sees
 obs, _ = env.reset(seed=7)
 steps = [env.step(a) for a in (0, 1, 52)]
 env.close()
