@@ -62,8 +62,9 @@ def make_plugin_manager(*, autoload: bool | None = None) -> pluggy.PluginManager
     pm.agrisim_loads_everything = bool(autoload and not only)  # type: ignore[attr-defined]
     if autoload:
         seen: dict[str, str] = {}
+        dists = _DistNames()
         for ep in metadata.entry_points(group=hookspecs.PROJECT):
-            dist = f"{ep.dist.name} {ep.dist.version}" if ep.dist else "?"
+            dist = dists.label(ep.dist)
             if ep.name in seen and seen[ep.name] != dist:
                 # pluggy would silently keep whichever it met first
                 raise PluginError(
@@ -102,8 +103,9 @@ def with_own_plugins(pm: pluggy.PluginManager, names: Collection[str] | None = N
     switches that choose a run's backends never take ``agrisim run`` or the run directory away:
     pytest loads its built-ins whatever ``PYTEST_DISABLE_PLUGIN_AUTOLOAD`` says, the same way."""
     own = []
+    dists = _DistNames()
     for ep in metadata.entry_points(group=hookspecs.PROJECT):
-        if ep.dist is None or ep.dist.name != DISTRIBUTION or (names is not None and ep.name not in names):
+        if ep.dist is None or dists.name(ep.dist) != DISTRIBUTION or (names is not None and ep.name not in names):
             continue
         plugin = pm.get_plugin(ep.name)
         if plugin is None:
@@ -112,6 +114,30 @@ def with_own_plugins(pm: pluggy.PluginManager, names: Collection[str] | None = N
             pm.register(plugin, name=ep.name)
         own.append(plugin)
     return own
+
+
+class _DistNames:
+    """Distributions' names and versions, each read once: every read of ``Distribution.name``
+    or ``.version`` parses its METADATA file again, and a distribution declares many entry points."""
+
+    def __init__(self) -> None:
+        #: by id, the distribution kept with its name and version (so that its id stays its own)
+        self._seen: dict[int, tuple[metadata.Distribution, str, str]] = {}
+
+    def _read(self, dist: metadata.Distribution) -> tuple[metadata.Distribution, str, str]:
+        if id(dist) not in self._seen:
+            self._seen[id(dist)] = (dist, dist.name, dist.version)
+        return self._seen[id(dist)]
+
+    def name(self, dist: metadata.Distribution) -> str:
+        return self._read(dist)[1]
+
+    def label(self, dist: metadata.Distribution | None) -> str:
+        """``"name version"``, ``"?"`` without a distribution."""
+        if dist is None:
+            return "?"
+        _, name, version = self._read(dist)
+        return f"{name} {version}"
 
 
 def loads_everything(pm: pluggy.PluginManager) -> bool:

@@ -19,13 +19,18 @@ from conftest import LEAF_LABELS, leaf_card
 from agrisim.files import layout
 from agrisim.plugins.apps.nextview.env import PlantViewEnv
 
-#: small and quick: kinematic arms, 160x90 views, a coarse map, few truth samples
+#: small and quick: kinematic arms, 160x90 views, a coarse map, few truth samples (the
+#: reward's and the reconstruction's metrics': 20k, not 500k, each reset samples them)
 SMALL = {
     "resolution": "160x90",
     "max_views": 3,
     "truth_samples": 20_000,
     "grid_cells": 16,
-    "config": {"physics": {"backend": "kinematic"}, "renderer": {"raycast": {"shadow_samples": 0}}},
+    "config": {
+        "physics": {"backend": "kinematic"},
+        "renderer": {"raycast": {"shadow_samples": 0}},
+        "metrics": {"truth_samples": 20_000},
+    },
 }
 
 
@@ -60,8 +65,8 @@ def test_it_is_registered_on_import_and_by_module_qualified_id(tmp_path: Path) -
 EPISODE = """
 import hashlib, json, sys
 sys.path[:0] = sys.argv[1:3]
-from test_plant_view_env import small_env
-env = small_env()
+from test_plant_view_env import SMALL, small_env
+env = small_env(config={**SMALL["config"], "recon": {"backend": "none"}})  # compared: what the agent sees
 obs, _ = env.reset(seed=7)
 steps = [env.step(a) for a in (0, 1, 52)]
 env.close()

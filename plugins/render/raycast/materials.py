@@ -92,9 +92,17 @@ class MaterialTable:
                 off += 4
                 continue
             h, w = texture.shape[:2]
-            padded = np.asarray(texture)[np.arange(h + 1) % h][:, np.arange(w + 1) % w].reshape(-1, 4)
+            texture = np.asarray(texture)
+            padded = np.empty((h + 1, w + 1, texture.shape[2]), texture.dtype)
+            padded[:h, :w] = texture
+            padded[:h, w] = texture[:, 0]  # the wrapped column and row
+            padded[h] = padded[0]
+            padded = padded.reshape(-1, 4)
             n = len(padded)
-            np.multiply(SRGB_TO_LINEAR[padded[:, :3]], colour, out=self.alb_rgb[off : off + n])
+            # a channel at a time through its 256 products (float32, as the texel's would be)
+            lut = SRGB_TO_LINEAR[:, None] * colour
+            for c in range(3):
+                self.alb_rgb[off : off + n, c] = np.take(lut[:, c], padded[:, c])
             self.alb_alpha[off : off + n] = padded[:, 3]
             off += n
         self.lab_flat = np.concatenate(self._lab) if self._lab else np.zeros(1, np.uint8)

@@ -14,6 +14,8 @@ import hashlib
 import io
 import itertools
 import os
+import threading
+from collections import OrderedDict
 from pathlib import Path
 from typing import Any
 
@@ -92,6 +94,41 @@ def glb_bytes(mesh: Mesh, labels: LabelTable) -> bytes:
 
 # --------------------------------------------------------------------------------------------
 
+#: the encoded PNGs of recent textures, by (mode, shape, SHA-1 of the texels): a run writes the
+#: plant's textures twice (plant.glb, scene.glb), and successive episodes in one process (the
+#: Gymnasium environment's resets, compare's and sweep's workers) share the room's; encoding
+#: them is most of the scene's second. PIL encodes the same texels into the same bytes.
+PNG_CACHE_BYTES = 64 << 20
+_png_cache: OrderedDict[tuple[Any, ...], bytes] = OrderedDict()
+_png_cache_lock = threading.Lock()
+
+
+def texture_key(pixels: np.ndarray, mode: str) -> tuple[Any, ...]:
+    """What identifies a texture's PNG: its mode, shape, type and texels (SHA-1)."""
+    pixels = np.ascontiguousarray(pixels)
+    return (mode, pixels.shape, pixels.dtype.str, hashlib.sha1(pixels.tobytes()).hexdigest())
+
+
+def texture_png(pixels: np.ndarray, mode: str, key: tuple[Any, ...] | None = None) -> bytes:
+    """``pixels`` encoded as PNG in PIL's ``mode``, from the cache where it was encoded lately
+    (``key``: its :func:`texture_key`, computed when not given)."""
+    pixels = np.ascontiguousarray(pixels)
+    key = texture_key(pixels, mode) if key is None else key
+    with _png_cache_lock:
+        png = _png_cache.get(key)
+        if png is not None:
+            _png_cache.move_to_end(key)
+            return png
+    buf = io.BytesIO()
+    Image.fromarray(pixels, mode).save(buf, format="PNG")
+    png = buf.getvalue()
+    with _png_cache_lock:
+        _png_cache[key] = png
+        total = sum(len(v) for v in _png_cache.values())
+        while total > PNG_CACHE_BYTES and len(_png_cache) > 1:
+            total -= len(_png_cache.popitem(last=False)[1])
+    return png
+
 
 class GlbWriter:
     """Collects buffer views, accessors, images, textures and materials of one binary glTF
@@ -129,11 +166,11 @@ class GlbWriter:
         return len(self.accessors) - 1
 
     def texture(self, pixels: np.ndarray, mode: str, nearest: bool) -> int:
-        key = (mode, pixels.shape, hashlib.sha1(np.ascontiguousarray(pixels).tobytes()).hexdigest())
+        pixels = np.ascontiguousarray(pixels)
+        key = texture_key(pixels, mode)
         if key not in self._image_keys:
-            buf = io.BytesIO()
-            Image.fromarray(np.ascontiguousarray(pixels), mode).save(buf, format="PNG")
-            self.images.append(GltfImage(bufferView=self.view(buf.getvalue()), mimeType="image/png"))
+            png = texture_png(pixels, mode, key)
+            self.images.append(GltfImage(bufferView=self.view(png), mimeType="image/png"))
             self._image_keys[key] = len(self.images) - 1
         tkey = (self._image_keys[key], nearest)
         if tkey not in self._texture_keys:
