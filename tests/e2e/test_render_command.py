@@ -251,23 +251,6 @@ def test_bad_input_writes_nothing(runs: dict[str, Path], tmp_path: Path, make, a
     assert not (tmp_path / "run-mitsuba").exists()
 
 
-def test_several_runs_go_to_ray_tasks(runs: dict[str, Path], tmp_path: Path) -> None:
-    """``agrisim render A B``: each run re-rendered by a Ray task (a local cluster here) into
-    A-mitsuba and B-mitsuba, each byte for byte the mitsuba run's RGB."""
-    import shutil
-
-    sources = [tmp_path / "a", tmp_path / "b"]
-    for s in sources:
-        shutil.copytree(runs["raycast"], s)
-    done = rerender(sources[0], str(sources[1]), *sets(), blocked=())
-    assert done.returncode == 0, done.stderr
-    for s in sources:
-        assert files(s.with_name(f"{s.name}-mitsuba"), "rgb") == files(runs["mitsuba"], "rgb")
-        assert f"{s}: " in done.stdout
-    again = rerender(sources[0], str(sources[1]), "--out", str(tmp_path / "x"), *sets(), blocked=())
-    assert again.returncode == 2 and "names the output of one run" in again.stderr
-
-
 # ------------------------------------------------------------------ one run's frames over GPUs
 
 
@@ -277,6 +260,25 @@ def ray_two_gpus() -> Iterator[None]:
     GPUs would (a task takes one; none waits for a busy one)."""
     with local_ray(__name__, fake_gpu=2):
         yield
+
+
+def test_several_runs_go_to_ray_tasks(
+    runs: dict[str, Path], ray_two_gpus: None, tmp_path: Path, cli: Callable[..., tuple[int, str, str]]
+) -> None:
+    """``agrisim render A B``: each run re-rendered by a Ray task into A-mitsuba and B-mitsuba,
+    each byte for byte the mitsuba run's RGB. In-process, on the module's local Ray: the
+    command uses a Ray already running in its process as it is (starting and stopping its own
+    is the more-gpus-than-the-cluster case's, in a fresh interpreter)."""
+    sources = [tmp_path / "a", tmp_path / "b"]
+    for s in sources:
+        shutil.copytree(runs["raycast"], s)
+    status, stdout, stderr = cli(["render", str(sources[0]), str(sources[1]), *sets()])
+    assert status == 0, stderr
+    for s in sources:
+        assert files(s.with_name(f"{s.name}-mitsuba"), "rgb") == files(runs["mitsuba"], "rgb")
+        assert f"{s}: " in stdout
+    status, _, stderr = cli(["render", str(sources[0]), str(sources[1]), "--out", str(tmp_path / "x"), *sets()])
+    assert status == 2 and "names the output of one run" in stderr
 
 
 def logged_part(log: str, marker: str, lost: int) -> Callable[..., dict[str, Any]]:
