@@ -8,7 +8,7 @@ the CPU model first; asserts nothing (tests/e2e/test_colmap.py asserts the band)
 
 Perturbations: the views as rendered; each re-encoded with +-1 grey level of noise (``--noise``
 copies); COLMAP's seeds 1..``--seeds``-1; SIFT on one thread. Configurations: ``robot`` (the
-default: the robot's priors, spatial matching), ``images`` (``--priors none``: COLMAP from the
+default: the robot's priors, exhaustive matching), ``images`` (``--priors none``: COLMAP from the
 images alone, exhaustive matching, the rendered views' SIFT threshold), ``stock`` (the images
 alone at COLMAP's own SIFT threshold, one mapping: what ``agrisim colmap`` ran before).
 """

@@ -5,8 +5,10 @@ pycolmap's own similarity estimate (a second implementation of the alignment); t
 
 from __future__ import annotations
 
+import hashlib
 import json
 import shutil
+from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
@@ -34,6 +36,37 @@ def run_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
     )
 
 
+@pytest.fixture(scope="module")
+def features_once(tmp_path_factory: pytest.TempPathFactory) -> Iterator[None]:
+    """agrisim colmap's SIFT made once a module for each set of views and settings: a later call of
+    ``extract_features`` with the same arguments on the same image bytes gets a copy of the
+    database the first call wrote (its features alone: the priors and matches are added after).
+    The images-alone test extracts what the first test did (the same views, threshold, cap,
+    intrinsics and threads), about 17 CPU seconds of SIFT spared; the perturbation test's views
+    and thread differ, and it extracts its own."""
+    from agrisim.plugins.poses.colmap import photogrammetry as pg
+
+    extract = pg.extract_features
+    made: dict[str, Path] = {}
+    cache = tmp_path_factory.mktemp("features")
+
+    def once(database, rgb, names, K, intrinsics, max_features, peak_threshold, threads=-1, lens=None):  # noqa: ANN001, ANN202
+        key = hashlib.sha256(
+            repr((names, np.asarray(K).tolist(), intrinsics, max_features, peak_threshold, threads, lens)).encode()
+        )
+        for name in names:
+            key.update(hashlib.sha256((Path(rgb) / name).read_bytes()).digest())
+        if key.hexdigest() in made:
+            shutil.copyfile(made[key.hexdigest()], database)
+            return
+        extract(database, rgb, names, K, intrinsics, max_features, peak_threshold, threads, lens)
+        made[key.hexdigest()] = shutil.copyfile(database, cache / f"{len(made)}.db")
+
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(pg, "extract_features", once)
+        yield
+
+
 #: views of 36 the default places (within 20 mm of the truth) as rendered and under every
 #: perturbation of test_placed_views_hold_a_band_under_perturbation: measured 34 to 36
 PLACED_AT_LEAST = 32
@@ -48,7 +81,7 @@ def _models(run_dir: Path) -> list[pycolmap.Reconstruction]:
     return [pycolmap.Reconstruction(sparse / str(k)) for k in range(len(list(sparse.iterdir())))]
 
 
-def test_colmap_recovers_the_cameras_within_a_bound_of_the_truth(run_dir: Path, cli) -> None:  # noqa: ANN001
+def test_colmap_recovers_the_cameras_within_a_bound_of_the_truth(run_dir: Path, cli, features_once) -> None:  # noqa: ANN001
     code, out, err = cli(["colmap", str(run_dir)])
     assert code == 0, err
     assert f"wrote {run_dir / COLMAP_DIR}" in out
@@ -114,7 +147,7 @@ def test_colmap_recovers_the_cameras_within_a_bound_of_the_truth(run_dir: Path, 
     assert not (run_dir / COLMAP_DIR / "database.db").exists()
 
 
-def test_a_reconstruction_on_colmaps_poses_costs_accuracy(run_dir: Path, cli, tmp_path: Path) -> None:  # noqa: ANN001
+def test_a_reconstruction_on_colmaps_poses_costs_accuracy(run_dir: Path, cli, tmp_path: Path, features_once) -> None:  # noqa: ANN001
     """``agrisim recon --set recon.poses=colmap``: only the views COLMAP placed, at its poses
     moved into the world; the plant's cloud stays near the true surface (COLMAP's cameras are
     millimetres off) but is measurably less precise than on the true poses."""
@@ -138,9 +171,10 @@ def test_a_reconstruction_on_colmaps_poses_costs_accuracy(run_dir: Path, cli, tm
     assert plant["colmap"]["chamfer_mm"] > plant["truth"]["chamfer_mm"]
 
 
-def test_images_alone_replace_the_model_only_with_overwrite(run_dir: Path, cli) -> None:  # noqa: ANN001
+def test_images_alone_replace_the_model_only_with_overwrite(run_dir: Path, cli, features_once) -> None:  # noqa: ANN001
     """COLMAP from the images alone, as the paper ran it (here with sequential matching along the
-    routine): a model of its own frame, which only the alignment puts in the world."""
+    routine): a model of its own frame, which only the alignment puts in the world. (The first
+    test's features: ``features_once``.)"""
     if not (run_dir / COLMAP_DIR).exists():
         assert cli(["colmap", str(run_dir)])[0] == 0
     before = (run_dir / COLMAP_DIR / POSES_JSON).read_bytes()
