@@ -253,12 +253,16 @@ def test_recall_of_a_dense_cloud_on_the_surface_is_complete() -> None:
 
 def test_texture_is_more_precise_than_repopa_for_every_species() -> None:
     """Table 2's finding with accuracy: for every species RepOpa labels more pixels and yields
-    more points, and the paper's texture labels give precision@2mm >= 0.95, above RepOpa's."""
+    more points, and the paper's texture labels give precision@2mm >= 0.95, above RepOpa's.
+
+    At 160x90 (a third less time than 320x180): every figure is as far from its bound as at
+    320x180, measured on the ten species: texture's precision 0.982-1.000 (0.983-1.000), RepOpa's
+    0.658-0.998 below it, RepOpa's pixels 1.01-2.32 times texture's (the same at both sizes)."""
     registry = Registry(make_plugin_manager())
     cell = build_cell(CellConfig())
     setpoints = hemisphere(cell, RoutineConfig(setpoints="2x3"))
     poses = [sp.world_T_camera for sps in setpoints.values() for sp in sps]
-    camera = preset("rpi3-wide-1080p", "320x180")
+    camera = preset("rpi3-wide-1080p", "160x90")
     spec = registry.get("renderer", "raycast")
     for species in SPECIES:
         scene = build_scene(cell, resolve_plant(registry, build_config({"plant": species})))
