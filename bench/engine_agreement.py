@@ -36,9 +36,9 @@ from agrisim.plant_choice import resolve_plant
 from agrisim.plugins.rooms.lab.room import build_scene
 from agrisim.registry import Registry, make_plugin_manager
 from agrisim.robot.kinematics import ArmKinematics
-from agrisim.robot.setpoints import hemisphere
+from agrisim.plugins.rigs.paper.cell import hemisphere
 from agrisim.scene.camera import preset
-from agrisim.robot.cell import build_cell
+from agrisim.plugins.rigs.paper.cell import build_cell
 from agrisim.plugins.render.raycast import RaycastOptions
 from agrisim.plugins.render.raycast.renderer import RaycastRenderer
 plant, resolution, samples, seeds, seg_mode, out = sys.argv[1], sys.argv[2], int(sys.argv[3]), [int(s) for s in sys.argv[4].split(",")], sys.argv[5], sys.argv[6]

@@ -23,10 +23,12 @@ from agrisim.evaluation.session import ReconSession  # noqa: E402
 from agrisim.evaluation.views import View  # noqa: E402
 from agrisim.plant_choice import resolve_plant  # noqa: E402
 from agrisim.plugins.recon.pointcloud import PointCloudReconstructor  # noqa: E402
+from agrisim.plugins.rigs.paper.cell import (
+    build_cell,  # noqa: E402
+    hemisphere,  # noqa: E402
+)
 from agrisim.plugins.rooms.lab.room import build_scene  # noqa: E402
 from agrisim.registry import Registry, make_plugin_manager  # noqa: E402
-from agrisim.robot.cell import build_cell  # noqa: E402
-from agrisim.robot.setpoints import hemisphere  # noqa: E402
 from agrisim.scene.camera import preset  # noqa: E402
 
 MAX_MM = 10.0  # colour scale: distances beyond this are drawn as this

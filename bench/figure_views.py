@@ -10,11 +10,11 @@ import numpy as np
 
 from agrisim.config import CellConfig, RoutineConfig, build_config
 from agrisim.plant_choice import resolve_plant
+from agrisim.plugins.rigs.paper.cell import build_cell, hemisphere
 from agrisim.plugins.rooms.lab.room import build_scene
 from agrisim.registry import Registry, make_plugin_manager
-from agrisim.robot.cell import Cell, build_cell
+from agrisim.robot.cell import Cell
 from agrisim.robot.kinematics import ArmKinematics
-from agrisim.robot.setpoints import hemisphere
 from agrisim.scene.camera import CameraModel, preset
 from agrisim.scene.model import Scene
 

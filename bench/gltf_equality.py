@@ -635,8 +635,8 @@ def main() -> None:
 
     from agrisim.config import CellConfig
     from agrisim.plugins.render.arm_visuals import arm_link_meshes
+    from agrisim.plugins.rigs.paper.cell import build_cell
     from agrisim.plugins.rooms.lab.room import build_scene
-    from agrisim.robot.cell import build_cell
 
     cell = build_cell(CellConfig())
     arms = {a.name: [(lm.link, lm.mesh) for lm in arm_link_meshes(a.urdf, 30000)] for a in cell.arms}

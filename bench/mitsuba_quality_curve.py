@@ -34,8 +34,8 @@ from agrisim.plugins.plants.procedural import grow  # noqa: E402
 from agrisim.plugins.render.mitsuba import integrator as cutout  # noqa: E402
 from agrisim.plugins.render.mitsuba.options import MitsubaOptions  # noqa: E402
 from agrisim.plugins.render.mitsuba.renderer import MitsubaRenderer  # noqa: E402
+from agrisim.plugins.rigs.paper.cell import build_cell  # noqa: E402
 from agrisim.plugins.rooms.lab.room import build_scene  # noqa: E402
-from agrisim.robot.cell import build_cell  # noqa: E402
 from agrisim.scene.camera import CameraModel  # noqa: E402
 from agrisim.scene.colour import encode_srgb8  # noqa: E402
 from agrisim.scene.transforms import look_at  # noqa: E402

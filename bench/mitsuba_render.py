@@ -30,11 +30,13 @@ from agrisim.plugins.render.mitsuba.options import MitsubaOptions  # noqa: E402
 from agrisim.plugins.render.mitsuba.renderer import MitsubaRenderer  # noqa: E402
 from agrisim.plugins.render.raycast import RaycastOptions  # noqa: E402
 from agrisim.plugins.render.raycast.renderer import RaycastRenderer  # noqa: E402
+from agrisim.plugins.rigs.paper.cell import (
+    build_cell,  # noqa: E402
+    hemisphere,  # noqa: E402
+)
 from agrisim.plugins.rooms.lab.room import build_scene  # noqa: E402
 from agrisim.registry import Registry, make_plugin_manager  # noqa: E402
-from agrisim.robot.cell import build_cell  # noqa: E402
 from agrisim.robot.kinematics import ArmKinematics  # noqa: E402
-from agrisim.robot.setpoints import hemisphere  # noqa: E402
 from agrisim.scene.camera import preset  # noqa: E402
 
 

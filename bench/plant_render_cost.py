@@ -29,11 +29,10 @@ def measure(species: str, views: int, resolution: str) -> dict[str, float]:
     from agrisim.config import CellConfig, RenderConfig, RoutineConfig, build_config
     from agrisim.plant_choice import resolve_plant
     from agrisim.plugins.plants.procedural import grow
+    from agrisim.plugins.rigs.paper.cell import build_cell, hemisphere
     from agrisim.plugins.rooms.lab.room import build_scene
     from agrisim.registry import Registry, make_plugin_manager
-    from agrisim.robot.cell import build_cell
     from agrisim.robot.kinematics import ArmKinematics
-    from agrisim.robot.setpoints import hemisphere
     from agrisim.scene.camera import preset
 
     grow(species, 0)  # (a first build may fill caches)

@@ -24,10 +24,9 @@ from agrisim.evaluation.views import View, backproject
 from agrisim.plant_choice import resolve_plant
 from agrisim.plugins.recon.pointcloud import PointCloudReconstructor
 from agrisim.plugins.recon.tsdf import TsdfReconstructor
+from agrisim.plugins.rigs.paper.cell import build_cell, hemisphere
 from agrisim.plugins.rooms.lab.room import build_scene
 from agrisim.registry import Registry, make_plugin_manager
-from agrisim.robot.cell import build_cell
-from agrisim.robot.setpoints import hemisphere
 from agrisim.scene.camera import preset
 
 

@@ -14,11 +14,10 @@ import numpy as np
 
 from agrisim.config import CellConfig, RenderConfig, RoutineConfig, build_config
 from agrisim.plant_choice import resolve_plant
+from agrisim.plugins.rigs.paper.cell import build_cell, hemisphere
 from agrisim.plugins.rooms.lab.room import build_scene
 from agrisim.registry import Registry, make_plugin_manager
-from agrisim.robot.cell import build_cell
 from agrisim.robot.kinematics import ArmKinematics
-from agrisim.robot.setpoints import hemisphere
 from agrisim.scene.camera import preset
 
 

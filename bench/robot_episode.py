@@ -23,7 +23,7 @@ from agrisim.plugins.physics.pybullet_physics import BulletOptions
 from agrisim.plugins.physics.pybullet_physics.backend import BulletPhysics
 from agrisim.plugins.planners.ompl_planner import OmplOptions
 from agrisim.plugins.planners.ompl_planner.backend import OmplPlanner
-from agrisim.robot.cell import build_cell
+from agrisim.plugins.rigs.paper.cell import build_cell
 from agrisim.robot.kinematics import ArmKinematics
 from agrisim.robot.setpoints import random_views
 from agrisim.robot.trajectory import Limits, time_parametrize

@@ -86,6 +86,11 @@ class SensorChoice(BackendChoice):
     d415, d405, or a plugin's; what it measures goes to ``depth_sensor/`` beside ``depth/``."""
 
 
+class RigChoice(BackendChoice):
+    backend: str = "paper"
+    """What moves the cameras (``--rig``): paper (the paper's UR10s, sized by ``[cell]``), or a plugin's."""
+
+
 class RoomChoice(BackendChoice):
     backend: str = "lab"
     """What surrounds the cell: lab (the paper's laboratory), or a plugin's."""
@@ -370,6 +375,8 @@ class RunConfig(_Model):
     recon: ReconChoice = ReconChoice()
     """Reconstructor and per-backend options (``[recon.pointcloud]``, ``[recon.tsdf]``)."""
     metrics: MetricsConfig = MetricsConfig()
+    rig: RigChoice = RigChoice()
+    """What moves the cameras and per-rig options (``[rig.paper]``), built from ``cell``."""
     cell: CellConfig = CellConfig()
     room: RoomChoice = RoomChoice()
     """What surrounds the cell and per-room options (``[room.lab]``)."""

@@ -45,17 +45,16 @@ from agrisim.interfaces import (
 from agrisim.plant_choice import resolve_plant
 from agrisim.records import Run, RunSummary, SetpointResult
 from agrisim.registry import BackendSpec, Registry, blame, make_plugin_manager, with_own_plugins
-from agrisim.robot.cell import build_cell
 from agrisim.robot.kinematics import ArmKinematics
 from agrisim.robot.segments import arms_stay_apart, segment_is_valid
 from agrisim.robot.setpoints import Setpoint, routine
 from agrisim.robot.trajectory import Limits, TimedPath, time_parametrize
 from agrisim.scene.model import Scene
 from agrisim.scene.transforms import pose_error
-from agrisim.validation import check_run, open_imager
+from agrisim.validation import check_run, open_imager, open_rig
 
-#: the entry point of the dataset sink (the run directory), which every run loads
-DATASET_SINK = "sink-dataset"
+#: the entry points of the dataset sink (the run directory) and the default rig, which every run loads
+DATASET_SINK, PAPER_RIG = "sink-dataset", "rig-paper"
 #: rate at which planned trajectories are sampled for physics and sinks, Hz
 TRAJECTORY_RATE = 240.0
 
@@ -66,7 +65,7 @@ class Episode:
     def __init__(self, config: RunConfig, pm: pluggy.PluginManager | None = None) -> None:
         self.config = config
         self.pm = pm if pm is not None else make_plugin_manager()
-        with_own_plugins(self.pm, names=(DATASET_SINK,))  # the run directory, whatever plugins are chosen
+        with_own_plugins(self.pm, names=(DATASET_SINK, PAPER_RIG))  # whatever plugins are chosen
         self.registry = Registry(self.pm)
         self._prep_wall: dict[str, float] = {}
         checked = check_run(self.registry, config)
@@ -83,8 +82,8 @@ class Episode:
         if config.output.resume:
             self.done_frames = set(saved_run(self.out_dir).get("frames_complete") or [])
             self.saved_frames = saved_frames(self.out_dir)
-        self.cell = build_cell(config.cell)
-        self.setpoints = routine(self.cell, config.routine)
+        rig, self.cell = open_rig(config, self.registry, checked.rig)
+        self.setpoints = routine(self.cell, config.routine, rig.setpoints)
         self.kinematics = {arm.name: ArmKinematics(arm) for arm in self.cell.arms}
         m = config.motion
         self.limits = {

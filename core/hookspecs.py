@@ -3,7 +3,7 @@
 Two families:
 
 * **Providers** (``agrisim_physics``, ``agrisim_renderers``, ``agrisim_sensors``, ``agrisim_imagers``, ``agrisim_planners``,
-  ``agrisim_reconstructors``, ``agrisim_pose_sources``, ``agrisim_plants``, ``agrisim_plant_formats``, ``agrisim_rooms``, ``agrisim_sinks``, ``agrisim_bridges``,
+  ``agrisim_reconstructors``, ``agrisim_pose_sources``, ``agrisim_plants``, ``agrisim_plant_formats``, ``agrisim_rooms``, ``agrisim_rigs``, ``agrisim_sinks``, ``agrisim_bridges``,
   ``agrisim_exporters``) return a list of
   :class:`agrisim.BackendSpec`. Results of all plugins are concatenated; a name provided twice is
   an error naming both distributions. They are called once per run, never in the inner loop.
@@ -125,6 +125,13 @@ def agrisim_rooms() -> list[BackendSpec]:
     """Rooms: what surrounds the cell, chosen by ``[room] backend`` (``lab``: the paper's
     laboratory). The core calls ``factory(cell: Cell, options) -> Room`` when the run renders;
     the result must be an :class:`agrisim.interfaces.Room`, whose scene the renderers draw."""
+
+
+@hookspec
+def agrisim_rigs() -> list[BackendSpec]:
+    """Rigs: what moves the cameras relative to the plant, chosen by ``[rig] backend`` (``paper``:
+    the paper's two UR10s). The core calls ``factory(settings: CellConfig, options) -> Rig``; the
+    result must be an :class:`agrisim.interfaces.Rig`, whose cell and viewpoints a run uses."""
 
 
 @hookspec

@@ -33,8 +33,9 @@ from agrisim.scene.camera import CameraModel
 from agrisim.scene.model import LabelTable, Mesh, Plant, Scene
 
 if TYPE_CHECKING:
-    from agrisim.config import PlantFileConfig, RenderConfig
+    from agrisim.config import CellConfig, PlantFileConfig, RenderConfig, RoutineConfig
     from agrisim.robot.cell import Cell
+    from agrisim.robot.setpoints import Setpoint
 
 __all__ = [
     "ALL",
@@ -57,6 +58,7 @@ __all__ = [
     "Reconstruction",
     "Reconstructor",
     "Renderer",
+    "Rig",
     "Room",
     "SensorGeometry",
     "Shot",
@@ -348,6 +350,26 @@ class Room(ABC):
         on the cell's soil as :func:`agrisim.robot.cell.place_plant` puts it for the run's
         ``labels`` (``plant`` or ``organs``; everything else is background, label 0).
         ``seed``: the run's ``pcg_seed``, from which a room draws what it randomizes."""
+
+
+class Rig(ABC):
+    """What moves the cameras relative to the plant (``[rig] backend``; ``paper``: the paper's
+    UR10s on stands either side of the pot): its arms (URDF, base pose, joints, camera frame,
+    home), the obstacles, where the plant stands, and the routine's default viewpoints. Built
+    once a run by ``factory(settings: CellConfig, options)``, ``settings`` the run's ``[cell]``."""
+
+    def __init__(self, settings: CellConfig, options: Any) -> None:
+        self.settings = settings
+        self.options = options
+
+    @abstractmethod
+    def cell(self) -> Cell:
+        """The arms, the static obstacles and the plant centre, world frame (z up)."""
+
+    @abstractmethod
+    def setpoints(self, cell: Cell, routine: RoutineConfig) -> dict[str, list[Setpoint]]:
+        """Each arm's camera targets in shooting order for ``routine`` (its grid, radius):
+        the default viewpoints, which ``routine.csv`` replaces."""
 
 
 class PlantSpecies(ABC):

@@ -25,6 +25,7 @@ from agrisim.interfaces import (
     PoseSource,
     Reconstructor,
     Renderer,
+    Rig,
     Room,
 )
 from agrisim.options import Options
@@ -73,6 +74,7 @@ KINDS: dict[str, KindInfo] = {
                        "factory(options) -> PlantReader"),
     "room": KindInfo("agrisim_rooms", "room", Room,
                      "factory(cell: Cell, options) -> Room"),
+    "rig": KindInfo("agrisim_rigs", "rig", Rig, "factory(settings: CellConfig, options) -> Rig"),
     "sink": KindInfo("agrisim_sinks", None, None,
                      "factory(run: Run, options) -> a plugin object with event hooks, or None"),
     "bridge": KindInfo("agrisim_bridges", None, Bridge,

@@ -17,13 +17,14 @@ from agrisim.camera_choice import camera_of
 from agrisim.capabilities import check_reconstructor, check_renderer, check_sensor
 from agrisim.config import BackendChoice, ImagerConfig, RunConfig, backend_options
 from agrisim.errors import ConfigError
-from agrisim.interfaces import Imager
+from agrisim.interfaces import Imager, Rig
 from agrisim.kinds import KINDS, BackendSpec
 from agrisim.plant_choice import check_plant_name, draws_points, species_options
-from agrisim.registry import Registry, blame, loads_everything
+from agrisim.registry import Registry, blame, loads_everything, make_plugin_manager
+from agrisim.robot.cell import Cell
 from agrisim.scene.camera import CameraModel
 
-__all__ = ["Chosen", "Validated", "check_run", "imager_spec", "open_imager", "pose_source"]
+__all__ = ["Chosen", "Validated", "check_run", "imager_spec", "open_imager", "open_rig", "pose_source"]
 
 #: (the backend, its options validated by its own model)
 Chosen = tuple[BackendSpec, BaseModel]
@@ -41,6 +42,7 @@ class Validated:
     sensor: Chosen | None = None
     recon: Chosen | None = None
     room: Chosen | None = None
+    rig: Chosen | None = None
     imager: BackendSpec | None = None
     sinks: dict[str, BaseModel] = field(default_factory=dict)
 
@@ -64,7 +66,9 @@ def check_run(registry: Registry, config: RunConfig, *, preflight: bool = True) 
                 spec.preflight(config, options)
         return spec, options
 
+    rig = chosen("rig", config.rig)
     found = Validated(chosen("physics", config.physics), chosen("planner", config.planner), camera_of(config.camera))
+    found.rig = rig
     found.sinks = _sink_options(registry, config, preflight)
     if config.recon.poses != "truth":  # a pose source estimates from the finished views
         pose_source(registry, config.recon.poses)
@@ -162,6 +166,20 @@ def open_imager(registry: Registry, settings: ImagerConfig, seed: int) -> Imager
     with blame("imager", spec, " opening"):
         imager: Imager = registry.build("imager", spec, settings, seed, spec.options_model())
     return imager
+
+
+def open_rig(config: RunConfig, registry: Registry | None = None, chosen: Chosen | None = None) -> tuple[Rig, Cell]:
+    """The rig ``[rig]`` names (with its options as :func:`check_run` found them, or validated
+    here), built from ``[cell]`` through ``registry`` (by default the installed plugins'), and
+    its cell: where a run, a finished run's reader or a tool gets its arms and obstacles."""
+    registry = registry or Registry(make_plugin_manager())
+    if chosen is None:
+        spec = registry.get("rig", config.rig.backend)
+        chosen = spec, backend_options(spec.options_model, config.rig.options_for(spec.name), f"rig {spec.name!r}")
+    spec, options = chosen
+    with blame("rig", spec, " building the cell"):
+        rig: Rig = registry.build("rig", spec, config.cell, options)
+        return rig, rig.cell()
 
 
 def pose_source(registry: Registry, name: str) -> BackendSpec:

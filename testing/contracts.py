@@ -24,16 +24,17 @@ from typing import Any
 
 import numpy as np
 
-from agrisim.config import CellConfig, ImagerConfig, RenderConfig
+from agrisim.config import ImagerConfig, RenderConfig, RoutineConfig, RunConfig
 from agrisim.errors import UserError
 from agrisim.interfaces import ALL, Exposure, Frame, JointTrajectory, PlanningFailed, View, view_key
 from agrisim.kinds import KINDS, BackendSpec
 from agrisim.registry import Registry
-from agrisim.robot.cell import Cell, build_cell
+from agrisim.robot.cell import Cell
 from agrisim.robot.segments import path_is_valid
 from agrisim.scene.camera import CameraModel, from_fov
 from agrisim.scene.model import PLANT_FIT_HEIGHT, PLANT_FIT_RADIUS, Label, LabelTable, Plant
 from agrisim.scene.transforms import look_at
+from agrisim.validation import open_rig
 
 __all__ = [
     "check",
@@ -46,6 +47,7 @@ __all__ = [
     "check_poses",
     "check_reconstructor",
     "check_renderer",
+    "check_rig",
     "check_room",
     "check_sensor",
 ]
@@ -60,6 +62,11 @@ def check(kind: str, name: str, registry: Registry, options: Any = None) -> None
     CHECKS[kind](registry, spec, spec.options_model() if options is None else options)
 
 
+def _cell(registry: Registry) -> Cell:
+    """The cell of the default rig (the paper's), the situation most contracts are checked in."""
+    return open_rig(RunConfig(), registry)[1]
+
+
 # ------------------------------------------------------------------------------- physics
 
 
@@ -67,7 +74,7 @@ def check_physics(registry: Registry, spec: BackendSpec, options: Any) -> None:
     """A short joint move of one arm in free air: the backend reports where the arms start,
     executes the trajectory in simulated time, reaches the goal it was sent to, and leaves the
     other arm where it was."""
-    cell = build_cell(CellConfig())
+    cell = _cell(registry)
     physics = registry.build("physics", spec, cell, options)
     try:
         homes = {arm.name: np.array(arm.home, float) for arm in cell.arms}
@@ -155,7 +162,7 @@ def check_renderer(registry: Registry, spec: BackendSpec, options: Any) -> None:
       give more than one organ; leaf instances are uint16 and lie exactly on the leaf pixels).
     """
     caps = spec.capabilities
-    cell = build_cell(CellConfig())
+    cell = _cell(registry)
     mode = "texture" if "texture" in caps.seg_modes else sorted(caps.seg_modes)[0]
     labels = "organs" if caps.organ_labels else "plant"
     scene, plant = _plant_scene(registry, cell, labels)
@@ -207,7 +214,7 @@ def check_sensor(registry: Registry, spec: BackendSpec, options: Any) -> None:
       exact depth is known, its median relative error is under 2% (the D4xx datasheet's
       absolute accuracy) and 60% of its pixels lie within 5% (edges may fly or fatten).
     """
-    cell = build_cell(CellConfig())
+    cell = _cell(registry)
     scene, _ = _plant_scene(registry, cell, "plant")
     settings = RenderConfig.model_validate({"hide_robots": True})
     drawer = registry.get("renderer", "raycast")
@@ -218,10 +225,7 @@ def check_sensor(registry: Registry, spec: BackendSpec, options: Any) -> None:
         geometry = sensor.geometry(camera)
         if geometry is not None:
             T = np.asarray(geometry.camera_T_sensor, np.float64)
-            R = T[:3, :3]
-            assert T.shape == (4, 4) and np.allclose(R @ R.T, np.eye(3), atol=1e-9) and np.linalg.det(R) > 0, (
-                "camera_T_sensor is not a rigid pose"
-            )
+            _assert_rigid(T, "camera_T_sensor")
             assert np.linalg.norm(T[:3, 3]) < 0.2, "the sensor sits more than 20 cm from the camera"
             assert geometry.camera.width > 0 and geometry.camera.fx > 0, "the sensor's imager is no pinhole"
         lo, hi = spec.capabilities.range_m
@@ -265,7 +269,7 @@ def check_room(registry: Registry, spec: BackendSpec, options: Any) -> None:
     from agrisim.robot.cell import place_plant
     from agrisim.scene.model import Scene
 
-    cell = build_cell(CellConfig())
+    cell = _cell(registry)
     room = registry.build("room", spec, cell, options)
     _, plant = _plant_scene(registry, cell, "plant")
     for labels in ("plant", "organs"):
@@ -287,6 +291,61 @@ def check_room(registry: Registry, spec: BackendSpec, options: Any) -> None:
         assert [m.name for m in again.meshes] == [m.name for m in scene.meshes] and all(
             np.array_equal(a.vertices, b.vertices) for a, b in zip(again.meshes, scene.meshes, strict=True)
         ), "the same seed gave another scene"
+
+
+def check_rig(registry: Registry, spec: BackendSpec, options: Any) -> None:
+    """Builds arms that exist and viewpoints they reach, looking at the plant.
+
+    With the default ``[cell]`` settings and a 2 x 3 routine:
+
+    * the cell has arms, named once each; each one's URDF loads in Pinocchio with its joints and
+      camera frame, its home lies within its joint limits, its base pose is rigid and it stands
+      on one of the cell's obstacles; the same settings give the same cell;
+    * the setpoints are the cell's arms' (numbered 0, 1, ... in order), rigid poses, each with
+      the plant centre in front of the camera within 45 degrees of its axis;
+    * IK (collisions aside) brings each arm's camera to at least half its setpoints.
+    """
+    from agrisim.robot.kinematics import ArmKinematics
+    from agrisim.robot.setpoints import Setpoint
+
+    rig = registry.build("rig", spec, RunConfig().cell, options)
+    cell = rig.cell()
+    assert isinstance(cell, Cell), f"cell() must return an agrisim.robot.cell.Cell, got {type(cell).__name__}"
+    names = [arm.name for arm in cell.arms]
+    assert names and len(set(names)) == len(names), f"the cell's arms must be named once each: {names}"
+    obstacles = {ob.name for ob in cell.obstacles}
+    again = rig.cell()
+    routine = RoutineConfig(setpoints="2x3")
+    setpoints = rig.setpoints(cell, routine)
+    assert set(setpoints) <= set(names) and setpoints, f"setpoints for arms {sorted(setpoints)}, arms are {names}"
+    rng = np.random.default_rng(0)
+    for arm, twin in zip(cell.arms, again.arms, strict=True):
+        _assert_rigid(arm.world_T_base, f"{arm.name}'s base")
+        assert arm.stand in obstacles, f"{arm.name} stands on {arm.stand!r}, not one of the cell's obstacles"
+        assert np.array_equal(arm.world_T_base, twin.world_T_base), f"the same settings moved {arm.name}"
+        kin = ArmKinematics(arm)
+        home = np.asarray(arm.home, float)
+        assert home.shape == (kin.dof,) and np.all((home >= kin.lower) & (home <= kin.upper)), (
+            f"{arm.name}'s home {arm.home} is not within its joint limits"
+        )
+        reached = 0
+        for k, sp in enumerate(setpoints.get(arm.name, [])):
+            assert isinstance(sp, Setpoint) and (sp.robot, sp.index) == (arm.name, k), f"setpoint {sp} out of order"
+            T = np.asarray(sp.world_T_camera, np.float64)
+            _assert_rigid(T, f"setpoint {sp.frame}")
+            ray = cell.plant_center - T[:3, 3]
+            cos = float(T[:3, 2] @ ray) / max(float(np.linalg.norm(ray)), 1e-9)
+            assert cos > np.cos(np.radians(45)), f"the camera at {sp.frame} does not look at the plant"
+            reached += kin.ik(T, home, rng=rng, restarts=4, max_restarts=16).q is not None
+        count = len(setpoints.get(arm.name, []))
+        assert reached * 2 >= count, f"{arm.name} reaches {reached} of its {count} setpoints"
+
+
+def _assert_rigid(T: np.ndarray, what: str) -> None:
+    R = T[:3, :3]
+    assert T.shape == (4, 4) and np.allclose(R @ R.T, np.eye(3), atol=1e-9) and np.linalg.det(R) > 0, (
+        f"{what} is not a rigid pose"
+    )
 
 
 def check_format(registry: Registry, spec: BackendSpec, options: Any) -> None:
@@ -533,6 +592,7 @@ CHECKS: dict[str, Callable[[Registry, BackendSpec, Any], None]] = {
     "reconstructor": check_reconstructor,
     "plant": check_plant,
     "room": check_room,
+    "rig": check_rig,
     "poses": check_poses,
     "exporter": check_exporter,
     "format": check_format,

@@ -31,12 +31,13 @@ from typing import NamedTuple
 import numpy as np
 import pytest
 
-from agrisim.config import CellConfig
+from agrisim.config import RunConfig
 from agrisim.interfaces import Frame
 from agrisim.registry import hookimpl
-from agrisim.robot.cell import Cell, build_cell
+from agrisim.robot.cell import Cell
 from agrisim.robot.kinematics import ArmKinematics
 from agrisim.scene.model import Label, LabelTable, Material, Mesh
+from agrisim.validation import open_rig
 
 
 def _cuda_usable() -> bool:
@@ -211,7 +212,8 @@ def plant_cache(tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
 
 @pytest.fixture(scope="session")
 def cell() -> Cell:
-    return build_cell(CellConfig())
+    """The default rig's cell (the paper's), as a run gets it: through the registry."""
+    return open_rig(RunConfig())[1]
 
 
 @pytest.fixture(scope="session")

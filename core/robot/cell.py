@@ -1,7 +1,7 @@
 """The robot cell as plain data: arms on stands, the plant table, the pot.
 
-One backend-free description that every physics backend, planner check and sink builds from
-(Kubric's pattern: one scene model, many views of it). World frame: z up, origin on the floor
+One backend-free description, built by the run's rig (:class:`agrisim.interfaces.Rig`), that
+every physics backend, planner check and sink builds from (Kubric's pattern: one scene model). World frame: z up, origin on the floor
 below the plant; the pot's centre on the table top is the routine's hemisphere centre.
 """
 
@@ -12,10 +12,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from agrisim.config import CellConfig
-from agrisim.robot.urdf import ARM_JOINTS, CAMERA_FRAME, ur10_with_camera
+from agrisim.robot.urdf import ARM_JOINTS, CAMERA_FRAME
 from agrisim.scene.model import Label, LabelTable, Mesh, Plant, PointSet
-from agrisim.scene.transforms import translation, yaw_matrix
+from agrisim.scene.transforms import translation
 
 SOIL_INSET = 0.015
 """Depth of the soil surface below the pot's rim, m (capped at a third of the pot's height)."""
@@ -75,39 +74,6 @@ class Cell:
     @property
     def arm_names(self) -> tuple[str, ...]:
         return tuple(a.name for a in self.arms)
-
-
-def build_cell(cfg: CellConfig) -> Cell:
-    """The paper's cell: arms ``r1`` (+x side) and ``r2`` (-x side), facing the plant."""
-    urdf = ur10_with_camera()
-    table_top = cfg.table_height
-    center = np.array([0.0, 0.0, table_top])
-    obstacles: list[Obstacle] = [
-        Box("floor", (6.0, 6.0, 0.02), translation(0.0, 0.0, -0.01)),
-        Box("table", (cfg.table_size, cfg.table_size, table_top), translation(0.0, 0.0, table_top / 2)),
-        Cylinder("pot", cfg.pot_radius, cfg.pot_height, translation(0.0, 0.0, table_top + cfg.pot_height / 2)),
-    ]
-    if cfg.keepout_radius > 0 and cfg.keepout_height > 0:
-        obstacles.append(
-            Cylinder(
-                "plant_keepout",
-                cfg.keepout_radius,
-                cfg.keepout_height,
-                translation(0.0, 0.0, table_top + cfg.keepout_height / 2),
-            )
-        )
-    arms = []
-    for i, side in enumerate((1.0, -1.0)[: cfg.arms]):
-        name = f"r{i + 1}"
-        stand = f"{name}_stand"
-        x = side * cfg.arm_distance
-        obstacles.append(
-            Box(stand, (cfg.stand_size, cfg.stand_size, cfg.stand_height), translation(x, 0.0, cfg.stand_height / 2))
-        )
-        # UR10 at zero joints stretches along its base +x: turn each base to face the plant.
-        world_T_base = translation(x, 0.0, cfg.stand_height) @ yaw_matrix(np.pi if side > 0 else 0.0)
-        arms.append(Arm(name=name, urdf=urdf, world_T_base=world_T_base, stand=stand))
-    return Cell(arms=tuple(arms), obstacles=tuple(obstacles), plant_center=center)
 
 
 def soil_pose(cell: Cell) -> np.ndarray:

@@ -1,14 +1,16 @@
-"""The camera setpoint routines: the paper's hemisphere, or poses read from a CSV file."""
+"""Camera setpoints: a rig's default routine (:meth:`agrisim.interfaces.Rig.setpoints`), or poses
+read from a CSV file."""
 
 from __future__ import annotations
 
 import csv
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from agrisim.config import RoutineConfig, parse_grid
+from agrisim.config import RoutineConfig
 from agrisim.errors import UserError
 from agrisim.robot.cell import Cell
 from agrisim.scene.transforms import look_at, pose, rpy_matrix
@@ -27,6 +29,10 @@ class Setpoint:
         return f"{self.robot}_{self.index:03d}"
 
 
+#: a routine: each arm's setpoints in ``cell`` for the settings (a rig's ``setpoints``)
+Routine = Callable[[Cell, RoutineConfig], dict[str, list[Setpoint]]]
+
+
 def random_views(center: np.ndarray, rng: np.random.Generator, n: int = 50, radius: float = 0.5) -> list[np.ndarray]:
     """``n`` camera poses looking at ``center`` from ``radius`` m, drawn from ``rng``: polar
     angle 0.6-1.3 rad, azimuth within 1.2 rad of +x (the side an arm reaches). The IK timing's
@@ -36,35 +42,6 @@ def random_views(center: np.ndarray, rng: np.random.Generator, n: int = 50, radi
         look_at(center + radius * np.array([np.sin(p) * np.cos(a), np.sin(p) * np.sin(a), np.cos(p)]), center)
         for p, a in zip(polar, azimuth, strict=True)
     ]
-
-
-def hemisphere(cell: Cell, cfg: RoutineConfig) -> dict[str, list[Setpoint]]:
-    """The paper's routine: per arm, L levels x C columns on its half of the hemisphere.
-
-    ``phi`` is the polar angle from the zenith, ``theta`` the azimuth across the arm's half
-    (0..pi spans the half facing that arm). Cameras look at the point ``aim_height`` above the
-    centre (the plant's middle rather than its pot). Levels run top to bottom and columns alternate
-    direction (snake order), so consecutive setpoints are neighbours.
-    """
-    levels, columns = parse_grid(cfg.setpoints)
-    phis = np.radians(np.linspace(*cfg.phi_deg, levels))
-    thetas = np.radians(np.linspace(*cfg.theta_deg, columns))
-    center = cell.plant_center
-    aim = np.array([0.0, 0.0, cfg.aim_height])
-    out: dict[str, list[Setpoint]] = {}
-    for arm in cell.arms:
-        # Azimuth 0..pi is turned so that the half faces the arm's base.
-        base = arm.world_T_base[:3, 3] - center
-        facing = np.arctan2(base[1], base[0])
-        points = []
-        for i, phi in enumerate(phis):
-            row = thetas if i % 2 == 0 else thetas[::-1]
-            for theta in row:
-                azimuth = facing - np.pi / 2 + theta
-                direction = np.array([np.sin(phi) * np.cos(azimuth), np.sin(phi) * np.sin(azimuth), np.cos(phi)])
-                points.append(look_at(center + cfg.radius * direction, center + aim))
-        out[arm.name] = [Setpoint(arm.name, k, T) for k, T in enumerate(points)]
-    return out
 
 
 def from_csv(cell: Cell, path: Path) -> dict[str, list[Setpoint]]:
@@ -94,6 +71,7 @@ def from_csv(cell: Cell, path: Path) -> dict[str, list[Setpoint]]:
     return out
 
 
-def routine(cell: Cell, cfg: RoutineConfig) -> dict[str, list[Setpoint]]:
-    """The configured routine's setpoints per arm."""
-    return from_csv(cell, cfg.csv) if cfg.csv is not None else hemisphere(cell, cfg)
+def routine(cell: Cell, cfg: RoutineConfig, default: Routine) -> dict[str, list[Setpoint]]:
+    """The configured routine's setpoints per arm: ``cfg.csv``'s, else ``default``'s (the rig's
+    own, :meth:`agrisim.interfaces.Rig.setpoints`)."""
+    return from_csv(cell, cfg.csv) if cfg.csv is not None else default(cell, cfg)

@@ -437,12 +437,12 @@ def _time_ik() -> dict[str, Any]:
     try:
         import numpy as np
 
-        from agrisim.config import CellConfig
-        from agrisim.robot.cell import build_cell
+        from agrisim.config import RunConfig
         from agrisim.robot.kinematics import ArmKinematics
         from agrisim.robot.setpoints import random_views
+        from agrisim.validation import open_rig
 
-        cell = build_cell(CellConfig())
+        _, cell = open_rig(RunConfig())  # the default rig's
         k = ArmKinematics(cell.arms[0])
         rng = np.random.default_rng(0)
         home = np.array(cell.arms[0].home)

@@ -96,6 +96,9 @@ def episode_flags(parser: argparse.ArgumentParser) -> None:
         help="depth as uint16 mm PNG, float32 m EXR, or both (default: png16)",
     )
     run.add_argument("--pcg-seed", type=int, metavar="N", help="seed of the lab clutter (default: 42)")
+    run.add_argument(
+        "--rig", metavar="NAME", help="what moves the cameras around the plant (default: paper, the two UR10s)"
+    )
     run.add_argument("--physics", metavar="NAME", help="physics backend (default: pybullet)")
     run.add_argument("--planner", metavar="NAME", help="motion planner (default: ompl)")
     run.add_argument("--recon", metavar="NAME", help="reconstructor (default: pointcloud; none: no reconstruction)")
@@ -177,6 +180,7 @@ def overrides_from_args(args: argparse.Namespace) -> dict[str, Any]:
         "render.hide_robots": args.hide_robots,
         "render.depth_format": args.depth_format,
         "pcg_seed": args.pcg_seed,
+        "rig.backend": getattr(args, "rig", None),
         "physics.backend": args.physics,
         "planner.backend": args.planner,
         "recon.backend": args.recon,

@@ -301,15 +301,15 @@ class RosbagExport:
 
     def __init__(self, run_dir: Path) -> None:
         from agrisim.config import build_config
-        from agrisim.robot.cell import build_cell
         from agrisim.robot.kinematics import ArmKinematics
+        from agrisim.validation import open_rig
 
         self.run_dir = Path(run_dir)
         self.run, self.cameras = read_run(self.run_dir, rendered=False)
         saved = self.run.get("config")
         if not isinstance(saved, dict):
             raise UserError(f"{self.run_dir / layout.RUN_JSON} holds no run configuration")
-        cell = build_cell(build_config({k: v for k, v in saved.items() if k != "output"}).cell)
+        _, cell = open_rig(build_config({k: v for k, v in saved.items() if k != "output"}))
         self.kin = {arm.name: ArmKinematics(arm) for arm in cell.arms}
         self.joints = {arm.name: list(arm.joints) for arm in cell.arms}
         self.moves = read_moves(self.run_dir, self.run, self.joints)

@@ -111,6 +111,28 @@ def test_a_room_that_floats_the_plant_breaks_its_contract() -> None:
         _broken("room", "lab", wrap)
 
 
+def test_a_rig_whose_cameras_look_away_breaks_its_contract() -> None:
+    import dataclasses
+
+    turn = np.diag([-1.0, 1.0, -1.0, 1.0])  # half a turn about each camera's own y axis
+
+    def wrap(rig):
+        setpoints = rig.setpoints
+
+        def away(cell, routine):
+            sps = setpoints(cell, routine)
+            return {
+                arm: [dataclasses.replace(sp, world_T_camera=sp.world_T_camera @ turn) for sp in s]
+                for arm, s in sps.items()
+            }
+
+        rig.setpoints = away
+        return rig
+
+    with pytest.raises(AssertionError, match="does not look at the plant"):
+        _broken("rig", "paper", wrap)
+
+
 def test_a_pose_source_that_answers_for_a_run_it_never_saw_breaks_its_contract() -> None:
     def wrap(source):
         source.poses = lambda run_dir: {}

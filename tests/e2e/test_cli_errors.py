@@ -84,6 +84,7 @@ def assert_one_line_error(code: int, err: str, expected: list[str]) -> None:
 CASES = [
     pytest.param(["--physics", "nope"], ["physics", "'nope'", "kinematic", "pybullet"], id="unknown-physics"),
     pytest.param(["--planner", "nope"], ["planner", "'nope'", "direct", "ompl"], id="unknown-planner"),
+    pytest.param(["--rig", "nope"], ["rig", "'nope'", "paper"], id="unknown-rig"),
     pytest.param(["--camera", "nope"], ["camera", "'nope'", "rpi3-wide-1080p"], id="unknown-camera"),
     pytest.param(["--config", "{tmp}/broken.toml"], ["malformed TOML", "broken.toml"], id="malformed-toml"),
     pytest.param(["--config", "{tmp}/missing.toml"], ["config file not found", "missing.toml"], id="missing-config"),

@@ -124,6 +124,7 @@ def test_doctor_tells_the_truth_about_this_machine(tmp_path: Path) -> None:
         ("sink", "rerun"),
         ("plant", "indian_cress"),
         ("room", "lab"),
+        ("rig", "paper"),
     } == defaults
     for kind, name in defaults:
         assert rows(report, kind)[name]["usable"], (kind, name)

@@ -12,8 +12,8 @@ from agrisim.config import CellConfig, build_config
 from agrisim.episode import Episode
 from agrisim.plugins.physics.kinematic import KinematicOptions
 from agrisim.plugins.physics.kinematic.backend import KinematicPhysics
+from agrisim.plugins.rigs.paper.cell import build_cell
 from agrisim.registry import hookimpl
-from agrisim.robot.cell import build_cell
 from agrisim.scene.transforms import pose_error
 
 

@@ -31,8 +31,8 @@ from agrisim.interfaces import PlanningFailed, PlantSpecies, Reconstructor, Rend
 from agrisim.plugins.physics.kinematic import KinematicOptions
 from agrisim.plugins.physics.kinematic.backend import KinematicPhysics
 from agrisim.plugins.planners.direct import DirectPlanner
+from agrisim.plugins.rigs.paper.cell import build_cell
 from agrisim.registry import PROVIDER_HOOKS, NoOptions, Registry, make_plugin_manager
-from agrisim.robot.cell import build_cell
 from agrisim.robot.kinematics import ArmKinematics
 from agrisim.robot.segments import path_is_valid, segment_samples
 

@@ -23,10 +23,9 @@ from agrisim.plant_choice import resolve_plant
 from agrisim.plugins.plants.procedural.species import SPECIES
 from agrisim.plugins.recon.pointcloud import PointCloudReconstructor
 from agrisim.plugins.recon.voxel_grid import VoxelGrid
+from agrisim.plugins.rigs.paper.cell import build_cell, hemisphere
 from agrisim.plugins.rooms.lab.room import build_scene
 from agrisim.registry import Registry, make_plugin_manager
-from agrisim.robot.cell import build_cell
-from agrisim.robot.setpoints import hemisphere
 from agrisim.scene.camera import preset
 from agrisim.scene.model import Label, LabelTable, Material, Mesh
 

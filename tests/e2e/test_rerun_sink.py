@@ -26,12 +26,12 @@ from agrisim.config import build_config  # noqa: E402
 from agrisim.episode import Episode  # noqa: E402
 from agrisim.interfaces import Capture, Frame, JointTrajectory, Trajectory  # noqa: E402
 from agrisim.plugins.render import robot_meshes  # noqa: E402
+from agrisim.plugins.rigs.paper.cell import build_cell, hemisphere  # noqa: E402
 from agrisim.plugins.sinks import rerun_sink  # noqa: E402
 from agrisim.plugins.sinks.rerun_sink import RerunOptions, entities, recording  # noqa: E402
 from agrisim.plugins.sinks.rerun_sink.entities import paths  # noqa: E402
 from agrisim.records import Run, RunSummary, SetpointResult  # noqa: E402
 from agrisim.registry import make_plugin_manager  # noqa: E402
-from agrisim.robot.cell import build_cell  # noqa: E402
 from agrisim.robot.kinematics import ArmKinematics  # noqa: E402
 from agrisim.robot.setpoints import routine  # noqa: E402
 from agrisim.scene.camera import preset  # noqa: E402
@@ -272,7 +272,7 @@ def _hand_built_run(tmp_path: Path, **output: object) -> Run:
         cell=cell,
         out_dir=tmp_path / "run",
         kinematics={a.name: ArmKinematics(a) for a in cell.arms},
-        setpoints=routine(cell, cfg.routine),
+        setpoints=routine(cell, cfg.routine, hemisphere),
         camera=preset("rpi3-wide-1080p", "64x36"),
         backends={"physics": "none", "planner": "none"},
         started_at="2024-01-01T00:00:00+00:00",

@@ -16,9 +16,9 @@ from agrisim.plant_choice import resolve_plant
 from agrisim.plugins.render.raycast import RaycastOptions, culling
 from agrisim.plugins.render.raycast.renderer import RaycastRenderer
 from agrisim.plugins.render.raycast.tracing import SceneTracer
+from agrisim.plugins.rigs.paper.cell import hemisphere
 from agrisim.plugins.rooms.lab.room import build_scene
 from agrisim.registry import Registry, make_plugin_manager
-from agrisim.robot.setpoints import hemisphere
 from agrisim.scene.camera import preset
 
 CAMERA = preset("rpi3-wide-1080p", "64x36")

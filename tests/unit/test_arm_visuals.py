@@ -26,7 +26,7 @@ from agrisim.config import CellConfig
 from agrisim.plugins.render import arm_visuals as visuals
 from agrisim.plugins.render.mitsuba.options import MitsubaOptions
 from agrisim.plugins.render.raycast import RaycastOptions
-from agrisim.robot.cell import build_cell
+from agrisim.plugins.rigs.paper.cell import build_cell
 from agrisim.robot.urdf import ur10_with_camera
 
 
@@ -203,7 +203,7 @@ from agrisim.plugins.render.raycast import RaycastOptions
 from agrisim.plugins.render.raycast.renderer import RaycastRenderer
 from agrisim.robot.kinematics import ArmKinematics
 from agrisim.scene.camera import from_fov
-from agrisim.robot.cell import build_cell
+from agrisim.plugins.rigs.paper.cell import build_cell
 from agrisim.scene.model import LabelTable, Light, Scene
 cell = build_cell(CellConfig())
 poses = {a.name: ArmKinematics(a).link_poses(np.array(a.home)) for a in cell.arms}

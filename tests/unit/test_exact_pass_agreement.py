@@ -24,9 +24,9 @@ from agrisim.plugins.plants.procedural.species import SPECIES as PROCEDURAL
 from agrisim.plugins.render.arm_visuals import arm_link_meshes
 from agrisim.plugins.render.raycast import RaycastOptions
 from agrisim.plugins.render.raycast.tracing import SceneTracer, label_map
+from agrisim.plugins.rigs.paper.cell import hemisphere
 from agrisim.plugins.rooms.lab.room import build_scene
 from agrisim.registry import Registry, make_plugin_manager
-from agrisim.robot.setpoints import hemisphere
 from agrisim.scene.camera import preset
 
 SPECIES = sorted(PROCEDURAL)

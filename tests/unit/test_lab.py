@@ -7,9 +7,10 @@ import numpy as np
 import pytest
 
 from agrisim.config import CellConfig
+from agrisim.plugins.rigs.paper.cell import build_cell
 from agrisim.plugins.rooms.lab import clutter
 from agrisim.plugins.rooms.lab import room as lab
-from agrisim.robot.cell import Box, Cylinder, build_cell
+from agrisim.robot.cell import Box, Cylinder
 from agrisim.scene.model import Label, LabelTable, Material, Mesh, Plant
 
 # ---------------------------------------------------------------------------------------------

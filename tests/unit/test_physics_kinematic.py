@@ -20,7 +20,8 @@ from agrisim.config import CellConfig
 from agrisim.interfaces import JointTrajectory
 from agrisim.plugins.physics.kinematic import KinematicOptions, agrisim_physics
 from agrisim.plugins.physics.kinematic.backend import KinematicPhysics
-from agrisim.robot.cell import Box, Cylinder, build_cell
+from agrisim.plugins.rigs.paper.cell import build_cell
+from agrisim.robot.cell import Box, Cylinder
 from agrisim.robot.kinematics import ArmKinematics
 from agrisim.robot.urdf import CAMERA_BODY
 from agrisim.scene.transforms import look_at, pose

@@ -9,7 +9,8 @@ import pytest
 
 from agrisim.config import RoutineConfig
 from agrisim.errors import UserError
-from agrisim.robot.setpoints import from_csv, hemisphere
+from agrisim.plugins.rigs.paper.cell import hemisphere
+from agrisim.robot.setpoints import from_csv
 
 
 def test_hemisphere_matches_the_paper(cell):

@@ -34,11 +34,11 @@ from agrisim.evaluation.views import View
 from agrisim.plugins.apps.nextview.coverage import SurfaceCoverage
 from agrisim.plugins.apps.nextview.occupancy import VoxelMap
 from agrisim.registry import Registry, make_plugin_manager
-from agrisim.robot.cell import build_cell, soil_pose
+from agrisim.robot.cell import soil_pose
 from agrisim.robot.kinematics import ArmKinematics
-from agrisim.robot.setpoints import Setpoint, hemisphere
+from agrisim.robot.setpoints import Setpoint
 from agrisim.scene.transforms import look_at
-from agrisim.validation import check_run
+from agrisim.validation import check_run, open_rig
 
 #: the continuous action's radius range, m
 RADIUS_M = (0.3, 0.8)
@@ -109,12 +109,14 @@ class PlantViewEnv(gym.Env[dict[str, np.ndarray], Any]):
         self._base = merge(base, config or {})
         #: the settings every episode starts from (checked here, before any episode)
         self.config = build_config(self._base)
-        self.camera = check_run(Registry(make_plugin_manager()), self.config).camera
-        cell = build_cell(self.config.cell)
+        registry = Registry(make_plugin_manager())
+        checked = check_run(registry, self.config)
+        self.camera = checked.camera
+        rig, cell = open_rig(self.config, registry, checked.rig)  # the run's rig: its arms, its viewpoints
         self.arms = [arm.name for arm in cell.arms]
         routine = self.config.routine
         self.candidates: list[Setpoint] = [
-            sp for pair in zip(*hemisphere(cell, routine).values(), strict=True) for sp in pair
+            sp for pair in zip(*rig.setpoints(cell, routine).values(), strict=True) for sp in pair
         ]  # the paper's order: each step's setpoint of every arm in turn
         self._centre = soil_pose(cell)[:3, 3] + np.array([0.0, 0.0, routine.aim_height])
         self._sphere_centre = cell.plant_center + np.array([0.0, 0.0, routine.aim_height])

@@ -53,10 +53,10 @@ def check_request(plants: Sequence[str], policies: Sequence[str], views: int) ->
 def reachable_candidates(env: Any) -> int:
     """How many of ``env``'s candidates an arm's IK reaches (collisions aside): a set none of
     them reaches is refused before any episode runs."""
-    from agrisim.robot.cell import build_cell
     from agrisim.robot.kinematics import ArmKinematics
+    from agrisim.validation import open_rig
 
-    cell = build_cell(env.config.cell)
+    _, cell = open_rig(env.config)
     kins = {arm.name: (ArmKinematics(arm), np.array(arm.home)) for arm in cell.arms}
     rng = np.random.default_rng(0)
     count = 0

@@ -82,9 +82,10 @@ def plant_T_world(run: dict[str, Any]) -> np.ndarray:
     """The plant's frame (the soil at the pot's centre, z up) from the world, by the cell of
     ``run`` (its run.json)."""
     from agrisim.config import build_config
-    from agrisim.robot.cell import build_cell, soil_pose
+    from agrisim.robot.cell import soil_pose
+    from agrisim.validation import open_rig
 
-    return np.linalg.inv(soil_pose(build_cell(build_config(run["config"]).cell)))
+    return np.linalg.inv(soil_pose(open_rig(build_config(run["config"]))[1]))
 
 
 def fuse_views(

@@ -1,0 +1,1 @@
+"""Rigs: what moves the cameras relative to the plant (``[rig] backend``)."""
