@@ -51,10 +51,10 @@ from agrisim.robot.setpoints import Setpoint, routine
 from agrisim.robot.trajectory import Limits, TimedPath, time_parametrize
 from agrisim.scene.model import Scene
 from agrisim.scene.transforms import pose_error
-from agrisim.validation import check_run, open_imager, open_rig
+from agrisim.validation import PAPER_RIG, check_run, open_imager, open_rig
 
-#: the entry points of the dataset sink (the run directory) and the default rig, which every run loads
-DATASET_SINK, PAPER_RIG = "sink-dataset", "rig-paper"
+#: the entry point of the dataset sink (the run directory), which every run loads
+DATASET_SINK = "sink-dataset"
 #: rate at which planned trajectories are sampled for physics and sinks, Hz
 TRAJECTORY_RATE = 240.0
 

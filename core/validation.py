@@ -20,12 +20,14 @@ from agrisim.errors import ConfigError
 from agrisim.interfaces import Imager, Rig
 from agrisim.kinds import KINDS, BackendSpec
 from agrisim.plant_choice import check_plant_name, draws_points, species_options
-from agrisim.registry import Registry, blame, loads_everything, make_plugin_manager
+from agrisim.registry import Registry, blame, loads_everything, make_plugin_manager, with_own_plugins
 from agrisim.robot.cell import Cell
 from agrisim.scene.camera import CameraModel
 
 __all__ = ["Chosen", "Validated", "check_run", "imager_spec", "open_imager", "open_rig", "pose_source"]
 
+#: the entry point of the default rig, which every run loads whatever plugins are chosen
+PAPER_RIG = "rig-paper"
 #: (the backend, its options validated by its own model)
 Chosen = tuple[BackendSpec, BaseModel]
 
@@ -172,7 +174,10 @@ def open_rig(config: RunConfig, registry: Registry | None = None, chosen: Chosen
     """The rig ``[rig]`` names (with its options as :func:`check_run` found them, or validated
     here), built from ``[cell]`` through ``registry`` (by default the installed plugins'), and
     its cell: where a run, a finished run's reader or a tool gets its arms and obstacles."""
-    registry = registry or Registry(make_plugin_manager())
+    if registry is None:  # agrisim's own rigs whatever AGRISIM_LOAD_PLUGINS says, as a run has them
+        pm = make_plugin_manager()
+        with_own_plugins(pm, names=(PAPER_RIG,))
+        registry = Registry(pm)
     if chosen is None:
         spec = registry.get("rig", config.rig.backend)
         chosen = spec, backend_options(spec.options_model, config.rig.options_for(spec.name), f"rig {spec.name!r}")

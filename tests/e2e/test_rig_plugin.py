@@ -78,3 +78,21 @@ def test_a_run_puts_the_arms_where_the_rig_put_them(site: Path, tmp_path: Path, 
     for arm, base in bases.items():
         centre_gltf = placed[f"{arm}_stand"].bounds.mean(axis=0)
         assert np.allclose(centre_gltf, [base[0], STAND_TOP / 2, -SHIFT], atol=1e-5), (arm, centre_gltf)
+
+
+@pytest.mark.parametrize(
+    "switch", [("AGRISIM_DISABLE_PLUGIN_AUTOLOAD", "1"), ("AGRISIM_LOAD_PLUGINS", "render-raycast")]
+)
+def test_a_finished_runs_readers_get_the_paper_rig_whatever_plugins_are_chosen(switch, monkeypatch) -> None:  # noqa: ANN001
+    """The readers of a finished run (the bag exporter, traits) rebuild its cell from its saved
+    config: the paper rig is agrisim's own, there as a run has it, whatever the switches that
+    choose plugins say; its arms are the paper's two UR10s facing each other across the pot."""
+    from agrisim.config import build_config
+    from agrisim.validation import open_rig
+
+    monkeypatch.setenv(*switch)
+    _, cell = open_rig(build_config({}))
+    assert cell.arm_names == ("r1", "r2")
+    bases = [arm.world_T_base[:3, 3] for arm in cell.arms]
+    np.testing.assert_allclose(bases[0][:2], -bases[1][:2], atol=1e-12)
+    assert np.linalg.norm(bases[0][:2] - cell.plant_center[:2]) == pytest.approx(1.0)  # [cell] arm_distance
