@@ -33,7 +33,7 @@ from agrisim.scene.colour import srgb_to_linear
 from agrisim.scene.model import Material
 from agrisim.scene.texturing import alpha_threshold
 
-from .vertex_tint import tinted
+from .vertex_tint import VertexColours, tinted
 
 F32 = np.float32
 SRGB_TO_LINEAR = srgb_to_linear(np.arange(256) / 255.0).astype(F32)
@@ -70,10 +70,12 @@ def opacity(material: Material) -> np.ndarray | float | None:
 
 class BsdfFactory:
     """Builds the BSDF dict of each material; textures shared by several materials are turned
-    into Mitsuba bitmaps once (``texture`` wraps an H x W x C float32 array as one)."""
+    into Mitsuba bitmaps once (``texture`` wraps an H x W x C float32 array as one); tinted
+    colours read the vertex colours of ``colours``."""
 
-    def __init__(self, texture: Callable[[np.ndarray, str], Any]) -> None:
+    def __init__(self, texture: Callable[[np.ndarray, str], Any], colours: VertexColours | None = None) -> None:
         self._texture = texture
+        self._colours = VertexColours() if colours is None else colours
         self._made: dict[tuple, Any] = {}
 
     def _bitmap(self, key: tuple, make: Callable[[], np.ndarray], filter_type: str) -> Any:
@@ -117,7 +119,7 @@ class BsdfFactory:
         else:
             texture = material.transmission
             colour = self._bitmap(("transmission", id(texture)), lambda: SRGB_TO_LINEAR[texture] * F32(2.0), "bilinear")
-        return tinted(colour) if tint else colour
+        return tinted(colour, self._colours) if tint else colour
 
     def _reflector(
         self, material: Material, scale: float = 1.0, colour: Any = None, roughness: Any = None, tint: bool = False
@@ -127,7 +129,7 @@ class BsdfFactory:
         base = self._colour(material, scale) if colour is None else colour
         return {
             "type": "principled",
-            "base_color": tinted(base) if tint else base,
+            "base_color": tinted(base, self._colours) if tint else base,
             "roughness": self._channel(material, 1, material.roughness) if roughness is None else roughness,
             "metallic": self._channel(material, 2, material.metallic),
             "specular": 0.5,

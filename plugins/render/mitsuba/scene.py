@@ -24,7 +24,7 @@ from agrisim.scene.model import Light, Mesh
 
 from .materials import BsdfFactory, mirrored_faces
 from .options import MitsubaOptions
-from .vertex_tint import ATTRIBUTE as VERTEX_COLOUR
+from .vertex_tint import VertexColours
 from .vertex_tint import register as register_vertex_tint
 
 F32 = np.float32
@@ -154,7 +154,8 @@ def build(
             }
         )
 
-    bsdfs = BsdfFactory(texture)
+    vertex_colours = VertexColours()
+    bsdfs = BsdfFactory(texture, vertex_colours)
     made: dict[tuple[int, bool, bool], Any] = {}  # (id(material), mirrored, tinted) -> BSDF, shared
 
     def shape(
@@ -183,7 +184,7 @@ def build(
             params["vertex_texcoords"] = mi.Float(np.ascontiguousarray(uv, F32).ravel())
         params.update()
         if colours is not None:
-            shp.add_attribute(VERTEX_COLOUR, 3, mi.Float(np.ascontiguousarray(colours, F32).ravel()))
+            vertex_colours.add(mi, shp, v, f, colours)
         return shp
 
     scene: dict[str, Any] = {"type": "scene", "integrator": integrator}
@@ -210,7 +211,10 @@ def build(
     for a, (arm, links) in enumerate(arms.items()):
         for j, (link, mesh) in enumerate(links):
             for m, mirrored, v, f, uv, colours in _split(mesh):
+                # (tinted shapes must not move: VertexColours keeps their vertices)
+                assert colours is None, "arm meshes carry no vertex colours (the renderer drops them)"
                 key = f"arm_{a}_{j:02d}_{m:02d}" + ("_mirrored" if mirrored else "")
                 scene[key] = shape(f"{arm}/{link}/{m}", mesh, m, mirrored, v, f, uv, colours)
                 parts.arms.append(ArmPart(arm, link, v, f"{key}.vertex_positions"))
+    vertex_colours.finish(mi)
     return parts
