@@ -101,6 +101,7 @@ def glb_bytes(mesh: Mesh, labels: LabelTable) -> bytes:
 PNG_CACHE_BYTES = 64 << 20
 _png_cache: OrderedDict[tuple[Any, ...], bytes] = OrderedDict()
 _png_cache_lock = threading.Lock()
+_png_cache_size = [0]  # the cached PNGs' bytes, kept as they come and go
 
 
 def texture_key(pixels: np.ndarray, mode: str) -> tuple[Any, ...]:
@@ -123,10 +124,11 @@ def texture_png(pixels: np.ndarray, mode: str, key: tuple[Any, ...] | None = Non
     Image.fromarray(pixels, mode).save(buf, format="PNG")
     png = buf.getvalue()
     with _png_cache_lock:
-        _png_cache[key] = png
-        total = sum(len(v) for v in _png_cache.values())
-        while total > PNG_CACHE_BYTES and len(_png_cache) > 1:
-            total -= len(_png_cache.popitem(last=False)[1])
+        if key not in _png_cache:  # (another thread may have encoded it meanwhile)
+            _png_cache[key] = png
+            _png_cache_size[0] += len(png)
+        while _png_cache_size[0] > PNG_CACHE_BYTES and len(_png_cache) > 1:
+            _png_cache_size[0] -= len(_png_cache.popitem(last=False)[1])
     return png
 
 
