@@ -292,10 +292,12 @@ def test_a_stream_of_views_gives_each_views_own_bytes(cell, kin, lab_scene, deno
     view alone; denoised too (the guides ride in the image). Three views, the arms turned at
     random (on the CPU, arms moved under a running kernel's rays gave wrong pixels).
 
-    And :meth:`render`, whose exact pass leaves other arm links out at each view, compiles the
-    path tracer once: it dispatches over every Shape alive in the process, so the exact pass
-    must move its links' instances rather than make new ones (a new kernel a view, 5 s each at
-    96x54 on a Xeon, before)."""
+    And the path tracer is compiled once: it dispatches over every Shape alive in its Mitsuba
+    variant, so the exact pass, built by the first :meth:`render` after the stream was traced,
+    must keep its arm links' shape groups and instances out of that variant (they made a new,
+    larger kernel, and each view's tracing four times dearer), and must move its links rather
+    than make new ones as it leaves other links out at each view (a new kernel a view, 5 s each
+    at 96x54 on a Xeon, before)."""
     camera = CameraModel(48, 36, 40.0, 40.0, 23.5, 17.5)
     target = lab_scene.mesh("plant").vertices.mean(axis=0)
     offsets = [(0.9, -0.9, 0.6), (-0.8, -0.7, 0.8), (0.2, 1.0, 0.5)]
@@ -303,11 +305,11 @@ def test_a_stream_of_views_gives_each_views_own_bytes(cell, kin, lab_scene, deno
     turns = np.random.default_rng(0).uniform(-0.3, 0.3, (len(views), 6))
     arms = [{a.name: kin[a.name].link_poses(np.array(a.home) + t) for a in cell.arms} for t in turns]
     r = renderer(lab_scene, cell, spp=2, denoise=denoise)
-    assert r.tracer.arms  # the exact pass's shapes made before the path tracer is first traced
     images: list[np.ndarray] = []
     stream = zip(views, arms, strict=True)
     streamed = kernels_launched(lambda: images.extend(rgb for rgb, _ in r.render_rgb_stream(camera, stream)))
     assert len(images) == len(views)
+    assert r._tracer is None  # the exact pass not built yet: the stream draws RGB alone
     assert all((a != b).any() for a, b in itertools.pairwise(images))
     # each view again, alone and in another order, by the same renderer (a second one would
     # compile its own kernels, 5-10 s, to trace the same code)

@@ -110,7 +110,7 @@ class MitsubaRenderer(Renderer):
             options = RaycastOptions(
                 near=self.options.near, arm_triangles=self.options.arm_triangles, variant=self.options.variant
             )
-            self._tracer = SceneTracer(self.scene, None, options, arms=self._unrounded_arms)
+            self._tracer = SceneTracer(self.scene, None, options, arms=self._unrounded_arms, apart=True)
         return self._tracer
 
     def arm_meshes(self) -> dict[str, list[tuple[str, Mesh]]]:

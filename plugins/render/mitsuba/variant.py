@@ -13,7 +13,11 @@ from __future__ import annotations
 import os
 import re
 import subprocess
+import warnings
+from collections.abc import Iterator
+from contextlib import contextmanager
 from functools import lru_cache
+from typing import Any
 
 from agrisim.errors import ConfigError
 
@@ -112,3 +116,65 @@ def use_variant(choice: str, renderer: str = "mitsuba"):  # noqa: ANN201 - the m
             "(one Mitsuba variant per process)"
         )
     return mi
+
+
+class GeometryVariant:
+    """Mitsuba's ``*_mono`` variant on the backend of the process's own (RGB) variant, as a
+    module-like object, for an exact pass that lives beside a path tracer.
+
+    Why: Dr.Jit traces a virtual call over every instance alive in the variant's registry, and a
+    path tracer's calls on shapes nest (each instance's shape group dispatches again over every
+    shape alive). The exact pass's arm links, a shape group and an instance each, made in the
+    path tracer's variant made each of its views' tracing several times dearer on a CPU (0.5 ->
+    1.9 s a view at 48x36, two UR10s) and its kernel a third larger. In another variant they
+    live in another registry; the arrays are Dr.Jit's own types, the same in both, so what the
+    exact pass computes does not change.
+
+    Mitsuba builds plugins in the process's current variant only, and switching it reloads its
+    Python modules (0.2 s a switch): everything the exact pass makes from dictionaries is made
+    inside :meth:`building` (one switch there and one back); afterwards ``load_dict`` takes only
+    a scene of shapes already made, built from its class.
+    """
+
+    def __init__(self, mi: Any) -> None:
+        import mitsuba
+
+        self._mitsuba = mitsuba
+        self._variant = mi.variant().replace("_rgb", "_mono")
+        self._module = getattr(mitsuba, self._variant)
+        self._building = False
+
+    def variant(self) -> str:
+        return self._variant
+
+    @contextmanager
+    def building(self) -> Iterator[None]:
+        """Make this variant Mitsuba's current one meanwhile (in this thread and every other)."""
+        with warnings.catch_warnings(), self._mitsuba.scoped_set_variant(self._variant):
+            # each switch re-imports Mitsuba's integrators, whose @dr.syntax functions then count
+            # as transformed again: past 1000, Dr.Jit would warn of a loop that is not there
+            warnings.filterwarnings("ignore", "The AST-transforming decorator", RuntimeWarning)
+            self._building = True
+            try:
+                yield
+            finally:
+                self._building = False
+
+    def load_dict(self, d: dict[str, Any]) -> Any:
+        if self._building:
+            return self._mitsuba.load_dict(d)
+        if d.get("type") != "scene" or any(isinstance(v, dict) for v in d.values()):
+            raise RuntimeError(f"{self._variant}: only a scene of shapes already made is built outside building()")
+        props = self._mitsuba.Properties("scene")
+        for key, value in d.items():
+            if key != "type":
+                props[key] = value
+        return self._module.Scene(props)
+
+    def traverse(self, node: Any) -> Any:
+        if not self._building:
+            raise RuntimeError(f"{self._variant}: traverse() only inside building()")
+        return self._mitsuba.traverse(node)
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self._module, name)

@@ -4,6 +4,7 @@ view, in the same kernels."""
 
 from __future__ import annotations
 
+import contextlib
 from collections.abc import Mapping
 from functools import lru_cache
 from typing import Any
@@ -63,8 +64,10 @@ class SceneTracer:
         cell: Cell | None,
         options: RaycastOptions,
         arms: Mapping[str, list[tuple[str, Mesh]]] | None = None,
+        *,
+        apart: bool = False,
     ) -> None:
-        from agrisim.plugins.render.mitsuba.variant import use_variant
+        from agrisim.plugins.render.mitsuba.variant import GeometryVariant, use_variant
 
         self.options = options
         self.mi = mi = use_variant(options.variant, "raycast")
@@ -72,15 +75,19 @@ class SceneTracer:
             arms = {
                 a.name: [(lm.link, lm.mesh) for lm in arm_link_meshes(a.urdf, options.arm_triangles)] for a in cell.arms
             }
-        self.engine = Engine(mi, scene, arms or {}, max_layers=options.max_layers, epsilon=options.epsilon)
-        self.points: PointTracer | None = None
-        if scene.points is not None and len(scene.points):
-            if self.engine.combined:
-                raise ConfigError(
-                    "point plants are traced on the CPU only (OptiX traces one scene per kernel, and the spheres are "
-                    "a scene of their own); set variant = 'llvm' for this renderer"
-                )
-            self.points = PointTracer(scene.points, mi)
+        geometry = GeometryVariant(mi) if apart else None
+        if geometry is not None:
+            self.mi = mi = geometry
+        with geometry.building() if geometry is not None else contextlib.nullcontext():
+            self.engine = Engine(mi, scene, arms or {}, max_layers=options.max_layers, epsilon=options.epsilon)
+            self.points: PointTracer | None = None
+            if scene.points is not None and len(scene.points):
+                if self.engine.combined:
+                    raise ConfigError(
+                        "point plants are traced on the CPU only (OptiX traces one scene per kernel, and the spheres "
+                        "are a scene of their own); set variant = 'llvm' for this renderer"
+                    )
+                self.points = PointTracer(scene.points, mi)
         self.has_instances = self.engine.has_instances or (
             self.points is not None and self.points.instances is not None
         )
