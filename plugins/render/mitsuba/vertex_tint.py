@@ -35,7 +35,7 @@ ATTRIBUTE = "vertex_color"
 _registered: set[str] = set()
 _keys = itertools.count(1)
 #: the live stores by key (a texture's ``colours`` property: Mitsuba's properties hold no Python
-#: objects); weak, so a scene's store goes with its textures
+#: objects); weak: a store lives while its scene is built, its textures then hold its arrays
 _stores: weakref.WeakValueDictionary[int, VertexColours] = weakref.WeakValueDictionary()
 
 
@@ -50,6 +50,8 @@ class VertexColours:
         _stores[self.key] = self
         self._parts: list[tuple[int, np.ndarray, np.ndarray, np.ndarray]] = []
         self.arrays: tuple[Any, Any, Any, Any] | None = None
+        #: the textures that read these colours, given the arrays by :meth:`finish`
+        self.textures: list[Any] = []
 
     def add(self, mi: Any, shape: Any, vertices: np.ndarray, faces: np.ndarray, colours: np.ndarray) -> None:
         """Keep ``shape``'s triangles, vertices (as the shape has them, float32) and colours."""
@@ -77,29 +79,43 @@ class VertexColours:
             mi.Float(np.concatenate(colours).ravel()),
         )
         self._parts = []
+        # Each texture holds the arrays itself: a frozen function (dr.freeze) finds the
+        # variables a Python plugin reads among the plugin's own attributes (Dr.Jit arrays,
+        # tuples of them), not inside another Python object; reading them from this store made
+        # the recording fail on CUDA ("a virtual function call ... no such object instance")
+        for texture in self.textures:
+            texture.tint_arrays = self.arrays
+        self.textures = []
 
     def eval(self, mi: Any, si: Any, active: Any) -> Any:
         """The vertex colour at ``si``: bit for bit ``si.shape.eval_attribute_3(ATTRIBUTE, si)``
         (Mitsuba 3.9's ``Mesh::interpolate_attribute``), zero where not ``active`` as there."""
         assert self.arrays is not None, "VertexColours.finish was not called"
-        base, faces, positions, colours = self.arrays
-        shape = dr.reinterpret_array(mi.UInt32, si.shape)
-        face = dr.gather(mi.UInt32, base, shape, active) + si.prim_index
-        fi = [dr.gather(mi.UInt32, faces, face * 3 + k, active) for k in range(3)]
-        p0, p1, p2 = (dr.gather(mi.Point3f, positions, i, active) for i in fi)
-        rel, du, dv = si.p - p0, p1 - p0, p2 - p0
+        return colour_at(mi, self.arrays, si, active)
 
-        def dot(a: Any, b: Any) -> Any:  # (Dr.Jit's C++ dot: a product, then fused steps)
-            return dr.fma(a.z, b.z, dr.fma(a.y, b.y, a.x * b.x))
 
-        b1, b2 = dot(du, rel), dot(dv, rel)
-        a11, a12, a22 = dot(du, du), dot(du, dv), dot(dv, dv)
-        inv_det = dr.rcp(a11 * a22 - a12 * a12)
-        u = dr.fma(a22, b1, -(a12 * b2)) * inv_det  # fmsub
-        v = dr.fma(-a12, b1, a11 * b2) * inv_det  # fnmadd
-        w = 1.0 - u - v
-        c0, c1, c2 = (dr.gather(mi.Color3f, colours, i, active) for i in fi)
-        return dr.select(active, dr.fma(c0, w, dr.fma(c1, u, c2 * v)), 0.0)
+def colour_at(mi: Any, arrays: tuple[Any, Any, Any, Any], si: Any, active: Any) -> Any:
+    """The vertex colour at ``si`` from a :class:`VertexColours`' ``arrays``: bit for bit
+    ``si.shape.eval_attribute_3(ATTRIBUTE, si)`` (Mitsuba 3.9's ``Mesh::interpolate_attribute``),
+    zero where not ``active`` as there."""
+    base, faces, positions, colours = arrays
+    shape = dr.reinterpret_array(mi.UInt32, si.shape)
+    face = dr.gather(mi.UInt32, base, shape, active) + si.prim_index
+    fi = [dr.gather(mi.UInt32, faces, face * 3 + k, active) for k in range(3)]
+    p0, p1, p2 = (dr.gather(mi.Point3f, positions, i, active) for i in fi)
+    rel, du, dv = si.p - p0, p1 - p0, p2 - p0
+
+    def dot(a: Any, b: Any) -> Any:  # (Dr.Jit's C++ dot: a product, then fused steps)
+        return dr.fma(a.z, b.z, dr.fma(a.y, b.y, a.x * b.x))
+
+    b1, b2 = dot(du, rel), dot(dv, rel)
+    a11, a12, a22 = dot(du, du), dot(du, dv), dot(dv, dv)
+    inv_det = dr.rcp(a11 * a22 - a12 * a12)
+    u = dr.fma(a22, b1, -(a12 * b2)) * inv_det  # fmsub
+    v = dr.fma(-a12, b1, a11 * b2) * inv_det  # fnmadd
+    w = 1.0 - u - v
+    c0, c1, c2 = (dr.gather(mi.Color3f, colours, i, active) for i in fi)
+    return dr.select(active, dr.fma(c0, w, dr.fma(c1, u, c2 * v)), 0.0)
 
 
 def register(mi: Any) -> None:
@@ -113,10 +129,12 @@ def register(mi: Any) -> None:
         def __init__(self, props: Any) -> None:
             mi.Texture.__init__(self, props)
             self.nested = props.get_texture("texture")
-            self.colours = _stores[int(props.get("colours"))]
+            self.tint_arrays: tuple[Any, Any, Any, Any] | None = None  # (VertexColours.finish)
+            _stores[int(props.get("colours"))].textures.append(self)
 
         def eval(self, si: Any, active: Any = True) -> Any:
-            tint = self.colours.eval(mi, si, active)
+            assert self.tint_arrays is not None, "VertexColours.finish was not called"
+            tint = colour_at(mi, self.tint_arrays, si, active)
             return self.nested.eval(si, active) * mi.Color3f(tint)
 
         def eval_1(self, si: Any, active: Any = True) -> Any:
