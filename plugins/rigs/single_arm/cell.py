@@ -120,7 +120,9 @@ class SingleArmRig(Rig):
         keepout = min(cfg.keepout_radius, 0.45 * radius)
         if keepout > 0 and cfg.keepout_height > 0:
             obstacles.append(
-                Cylinder("plant_keepout", keepout, cfg.keepout_height, translation(0.0, 0.0, top + cfg.keepout_height / 2))
+                Cylinder(
+                    "plant_keepout", keepout, cfg.keepout_height, translation(0.0, 0.0, top + cfg.keepout_height / 2)
+                )
             )
         # the base's x axis towards the plant (the UR10 stretches along it at zero joints)
         world_T_base = translation(distance, 0.0, stand_height) @ yaw_matrix(np.pi)

@@ -84,7 +84,9 @@ def _reached(cell: Cell, radius: float, aim: float) -> int:
     count = 0
     for polar in np.radians(PROBE_POLAR):
         for azimuth in np.radians(PROBE_AZIMUTH):
-            direction = np.array([math.sin(polar) * math.cos(azimuth), math.sin(polar) * math.sin(azimuth), math.cos(polar)])
+            direction = np.array(
+                [math.sin(polar) * math.cos(azimuth), math.sin(polar) * math.sin(azimuth), math.cos(polar)]
+            )
             target = look_at(centre + radius * direction, centre + np.array([0.0, 0.0, aim]))
             found = kin.ik(
                 target,
