@@ -167,18 +167,18 @@ def with_camera(
         raise UserError(f"cannot read URDF {path}: {exc}") from None
     if root.tag != "robot":
         raise UserError(f"not a URDF robot description: {path}")
-    taken = {link.get("name") for link in root.findall("link")} & {CAMERA_LINK, CAMERA_FRAME}
+    names = {link.get("name", "") for link in root.findall("link")}
+    taken = sorted(names & {CAMERA_LINK, CAMERA_FRAME})
     if taken:
-        raise UserError(f"URDF {path} already has a link named {sorted(taken)[0]!r}, which agrisim adds for its camera")
-    links = {link.get("name") for link in root.findall("link")}
+        raise UserError(f"URDF {path} already has a link named {taken[0]!r}, which agrisim adds for its camera")
     for joint in root.findall("joint"):
         # Pinocchio names a frame after every link and joint: one name for both is ambiguous
-        if joint.get("name") in links:
+        if joint.get("name") in names:
             joint.set("name", f"{joint.get('name')}_joint")
     base, chain = _chain(root, mount, path)
     joints = _arm_joints(root, chain)
     bx, by, bz = CAMERA_BODY
-    links = _CAMERA_LINKS.format(
+    camera = _CAMERA_LINKS.format(
         parent=mount,
         xyz=" ".join(_number(v) for v in xyz),
         rpy=" ".join(_number(v) for v in rpy),
@@ -187,7 +187,7 @@ def with_camera(
         by=by,
         bz=bz,
     )
-    for element in ET.fromstring(f"<r>{links}</r>"):
+    for element in ET.fromstring(f"<r>{camera}</r>"):
         root.append(element)
     share = robot_data_share()
     urdf_dir = path.resolve().parent if relative_meshes else None
