@@ -51,7 +51,7 @@ from agrisim.robot.setpoints import Setpoint, routine
 from agrisim.robot.trajectory import Limits, TimedPath, time_parametrize
 from agrisim.scene.model import Scene
 from agrisim.scene.transforms import pose_error
-from agrisim.validation import PAPER_RIG, check_run, open_imager, open_rig
+from agrisim.validation import OWN_RIGS, check_run, open_imager, open_rig
 
 #: the entry point of the dataset sink (the run directory), which every run loads
 DATASET_SINK = "sink-dataset"
@@ -65,7 +65,7 @@ class Episode:
     def __init__(self, config: RunConfig, pm: pluggy.PluginManager | None = None) -> None:
         self.config = config
         self.pm = pm if pm is not None else make_plugin_manager()
-        with_own_plugins(self.pm, names=(DATASET_SINK, PAPER_RIG))  # whatever plugins are chosen
+        with_own_plugins(self.pm, names=(DATASET_SINK, *OWN_RIGS))  # whatever plugins are chosen
         self.registry = Registry(self.pm)
         self._prep_wall: dict[str, float] = {}
         checked = check_run(self.registry, config)
@@ -82,8 +82,8 @@ class Episode:
         if config.output.resume:
             self.done_frames = set(saved_run(self.out_dir).get("frames_complete") or [])
             self.saved_frames = saved_frames(self.out_dir)
-        rig, self.cell = open_rig(config, self.registry, checked.rig)
-        self.setpoints = routine(self.cell, config.routine, rig.setpoints)
+        self.rig, self.cell = open_rig(config, self.registry, checked.rig)
+        self.setpoints = routine(self.cell, config.routine, self.rig.setpoints)
         self.kinematics = {arm.name: ArmKinematics(arm) for arm in self.cell.arms}
         m = config.motion
         self.limits = {

@@ -26,8 +26,8 @@ from agrisim.scene.camera import CameraModel
 
 __all__ = ["Chosen", "Validated", "check_run", "imager_spec", "open_imager", "open_rig", "pose_source"]
 
-#: the entry point of the default rig, which every run loads whatever plugins are chosen
-PAPER_RIG = "rig-paper"
+#: the entry points of agrisim's own rigs, which every run loads whatever plugins are chosen
+OWN_RIGS = ("rig-paper", "rig-single-arm")
 #: (the backend, its options validated by its own model)
 Chosen = tuple[BackendSpec, BaseModel]
 
@@ -176,7 +176,7 @@ def open_rig(config: RunConfig, registry: Registry | None = None, chosen: Chosen
     its cell: where a run, a finished run's reader or a tool gets its arms and obstacles."""
     if registry is None:  # agrisim's own rigs whatever AGRISIM_LOAD_PLUGINS says, as a run has them
         pm = make_plugin_manager()
-        with_own_plugins(pm, names=(PAPER_RIG,))
+        with_own_plugins(pm, names=OWN_RIGS)
         registry = Registry(pm)
     if chosen is None:
         spec = registry.get("rig", config.rig.backend)

@@ -17,6 +17,9 @@ if sys.version_info >= (3, 11):
 else:  # pragma: no cover
     import tomli as tomllib
 
+#: the rig that --robot, --robot-urdf and --camera-link choose
+SINGLE_ARM = "single-arm"
+
 #: the episode options `compare` passes on (as `agrisim run` has them)
 COMPARE_EPISODE_FLAGS: list[tuple[str, str, Any, str]] = [
     ("--labels", "plant|organs", str, "one plant label, or one per organ (default: plant)"),
@@ -99,6 +102,14 @@ def episode_flags(parser: argparse.ArgumentParser) -> None:
     run.add_argument(
         "--rig", metavar="NAME", help="what moves the cameras around the plant (default: paper, the two UR10s)"
     )
+    run.add_argument(
+        "--robot",
+        metavar="NAME",
+        help="one arm of example-robot-data's beside the plant (the single-arm rig): ur3, ur5, ur10, panda, "
+        "xarm7, kinova, z1",
+    )
+    run.add_argument("--robot-urdf", type=Path, metavar="FILE", help="one arm from your URDF (the single-arm rig)")
+    run.add_argument("--camera-link", metavar="LINK", help="the link of --robot-urdf the camera mounts on")
     run.add_argument("--physics", metavar="NAME", help="physics backend (default: pybullet)")
     run.add_argument("--planner", metavar="NAME", help="motion planner (default: ompl)")
     run.add_argument("--recon", metavar="NAME", help="reconstructor (default: pointcloud; none: no reconstruction)")
@@ -198,11 +209,36 @@ def overrides_from_args(args: argparse.Namespace) -> dict[str, Any]:
         "output.overwrite": args.overwrite,
         "output.resume": args.resume,
     }
+    flat.update(_single_arm(args))
     for key, value in flat.items():
         if value is not None:
             set_dotted(out, key, value)
     apply_sets(out, args.set)
     return out
+
+
+def _single_arm(args: argparse.Namespace) -> dict[str, Any]:
+    """``--robot``, ``--robot-urdf`` and ``--camera-link``: the single-arm rig's options, which
+    choose that rig (another rig named by ``--rig`` is refused)."""
+    robot, urdf, link = (getattr(args, name, None) for name in ("robot", "robot_urdf", "camera_link"))
+    if robot is None and urdf is None and link is None:
+        return {}
+    given = "--robot" if robot is not None else "--robot-urdf" if urdf is not None else "--camera-link"
+    rig = getattr(args, "rig", None)
+    if rig not in (None, SINGLE_ARM):
+        raise UserError(f"{given} chooses the {SINGLE_ARM} rig, not --rig {rig}")
+    if link is not None and urdf is None:
+        raise UserError("--camera-link goes with --robot-urdf FILE (the link of that URDF the camera mounts on)")
+    if urdf is not None and link is None:
+        raise UserError("--robot-urdf needs --camera-link LINK, the link of the URDF the camera mounts on")
+    if robot is not None and urdf is not None:
+        raise UserError("give --robot NAME or --robot-urdf FILE, not both")
+    return {
+        "rig.backend": SINGLE_ARM,
+        f"rig.{SINGLE_ARM}.robot": robot,
+        f"rig.{SINGLE_ARM}.urdf": str(urdf) if urdf is not None else None,
+        f"rig.{SINGLE_ARM}.camera_link": link,
+    }
 
 
 def apply_sets(tree: dict[str, Any], items: Sequence[str]) -> None:

@@ -193,6 +193,8 @@ def _cmd_run(args: argparse.Namespace) -> int:
     episode = Episode(config)  # validates everything; nothing is written before run()
     for note in getattr(getattr(episode, "plant", None), "notes", []):
         print(f"plant: {note}")
+    for note in getattr(episode.rig, "notes", []):
+        print(f"rig: {note}")
     viewer = None
     try:
         if web is not None:
