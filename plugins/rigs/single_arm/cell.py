@@ -40,6 +40,8 @@ ARM = "r1"
 MIN_JOINTS = 6
 #: gap between the stand and the table, m
 TABLE_GAP = 0.03
+#: how far below shoulder-at-aim-height a stand is tried when no layout reaches every probe, m
+STAND_DROPS = (0.0, 0.15, 0.3)
 
 
 class SingleArmRig(Rig):
@@ -91,17 +93,20 @@ class SingleArmRig(Rig):
         """What the arm's camera reaches from its shoulder."""
         return measure_reach(self._kinematics)
 
-    def _stand_height(self) -> float:
+    def _stand_heights(self) -> list[float]:
+        """The stand heights a layout is looked for on: the user's, else the one that puts the
+        shoulder level with the point the cameras aim at, then lower ones (:data:`STAND_DROPS`)."""
         cfg, o = self.settings, self.options
-        shoulder_z = float(self.reach.shoulder[2])
-        aim = RoutineConfig().aim_height
-        return o.stand_height if o.stand_height is not None else max(cfg.table_height + aim - shoulder_z, 0.0)
+        if o.stand_height is not None:
+            return [o.stand_height]
+        level = cfg.table_height + RoutineConfig().aim_height - float(self.reach.shoulder[2])
+        return [max(level - drop, 0.0) for drop in STAND_DROPS if drop == 0.0 or level - drop > 0.0]
 
-    def _layout_cell(self, distance: float, radius: float) -> Cell:
-        """The cell with the base ``distance`` from the plant centre and a keep-out that fits a
-        hemisphere of ``radius``; the arm's home its zero joints within limits."""
+    def _layout_cell(self, distance: float, radius: float, stand_height: float) -> Cell:
+        """The cell with the base ``distance`` from the plant centre on a stand ``stand_height``
+        tall and a keep-out that fits a hemisphere of ``radius``; the arm's home its zero joints
+        within limits."""
         cfg, desc = self.settings, self.description
-        stand_height = self._stand_height()
         stand_size = min(cfg.stand_size, max(0.12, 0.4 * distance))
         table_size = min(cfg.table_size, 2 * (distance - stand_size / 2 - TABLE_GAP))
         if table_size < 2 * cfg.pot_radius:
@@ -136,16 +141,21 @@ class SingleArmRig(Rig):
         cfg, o = self.settings, self.options
         desc, reach = self.description, self.reach
         aim = RoutineConfig().aim_height
-        stand_height = self._stand_height()
-        above = stand_height + float(reach.shoulder[2]) - cfg.table_height
+        stand_height = self._stand_heights()[0]
         if o.distance is not None and o.radius is not None:
             distance, radius = o.distance, o.radius
         elif o.distance is not None:  # the radius a share of the reach, as far as it goes
             distance, radius = o.distance, min(RADIUS_SHARE * reach.radius, max(o.distance - BASE_CLEARANCE, 0.06))
         else:
-            distance, radius = choose_layout(self._layout_cell, reach, o.radius, above, aim, self.robot)
+
+            def above(stand: float) -> float:
+                return stand + float(reach.shoulder[2]) - cfg.table_height
+
+            distance, radius, stand_height = choose_layout(
+                self._layout_cell, reach, o.radius, self._stand_heights(), above, aim, self.robot
+            )
         self.radius = radius
-        cell = self._layout_cell(distance, radius)
+        cell = self._layout_cell(distance, radius, stand_height)
         arm = cell.arms[0]
         kin = ArmKinematics(arm)
         if o.home is not None:

@@ -101,36 +101,45 @@ def _reached(cell: Cell, radius: float, aim: float) -> int:
 
 
 def choose_layout(
-    make_cell: Callable[[float, float], Cell], reach: Reach, radius: float | None, above: float, aim: float, robot: str
-) -> tuple[float, float]:
-    """(distance, radius) for a run that gives no distance: from a first guess by the reach
+    make_cell: Callable[[float, float, float], Cell],
+    reach: Reach,
+    radius: float | None,
+    stands: Sequence[float],
+    above: Callable[[float], float],
+    aim: float,
+    robot: str,
+) -> tuple[float, float, float]:
+    """(distance, radius, stand height) for a run that gives no distance: on each of ``stands``
+    in turn (the shoulder ``above(stand)`` the plant centre), from a first guess by the reach
     (:func:`_first_distance`, :data:`RADIUS_SHARE`), the first of a few scaled layouts
-    (``make_cell(distance, radius)``) whose extreme viewpoints IK reaches free of collisions
-    (else the one reaching most); ``radius`` given, only distances are tried. Refused when the
-    best reaches fewer than half."""
+    (``make_cell(distance, radius, stand)``) whose extreme viewpoints IK reaches free of
+    collisions (else the one reaching most); ``radius`` given, only distances are tried. A lower
+    stand lets a long hand (the Panda's, with its camera) reach the hemisphere's low ring, whose
+    cameras look at the plant from beside the pot. Refused when the best reaches fewer than half."""
     if radius is None:
         r0 = float(np.clip(RADIUS_SHARE * reach.radius, *RADIUS_BOUNDS))
         radii = [r0 * s for s in RADIUS_SCALES]
     else:
         radii = [radius]
-    best = (-1, 0.0, 0.0)
+    best = (-1, 0.0, 0.0, 0.0)
     total = len(PROBE_POLAR) * len(PROBE_AZIMUTH)
-    for r in radii:
-        d0 = _first_distance(reach, r, above)
-        for scale in DISTANCE_SCALES:
-            d = max(d0 * scale, r + BASE_CLEARANCE)
-            n = _reached(make_cell(d, r), r, aim)
-            if n > best[0]:
-                best = (n, d, r)
-            if n == total:
-                return d, r
+    for stand in stands:
+        for r in radii:
+            d0 = _first_distance(reach, r, above(stand))
+            for scale in DISTANCE_SCALES:
+                d = max(d0 * scale, r + BASE_CLEARANCE)
+                n = _reached(make_cell(d, r, stand), r, aim)
+                if n > best[0]:
+                    best = (n, d, r, stand)
+                if n == total:
+                    return d, r, stand
     if best[0] * 2 < total:
         raise UserError(
             f"rig single-arm: {robot} (camera reach about {reach.radius:.2f} m) reaches {best[0]} of {total} test "
             f"viewpoints around the plant at best; "
             + ("try another rig.single-arm.radius or a larger robot" if radius is not None else "choose a larger robot")
         )
-    return best[1], best[2]
+    return best[1], best[2], best[3]
 
 
 def check_reach(shoulder_world: np.ndarray, reach: Reach, eyes: Sequence[np.ndarray], robot: str) -> None:
