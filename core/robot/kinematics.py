@@ -115,7 +115,7 @@ class ArmKinematics:
             err = log6(current_T_target).vector
             if _norm3(err[:3]) < tol and _norm3(err[3:]) < tol:
                 break
-            J = jlog6(current_T_target) @ jacobian(model, data, q, tip, local)
+            J = jlog6(current_T_target) @ jacobian(model, data, q, tip, local).reshape(6, -1)  # (6,) for one joint
             dq = J.T @ _solve6(J @ J.T + _DAMPING, err)
             q = np.minimum(np.maximum(q + dq, lower), upper)
         pin.framesForwardKinematics(model, data, q)

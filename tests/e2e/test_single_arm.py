@@ -69,7 +69,7 @@ def _reached(out: Path) -> tuple[int, int]:
     return sum(r["reached"] for r in results), len(results)
 
 
-@pytest.mark.parametrize(("robot", "physics"), [("xarm7", "kinematic"), ("ur5", "kinematic"), ("xarm7", "pybullet")])
+@pytest.mark.parametrize(("robot", "physics"), [("xarm7", "kinematic"), ("ur5", "kinematic"), ("ur10", "pybullet")])
 def test_a_run_with_a_built_in_arm_reaches_its_setpoints(robot: str, physics: str, tmp_path: Path, cli) -> None:  # noqa: ANN001
     out = tmp_path / "run"
     code, stdout, err = cli(["run", "--robot", robot, "--physics", physics, *SMALL, "--out", str(out)])

@@ -177,11 +177,13 @@ def table(episodes: list[PolicyRun]) -> str:
 
 def pivot(episodes: list[PolicyRun]) -> str:
     """The same, a row a plant and a column a policy: coverage after the last view (30 by
-    default) and, in brackets, the views to 99% of the paper's 100-view coverage."""
+    default) and, in brackets, the views to 99% of the paper policy's coverage after all its
+    views (the rig's routine: 100 on the paper's cell)."""
     paper = {e.plant: e for e in episodes if e.policy == PAPER}
     policies = list(dict.fromkeys(e.policy for e in episodes if e.policy != PAPER))
     cell = {(e.plant, e.policy): e for e in episodes}
-    lines = ["| plant | paper, 100 views | " + " | ".join(policies) + " |", "|---" * (len(policies) + 2) + "|"]
+    n = max((len(e.coverage) for e in paper.values()), default=100)  # every candidate: the rig's routine
+    lines = [f"| plant | paper, {n} views | " + " | ".join(policies) + " |", "|---" * (len(policies) + 2) + "|"]
     for plant, ref in paper.items():
         row = [f"{ref.coverage[-1]:.3f}" if ref.coverage else "-"]
         for name in policies:
