@@ -98,14 +98,14 @@ def differences(scene: Scene, turning: tuple[str, ...], shadow_samples: int) -> 
 @pytest.mark.parametrize(
     ("options", "shadow_samples"),
     [(CabinetOptions(), 0), (CabinetOptions(lamp_radius=0.0), 4)],
-    ids=["area-lamp", "point-lamp-shadows"],
+    ids=["area-lamp", "spot-lamp-shadows"],
 )
 def test_the_cabinet_looks_the_same_a_quarter_turn_round(
     plant: Plant, options: CabinetOptions, shadow_samples: int
 ) -> None:
     """Labels pixel for pixel, depth and RGB within a unit of their encodings (the renderer's
     float sums may round differently in the other order). The area lamp without shadow rays and
-    the point lamp with them: the raycast renderer aims shadow rays at a disc's points in a
+    the spot lamp (lamp_radius 0) with them: the raycast renderer aims shadow rays at a disc's points in a
     spiral that a quarter turn does not map onto itself, so an area lamp's penumbrae carry
     sampling noise that differs between the two views."""
     scene = build_scene(turntable_cell(), plant, options)

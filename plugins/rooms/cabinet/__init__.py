@@ -44,9 +44,9 @@ class CabinetOptions(Options):
     stage_color: Colour = (0.05, 0.05, 0.055)
     """Linear RGB of the plate."""
     lamp_radius: float = Field(default=0.4, ge=0.0, le=5.0)
-    """Radius of the ceiling lamp, an area light (a disc) on the axis facing down, m; 0: a point
-    light there instead (hard shadows that are exactly symmetric in the raycast renderer, whose
-    shadow rays aim at points of a disc that are not)."""
+    """Radius of the ceiling lamp, an area light (a disc) on the axis facing down, m; 0: a spot
+    light there instead, a point lighting the lower hemisphere (hard shadows, exactly symmetric
+    in the raycast renderer, whose shadow rays aim at points of a disc that are not)."""
     irradiance: float = Field(default=0.7, gt=0.0, le=100.0)
     """Irradiance the lamp gives a surface facing it at the plant's middle height on the axis
     (1: white on white): the lab's two ceiling lights give 0.35 each."""

@@ -8,7 +8,8 @@ vertical line through :attr:`agrisim.robot.cell.Cell.plant_center`):
 * the turntable's plate (``stage``) under the pot, the pot and soil as the lab draws them
   (:func:`agrisim.plugins.rooms.lab.room.pot_meshes`), the table and any other obstacle at
   its exact size and pose in one plain material;
-* one lamp on the axis below the ceiling facing down: an area light (a disc) or a point light;
+* one lamp on the axis below the ceiling facing down: an area light (a disc) or a spot light
+  over the lower hemisphere;
 * the plant on the soil (:func:`agrisim.robot.cell.place_plant`), label ids as the lab's:
   everything but the plant is background (0).
 
@@ -128,7 +129,10 @@ def _lamp(axis: np.ndarray, target_z: float, options: CabinetOptions) -> tuple[L
     intensity = options.irradiance * d**2
     down = np.array([0.0, 0.0, -1.0])
     if options.lamp_radius == 0:
-        return Light("cabinet_lamp", "point", position, down, LAMP_COLOR, intensity), []
+        # a spot of the whole lower hemisphere, not a point: a point this close under the
+        # ceiling would light it far more than anything else, and a path tracer's bounces off it
+        # would double the light the area lamp gives
+        return Light("cabinet_lamp", "spot", position, down, LAMP_COLOR, intensity, cone_deg=90.0), []
     light = Light("cabinet_lamp", "area", position, down, LAMP_COLOR, intensity, options.lamp_radius)
     b = MeshBuilder()
     panel = Material("lamp_panel", color=(1.0, 1.0, 1.0, 1.0), roughness=0.9)
