@@ -31,3 +31,13 @@ def test_a_paper_run_takes_place_in_the_cabinet(tmp_path: Path, cli) -> None:  #
         room = rgb[labels == 0]
         # the backdrop and floor lit by the one lamp: mid-tones, not the 0 of an unlit room or 255
         assert 40 < np.median(room) < 220 and (room >= 250).mean() < 0.05, f"{path.name}: {np.median(room)}"
+
+
+def test_a_backdrop_through_the_stands_is_refused_before_anything_is_written(tmp_path: Path, cli) -> None:  # noqa: ANN001
+    out = tmp_path / "never"
+    args = ["run", "--physics", "kinematic", "--setpoints", "1x3", "--resolution", "96x54", "--recon", "none"]
+    code, _, err = cli(
+        [*args, "--no-rrd", "--set", "room.backend=cabinet", "--set", "room.cabinet.radius=1.1", "--out", str(out)]
+    )
+    assert code == 2 and "r1_stand reaches 1.22 m" in err and "room.cabinet.radius" in err, err
+    assert not out.exists()

@@ -134,3 +134,16 @@ def test_a_backdrop_that_cuts_through_the_rig_is_refused(cell: Cell) -> None:
         Cabinet(cell, CabinetOptions(radius=1.1))
     with pytest.raises(UserError, match="arm r1's base is 1.00 m"):
         Cabinet(dataclasses.replace(cell, obstacles=()), CabinetOptions(radius=0.9))
+
+
+def test_a_rigs_own_stage_replaces_the_plate(plant: Plant) -> None:
+    """A rig that models the turntable as an obstacle named ``stage`` gets it drawn once, at its
+    size, in the plate's colour; without one the room's plate stands under the pot."""
+    cell = turntable_cell()
+    plate = build_scene(cell, plant).mesh("stage")
+    assert np.isclose(plate.vertices[:, 2].min(), 0.8) and np.isclose(plate.vertices[:, 2].max(), 0.82)
+    own = Cylinder("stage", 0.2, 0.05, translation(0.0, 0.0, 0.775))
+    scene = build_scene(dataclasses.replace(cell, obstacles=(*cell.obstacles, own)), plant)
+    stages = [m for m in scene.meshes if m.name == "stage"]
+    assert len(stages) == 1 and np.isclose(np.abs(stages[0].vertices[:, :2]).max(), 0.2)
+    assert stages[0].materials[0].color[:3] == CabinetOptions().stage_color

@@ -5,7 +5,8 @@ vertical line through :attr:`agrisim.robot.cell.Cell.plant_center`):
 
 * a floor disc, a cylindrical backdrop and a ceiling disc of ``radius``, each one plain matte
   material (no texture: a texture would not look the same turned about the axis);
-* the turntable's plate (``stage``) under the pot, the pot and soil as the lab draws them
+* the turntable's plate (``stage``) under the pot (or the cell's own obstacle named ``stage``,
+  where the rig gives one, in the plate's colour), the pot and soil as the lab draws them
   (:func:`agrisim.plugins.rooms.lab.room.pot_meshes`), the table and any other obstacle at
   its exact size and pose in one plain material;
 * one lamp on the axis below the ceiling facing down: an area light (a disc) or a spot light
@@ -108,7 +109,8 @@ def _stage(cell: Cell, axis: np.ndarray, options: CabinetOptions) -> list[Mesh]:
     """The turntable's plate standing on what the pot stands on, the pot's foot inside it (its
     top face is never coplanar with the table's, whose tie a renderer would break at random)."""
     pot = next((ob for ob in cell.obstacles if ob.name == "pot"), None)
-    if not isinstance(pot, Cylinder) or options.stage_height <= 0:
+    own = any(ob.name == "stage" for ob in cell.obstacles)  # the rig's: drawn as its obstacle
+    if not isinstance(pot, Cylinder) or options.stage_height <= 0 or own:
         return []
     r = max(options.stage_radius, pot.radius + 0.01)
     z0 = float(pot.world_T[2, 3] - pot.height / 2)
@@ -155,10 +157,11 @@ def build_scene(
     axis = np.asarray(cell.plant_center, float)[:2]
     mats = Materials()
     plain = _plain("cabinet_obstacle", options.obstacle_color, 0.6)
+    plate = _plain("stage", options.stage_color, 0.5)
     meshes = _shell(axis, options) + _stage(cell, axis, options)
     for ob in cell.obstacles:
         if ob.name not in NOT_DRAWN:
-            meshes.extend(obstacle_meshes(ob, mats, plain))
+            meshes.extend(obstacle_meshes(ob, mats, plate if ob.name == "stage" else plain))
     if placed.points is None:
         meshes.append(placed.mesh)
     drawn = placed.drawn
