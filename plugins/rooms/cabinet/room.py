@@ -132,8 +132,8 @@ def _lamp(axis: np.ndarray, target_z: float, options: CabinetOptions) -> tuple[L
     down = np.array([0.0, 0.0, -1.0])
     if options.lamp_radius == 0:
         # a spot of the whole lower hemisphere, not a point: a point this close under the
-        # ceiling would light it far more than anything else, and a path tracer's bounces off it
-        # would double the light the area lamp gives
+        # ceiling lights it far more than anything else, and Mitsuba's bounces off it made the
+        # room's median 148 against the area lamp's 91 (8-bit), the raycast renderer's 102
         return Light("cabinet_lamp", "spot", position, down, LAMP_COLOR, intensity, cone_deg=90.0), []
     light = Light("cabinet_lamp", "area", position, down, LAMP_COLOR, intensity, options.lamp_radius)
     b = MeshBuilder()
