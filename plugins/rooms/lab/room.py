@@ -56,13 +56,14 @@ CABINET_COLORS = ((0.56, 0.58, 0.61), (0.30, 0.40, 0.55), (0.80, 0.76, 0.66))
 DRUM_COLORS = ((0.10, 0.24, 0.58), (0.62, 0.11, 0.09), (0.14, 0.40, 0.20), (0.86, 0.62, 0.08))
 
 
-class _Materials:
+class Materials:
     """One :class:`Material` per look, made on first use and shared by the meshes of a scene."""
 
     def __init__(self) -> None:
         self._cache: dict[tuple[Any, ...], Material] = {}
 
     def get(self, key: tuple[Any, ...], make: Callable[[], Material]) -> Material:
+        """The material of ``key``, made by ``make`` the first time."""
         if key not in self._cache:
             self._cache[key] = make()
         return self._cache[key]
@@ -74,6 +75,7 @@ class _Materials:
         color: tuple[float, float, float, float] = (1.0, 1.0, 1.0, 1.0),
         roughness: float = 0.8,
     ) -> Material:
+        """A material of ``albedo`` (an sRGB texture) times ``color``, one per name and colour."""
         return self.get((name, color), lambda: Material(name, color=color, albedo=albedo, roughness=roughness))
 
 
@@ -82,7 +84,7 @@ class _Materials:
 # --------------------------------------------------------------------------------------------
 
 
-def _room_meshes(room: Room, mats: _Materials) -> list[Mesh]:
+def _room_meshes(room: Room, mats: Materials) -> list[Mesh]:
     cx, cy = room.center
     hx, hy, H = room.size[0] / 2, room.size[1] / 2, room.height
     floor = MeshBuilder()
@@ -103,28 +105,43 @@ def _room_meshes(room: Room, mats: _Materials) -> list[Mesh]:
     return [floor.build("floor"), walls.build("walls"), ceiling.build("ceiling")]
 
 
-def _obstacle_mesh(ob: Box | Cylinder, mats: _Materials) -> list[Mesh]:
+def pot_meshes(pot: Cylinder, mats: Materials) -> list[Mesh]:
+    """The pot as the lab draws it, at ``pot``'s size and pose: a terracotta shell with a rim
+    (``POT_WALL``) and a soil disc ``SOIL_INSET`` below it, ``POT_SEGMENTS`` sides; meshes
+    ``pot`` and ``soil``."""
+    r, h = pot.radius, pot.height
+    wall, inset = min(POT_WALL, r / 3), min(SOIL_INSET, h / 3)
+    clay = mats.textured("terracotta", tex.terracotta(), roughness=0.9)
+    inner = mats.textured("terracotta_inner", tex.terracotta(), (0.62, 0.62, 0.62, 1.0), 0.9)
     b = MeshBuilder()
+    b.add_part(cylinder_side(r, -h / 2, h / 2, POT_SEGMENTS, u_repeats=2.0), clay)
+    b.add_part(annulus(r - wall, r, h / 2, POT_SEGMENTS), clay)
+    b.add_part(cylinder_side(r - wall, h / 2 - inset, h / 2, POT_SEGMENTS, inward=True, u_repeats=2.0), inner)
+    soil = MeshBuilder()
+    soil.add_part(disc(r - wall, h / 2 - inset, POT_SEGMENTS), mats.textured("soil", tex.soil(), roughness=1.0))
+    return [b.build(pot.name, T=pot.world_T), soil.build("soil", T=pot.world_T)]
+
+
+def obstacle_meshes(ob: Box | Cylinder, mats: Materials, plain: Material | None = None) -> list[Mesh]:
+    """``ob`` drawn at its exact size and pose (renders and collisions agree): the pot by
+    :func:`pot_meshes`, a cylinder with its caps, a box without the face it stands on on the
+    floor. ``plain``: one material for all but the pot instead of the lab's textured table top,
+    metal and stands (a room whose surfaces must look the same turned about an axis cannot have
+    textures that do not turn with it)."""
     if isinstance(ob, Cylinder) and ob.name == "pot":
-        r, h = ob.radius, ob.height
-        wall, inset = min(POT_WALL, r / 3), min(SOIL_INSET, h / 3)
-        clay = mats.textured("terracotta", tex.terracotta(), roughness=0.9)
-        inner = mats.textured("terracotta_inner", tex.terracotta(), (0.62, 0.62, 0.62, 1.0), 0.9)
-        b.add_part(cylinder_side(r, -h / 2, h / 2, POT_SEGMENTS, u_repeats=2.0), clay)
-        b.add_part(annulus(r - wall, r, h / 2, POT_SEGMENTS), clay)
-        b.add_part(cylinder_side(r - wall, h / 2 - inset, h / 2, POT_SEGMENTS, inward=True, u_repeats=2.0), inner)
-        soil = MeshBuilder()
-        soil.add_part(disc(r - wall, h / 2 - inset, POT_SEGMENTS), mats.textured("soil", tex.soil(), roughness=1.0))
-        return [b.build(ob.name, T=ob.world_T), soil.build("soil", T=ob.world_T)]
+        return pot_meshes(ob, mats)
+    b = MeshBuilder()
     if isinstance(ob, Cylinder):
-        metal = mats.textured("metal_light", tex.painted_metal((0.7, 0.7, 0.72), 1), roughness=0.4)
+        metal = plain or mats.textured("metal_light", tex.painted_metal((0.7, 0.7, 0.72), 1), roughness=0.4)
         b.add_part(cylinder_side(ob.radius, -ob.height / 2, ob.height / 2, POT_SEGMENTS), metal)
         b.add_part(disc(ob.radius, ob.height / 2, POT_SEGMENTS), metal)
         b.add_part(disc(ob.radius, -ob.height / 2, POT_SEGMENTS, up=False), metal)
         return [b.build(ob.name, T=ob.world_T)]
     on_floor = abs(ob.world_T[2, 3] - ob.size[2] / 2) < 1e-9
     faces = box(ob.size, skip=("-z",) if on_floor else ())
-    if ob.name == "table":
+    if plain is not None:
+        b.add_parts(faces.values(), plain)
+    elif ob.name == "table":
         top = mats.textured("laminate", tex.laminate(), roughness=0.45)
         side = mats.textured("table_side", tex.painted_metal((0.84, 0.85, 0.87), 2), roughness=0.4)
         for name, part in faces.items():
@@ -136,7 +153,7 @@ def _obstacle_mesh(ob: Box | Cylinder, mats: _Materials) -> list[Mesh]:
     return [b.build(ob.name, T=ob.world_T)]
 
 
-def _cabinet(item: Item, mats: _Materials) -> Mesh:
+def _cabinet(item: Item, mats: Materials) -> Mesh:
     k = item.spec
     color = CABINET_COLORS[item.variant % len(CABINET_COLORS)]
     size = (k.size[0], k.size[1], k.height)
@@ -152,7 +169,7 @@ def _cabinet(item: Item, mats: _Materials) -> Mesh:
     return b.build(f"cabinet_{item.index:03d}", T=item.world_T)
 
 
-def _pallet(item: Item, mats: _Materials) -> Mesh:
+def _pallet(item: Item, mats: Materials) -> Mesh:
     """An EUR pallet (1.2 x 0.8 x 0.144 m) of real slats: 3 bottom boards, 9 blocks, 3 cross
     boards, 5 top deck boards."""
     wood = mats.textured(f"pallet_wood_{item.variant}", tex.wood(item.variant), roughness=0.85)
@@ -181,7 +198,7 @@ def _pallet(item: Item, mats: _Materials) -> Mesh:
     return b.build(f"pallet_{item.index:03d}", T=item.world_T)
 
 
-def _drum(item: Item, mats: _Materials) -> Mesh:
+def _drum(item: Item, mats: Materials) -> Mesh:
     k = item.spec
     color = DRUM_COLORS[item.variant % len(DRUM_COLORS)]
     r = k.size[0] / 2
@@ -205,7 +222,7 @@ def _intensity(irradiance: float, position: np.ndarray, direction: np.ndarray, t
     return irradiance * dist**2 / cos
 
 
-def _lights(cell: Cell, room: Room, target: np.ndarray, mats: _Materials) -> tuple[list[Light], list[Mesh]]:
+def _lights(cell: Cell, room: Room, target: np.ndarray, mats: Materials) -> tuple[list[Light], list[Mesh]]:
     """Two ceiling panels facing down either side of the plant (along y, clear of the arms) and a
     lamp on each robot stand's inner edge facing the plant."""
     lights: list[Light] = []
@@ -273,11 +290,11 @@ def build_scene(
     placed = place_plant(plant, cell, labels)
     if room is None:
         room = room_for(cell)
-    mats = _Materials()
+    mats = Materials()
     meshes = _room_meshes(room, mats)
     for ob in cell.obstacles:
         if ob.name not in NOT_DRAWN:
-            meshes.extend(_obstacle_mesh(ob, mats))
+            meshes.extend(obstacle_meshes(ob, mats))
     if placed.points is None:
         meshes.append(placed.mesh)
     drawn = placed.drawn
