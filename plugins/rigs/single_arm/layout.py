@@ -39,6 +39,9 @@ PROBE_AZIMUTH = (-80.0, 0.0, 80.0)
 HOME_SAMPLES = 400
 #: the polar angles (from the zenith) of the viewpoints a computed home looks from, degrees
 HOME_POLAR_DEG = (36.0, 60.0)
+#: how far a computed home keeps from every obstacle, m: pybullet refuses to plan from a start
+#: within its clearance (5 mm by default), which the kinematic backend's exact test would pass
+HOME_MARGIN = 0.01
 
 
 @dataclass(frozen=True)
@@ -153,11 +156,13 @@ def check_reach(shoulder_world: np.ndarray, reach: Reach, eyes: Sequence[np.ndar
 
 
 def home_pose(cell: Cell, arm: Arm, kin: ArmKinematics, radius: float, aim: float) -> np.ndarray:
-    """A collision-free configuration within limits: the camera on the hemisphere's side facing
-    the arm, looking at the plant (where the routine starts, so the first move is short)."""
+    """A collision-free configuration within limits, :data:`HOME_MARGIN` clear of everything:
+    the camera on the hemisphere's side facing the arm, looking at the plant (where the routine
+    starts, so the first move is short)."""
+    from agrisim.plugins.physics.kinematic import KinematicOptions
     from agrisim.plugins.physics.kinematic.backend import KinematicPhysics
 
-    physics = KinematicPhysics(cell)
+    physics = KinematicPhysics(cell, KinematicOptions(margin=HOME_MARGIN))
     centre = cell.plant_center
     towards = arm.world_T_base[:3, 3] - centre
     towards[2] = 0.0
