@@ -162,7 +162,7 @@ def home_pose(cell: Cell, arm: Arm, kin: ArmKinematics, radius: float, aim: floa
     from agrisim.plugins.physics.kinematic import KinematicOptions
     from agrisim.plugins.physics.kinematic.backend import KinematicPhysics
 
-    physics = KinematicPhysics(cell, KinematicOptions(margin=HOME_MARGIN))
+    physics = KinematicPhysics(cell, KinematicOptions.model_validate({"margin": HOME_MARGIN}))
     centre = cell.plant_center
     towards = arm.world_T_base[:3, 3] - centre
     towards[2] = 0.0
