@@ -34,7 +34,7 @@ RADIUS_SCALES = (1.0, 0.8, 0.65)
 #: the hemisphere's extreme viewpoints a layout is tried on: polar angles (the routine's
 #: range) and azimuths across the arm's half, degrees
 PROBE_POLAR = (36.0, 540.0 / 7.0)
-PROBE_AZIMUTH = (-80.0, 0.0, 80.0)
+PROBE_AZIMUTH = (180.0 / 19.0 - 90.0, 0.0, 90.0 - 180.0 / 19.0)  # the routine's default theta range, turned
 #: random configurations a home is looked for among when IK finds none
 HOME_SAMPLES = 400
 #: the polar angles (from the zenith) of the viewpoints a computed home looks from, degrees
@@ -91,9 +91,11 @@ def _reached(cell: Cell, radius: float, aim: float) -> int:
                 [math.sin(polar) * math.cos(azimuth), math.sin(polar) * math.sin(azimuth), math.cos(polar)]
             )
             target = look_at(centre + radius * direction, centre + np.array([0.0, 0.0, aim]))
+            # from anywhere, as a run's IK comes from wherever the last view left the arm: a
+            # layout whose low viewpoints only the zero joints' basin reaches (a Panda's) fails
             found = kin.ik(
                 target,
-                np.asarray(arm.home, float),
+                rng.uniform(kin.lower, kin.upper),
                 is_valid=lambda q: not physics.in_collision(arm.name, q),
                 rng=rng,
                 restarts=4,
