@@ -1,9 +1,6 @@
-"""The UR10 description shipped by ``example-robot-data``, with a camera on its flange.
-
-The URDF is patched once, in memory: ``package://`` mesh paths become absolute (pybullet does
-not resolve them) and a camera body plus its OpenCV optical frame are attached to ``ee_link``,
-so Pinocchio and every physics backend see the same camera frame and camera collision box.
-"""
+"""Arms' URDFs made ready for a run, in memory: ``package://`` mesh paths absolute (pybullet
+does not resolve them), a camera body and its OpenCV optical frame attached (:func:`camera_links`:
+Pinocchio and every physics backend see one camera frame and collision box); the paper's UR10."""
 
 from __future__ import annotations
 
@@ -28,29 +25,46 @@ ARM_JOINTS = (
 CAMERA_FRAME = "camera_optical_frame"
 FLANGE_FRAME = "ee_link"
 
-# The camera body: a 5 x 4 x 4 cm box in front of the flange; the optical centre sits on its
-# front face. ee_link's x axis points out of the flange, so the optical z axis is ee x.
+# The camera body: a 5 x 4 x 4 cm box whose +x is the optical axis, the optical centre on its
+# front face (on the UR10, whose ee_link x points out of the flange: half a body in front of it).
 CAMERA_BODY = (0.05, 0.04, 0.04)
 _CAMERA_LINKS = """
   <joint name="camera_mount_joint" type="fixed">
-    <parent link="ee_link"/>
+    <parent link="{parent}"/>
     <child link="camera_link"/>
-    <origin xyz="{half:.6f} 0 0" rpy="0 0 0"/>
+    <origin xyz="{xyz}" rpy="{rpy}"/>
   </joint>
   <link name="camera_link">
-    <visual><geometry><box size="{bx} {by} {bz}"/></geometry></visual>
-    <collision><geometry><box size="{bx} {by} {bz}"/></geometry></collision>
+    <visual><geometry><box size="{size}"/></geometry></visual>
+    <collision><geometry><box size="{size}"/></geometry></collision>
     <inertial><mass value="0.1"/><origin xyz="0 0 0"/>
       <inertia ixx="1e-4" ixy="0" ixz="0" iyy="1e-4" iyz="0" izz="1e-4"/></inertial>
   </link>
   <joint name="camera_optical_joint" type="fixed">
     <parent link="camera_link"/>
     <child link="camera_optical_frame"/>
-    <!-- optical z = ee x, optical x = -ee y, optical y = -ee z -->
+    <!-- optical z = body x, optical x = -body y, optical y = -body z -->
     <origin xyz="{half:.6f} 0 0" rpy="-1.5707963267949 0 -1.5707963267949"/>
   </joint>
   <link name="camera_optical_frame"/>
-"""
+""".replace("{size}", " ".join(map(str, CAMERA_BODY)))
+
+
+def camera_links(parent: str, xyz: str, rpy: str) -> list[ET.Element]:
+    """The camera body and :data:`CAMERA_FRAME` mounted on ``parent`` at ``xyz``, ``rpy`` (URDF text)."""
+    text = _CAMERA_LINKS.format(parent=parent, xyz=xyz, rpy=rpy, half=CAMERA_BODY[0] / 2)
+    return list(ET.fromstring(f"<r>{text}</r>"))
+
+
+def give_massless_links_inertia(root: ET.Element) -> None:
+    """A negligible inertia on every link without mass: pybullet would give each one 1 kg."""
+    for link in root.iter("link"):
+        inertial = link.find("inertial")
+        mass = inertial.find("mass") if inertial is not None else None
+        if mass is None or float(mass.get("value", "0")) <= 0.0:
+            if inertial is not None:
+                link.remove(inertial)
+            link.append(ET.fromstring(TINY_INERTIAL))
 
 
 @lru_cache(maxsize=1)
@@ -81,8 +95,7 @@ def ur10_urdf_path() -> Path:
 
 @lru_cache(maxsize=4)
 def ur10_with_camera(urdf_path: str | None = None) -> str:
-    """The UR10 URDF text with absolute mesh paths, explicit small inertias on massless links
-    (pybullet would give them 1 kg each), and the camera links attached."""
+    """The UR10 URDF text: absolute mesh paths, small inertias, the camera on ``ee_link``."""
     path = Path(urdf_path) if urdf_path else ur10_urdf_path()
     if not path.is_file():
         raise UserError(f"URDF not found: {path}")
@@ -93,25 +106,16 @@ def ur10_with_camera(urdf_path: str | None = None) -> str:
         raise UserError(f"cannot read URDF {path}: {exc}") from None
     if root.tag != "robot":
         raise UserError(f"not a URDF robot description: {path}")
-    bx, by, bz = CAMERA_BODY
-    for element in ET.fromstring(f"<r>{_CAMERA_LINKS.format(half=bx / 2, bx=bx, by=by, bz=bz)}</r>"):
-        root.append(element)
+    root.extend(camera_links(FLANGE_FRAME, f"{CAMERA_BODY[0] / 2:.6f} 0 0", "0 0 0"))
     for mesh in root.iter("mesh"):
         filename = mesh.get("filename", "")
         if filename.startswith("package://"):
             mesh.set("filename", str(share / filename.removeprefix("package://")))
-    for link in root.iter("link"):
-        inertial = link.find("inertial")
-        mass = inertial.find("mass") if inertial is not None else None
-        if mass is None or float(mass.get("value", "0")) <= 0.0:
-            if inertial is not None:
-                link.remove(inertial)
-            link.append(ET.fromstring(_TINY_INERTIAL))
+    give_massless_links_inertia(root)
     return ET.tostring(root, encoding="unicode")
 
 
-# Frames without mass (world, base, tool0, ee_link, the optical frame) get a negligible one.
-_TINY_INERTIAL = (
+TINY_INERTIAL = (
     '<inertial><mass value="0.001"/><origin xyz="0 0 0" rpy="0 0 0"/>'
     '<inertia ixx="1e-7" ixy="0" ixz="0" iyy="1e-7" iyz="0" izz="1e-7"/></inertial>'
 )

@@ -40,28 +40,28 @@ def test_the_rig_keeps_the_rig_contract() -> None:
 
 
 @pytest.fixture(scope="module")
-def run(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, str]:
+def run(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """Two cameras, four stage angles (a quarter turn a step)."""
     from agrisim.app.cli import main
 
     out = tmp_path_factory.mktemp("turntable") / "run"
     code = main(["run", "--rig", "turntable", "--setpoints", "2x4", *SMALL, "--out", str(out)])
     assert code == 0
-    return out, ""
+    return out
 
 
-def test_every_camera_shoots_at_every_stage_angle(run: tuple[Path, str]) -> None:
-    out, _ = run
+def test_every_camera_shoots_at_every_stage_angle(run: Path) -> None:
+    out = run
     doc = json.loads((out / layout.RUN_JSON).read_text())
     assert doc["config"]["rig"]["backend"] == "turntable"
     reached = sorted(r["frame"] for r in doc["results"] if r["reached"])
     assert reached == [f"c{c}_{k:03d}" for c in (1, 2) for k in range(4)]
 
 
-def test_the_cameras_orbit_the_plant_by_minus_the_stage_angle(run: tuple[Path, str]) -> None:
+def test_the_cameras_orbit_the_plant_by_minus_the_stage_angle(run: Path) -> None:
     """In the plant's frame a camera at stage angle a is its pose at 0 turned by -a about the
     stage's axis; the two cameras stay on one column (the same azimuth, other heights)."""
-    out, _ = run
+    out = run
     frames = json.loads((out / layout.CAMERAS_JSON).read_text())["frames"]
     centre = np.array([0.0, 0.0, RunConfig().cell.table_height])
     for cam in ("c1", "c2"):
@@ -74,17 +74,17 @@ def test_the_cameras_orbit_the_plant_by_minus_the_stage_angle(run: tuple[Path, s
         assert math.isclose(math.atan2(a[1], a[0]), math.atan2(b[1], b[0]), abs_tol=1e-9) and a[2] > b[2]
 
 
-def test_the_stage_turns_no_faster_than_its_limit(run: tuple[Path, str]) -> None:
+def test_the_stage_turns_no_faster_than_its_limit(run: Path) -> None:
     """A quarter turn at the default 30 deg/s takes at least 3 s; Ruckig's ramps (the run's
     acceleration and jerk limits) add less than a second at that speed."""
-    out, _ = run
+    out = run
     results = json.loads((out / layout.RUN_JSON).read_text())["results"]
     times = sorted({round(r["sim_time"], 6) for r in results if r["frame"].startswith("c1_")})
     steps = np.diff(times)
     assert len(steps) == 3 and (steps >= 3.0).all() and (steps < 4.5).all(), steps
 
 
-def test_the_views_are_the_plant_turned_in_front_of_a_fixed_camera(run: tuple[Path, str]) -> None:
+def test_the_views_are_the_plant_turned_in_front_of_a_fixed_camera(run: Path) -> None:
     """Each view equals the view from the camera's first pose of the plant turned by the stage's
     angle (a quarter turn a step: exact in floating point): the same labels pixel for pixel, the
     same depth where the plant is seen. Rendered by raycast from the run's own camera poses."""
@@ -95,7 +95,7 @@ def test_the_views_are_the_plant_turned_in_front_of_a_fixed_camera(run: tuple[Pa
     from agrisim.plugins.rooms.lab.room import build_scene
     from agrisim.scene.camera import CameraModel
 
-    out, _ = run
+    out = run
     cameras = json.loads((out / layout.CAMERAS_JSON).read_text())
     K = np.asarray(cameras["intrinsics"]["K"])
     w, h = cameras["intrinsics"]["width"], cameras["intrinsics"]["height"]

@@ -15,7 +15,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from agrisim.errors import UserError
-from agrisim.robot.urdf import CAMERA_BODY, CAMERA_FRAME, robot_data_share
+from agrisim.robot.urdf import CAMERA_FRAME, camera_links, give_massless_links_inertia, robot_data_share
 
 #: the link of the camera body (black in the renderers, see agrisim.plugins.render.arm_visuals)
 CAMERA_LINK = "camera_link"
@@ -25,34 +25,6 @@ FULL_TURNS = 2 * math.pi
 #: joint velocity (rad/s) and effort (N m) where the URDF gives none: Ruckig needs a velocity
 #: limit, and pybullet's motors take the effort as their force limit
 DEFAULT_VELOCITY, DEFAULT_EFFORT = 1.0, 100.0
-
-# The camera body: a box whose +x axis is the optical axis; its centre sits at the mount
-# transform in the mount link, the optical centre on its front face. Same text as the UR10's.
-_CAMERA_LINKS = """
-  <joint name="camera_mount_joint" type="fixed">
-    <parent link="{parent}"/>
-    <child link="camera_link"/>
-    <origin xyz="{xyz}" rpy="{rpy}"/>
-  </joint>
-  <link name="camera_link">
-    <visual><geometry><box size="{bx} {by} {bz}"/></geometry></visual>
-    <collision><geometry><box size="{bx} {by} {bz}"/></geometry></collision>
-    <inertial><mass value="0.1"/><origin xyz="0 0 0"/>
-      <inertia ixx="1e-4" ixy="0" ixz="0" iyy="1e-4" iyz="0" izz="1e-4"/></inertial>
-  </link>
-  <joint name="camera_optical_joint" type="fixed">
-    <parent link="camera_link"/>
-    <child link="camera_optical_frame"/>
-    <!-- optical z = camera x, optical x = -camera y, optical y = -camera z -->
-    <origin xyz="{half:.6f} 0 0" rpy="-1.5707963267949 0 -1.5707963267949"/>
-  </joint>
-  <link name="camera_optical_frame"/>
-"""
-
-_TINY_INERTIAL = (
-    '<inertial><mass value="0.001"/><origin xyz="0 0 0" rpy="0 0 0"/>'
-    '<inertia ixx="1e-7" ixy="0" ixz="0" iyy="1e-7" iyz="0" izz="1e-7"/></inertial>'
-)
 
 
 @dataclass(frozen=True)
@@ -177,18 +149,7 @@ def with_camera(
             joint.set("name", f"{joint.get('name')}_joint")
     base, chain = _chain(root, mount, path)
     joints = _arm_joints(root, chain)
-    bx, by, bz = CAMERA_BODY
-    camera = _CAMERA_LINKS.format(
-        parent=mount,
-        xyz=" ".join(_number(v) for v in xyz),
-        rpy=" ".join(_number(v) for v in rpy),
-        half=bx / 2,
-        bx=bx,
-        by=by,
-        bz=bz,
-    )
-    for element in ET.fromstring(f"<r>{camera}</r>"):
-        root.append(element)
+    root.extend(camera_links(mount, " ".join(_number(v) for v in xyz), " ".join(_number(v) for v in rpy)))
     share = robot_data_share()
     urdf_dir = path.resolve().parent if relative_meshes else None
     for mesh in root.iter("mesh"):
@@ -197,11 +158,5 @@ def with_camera(
             mesh.set("filename", filename)
         if not Path(filename).is_file():
             raise UserError(f"URDF {path}: mesh file not found: {filename}")
-    for link in root.iter("link"):
-        inertial = link.find("inertial")
-        mass = inertial.find("mass") if inertial is not None else None
-        if mass is None or float(mass.get("value", "0")) <= 0.0:
-            if inertial is not None:
-                link.remove(inertial)
-            link.append(ET.fromstring(_TINY_INERTIAL))
+    give_massless_links_inertia(root)
     return ArmDescription(ET.tostring(root, encoding="unicode"), joints, base, mount)

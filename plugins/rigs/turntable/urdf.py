@@ -12,10 +12,11 @@ ride on it).
 from __future__ import annotations
 
 import math
+import xml.etree.ElementTree as ET
 
 import numpy as np
 
-from agrisim.robot.urdf import CAMERA_BODY, CAMERA_FRAME
+from agrisim.robot.urdf import CAMERA_BODY, camera_links, give_massless_links_inertia
 
 #: the stage's joint, the one joint of every turntable camera
 STAGE_JOINT = "stage"
@@ -28,11 +29,6 @@ COLUMN_GAP = 0.05
 COLUMN_ABOVE = 0.1
 #: the column's foot above the floor, m (standing on it, it would touch the floor's box)
 COLUMN_LIFT = 0.03
-
-_INERTIAL = (
-    '<inertial><mass value="0.001"/><origin xyz="0 0 0" rpy="0 0 0"/>'
-    '<inertia ixx="1e-7" ixy="0" ixz="0" iyy="1e-7" iyz="0" izz="1e-7"/></inertial>'
-)
 
 
 def urdf_rpy(R: np.ndarray) -> tuple[float, float, float]:
@@ -63,45 +59,29 @@ def camera_urdf(
     top) in z from the stage's top (the foot on the floor, below it), or None for a camera that
     rides on another's column; ``speed``: the stage's velocity limit, rad/s."""
     body = camera_body_pose(distance, height, tilt)
-    roll, pitch, yaw = urdf_rpy(body[:3, :3])
-    x, y, z = body[:3, 3]
-    bx, by, bz = CAMERA_BODY
     column_parts = ""
     if column is not None:
         foot, top = column
-        cx = distance + bx / 2 + COLUMN_GAP + COLUMN[0] / 2
+        cx = distance + CAMERA_BODY[0] / 2 + COLUMN_GAP + COLUMN[0] / 2
         size = f"{COLUMN[0]:.6f} {COLUMN[1]:.6f} {top - foot:.6f}"
         where = f'<origin xyz="{cx:.6f} 0 {(top + foot) / 2:.6f}" rpy="0 0 0"/>'
         column_parts = (
             f'<visual>{where}<geometry><box size="{size}"/></geometry></visual>'
             f'<collision>{where}<geometry><box size="{size}"/></geometry></collision>'
         )
-    return f"""<robot name="{name}">
-  <link name="base">{_INERTIAL}</link>
+    root = ET.fromstring(
+        f"""<robot name="{name}">
+  <link name="base"/>
   <joint name="{STAGE_JOINT}" type="revolute">
     <parent link="base"/>
     <child link="column"/>
     <axis xyz="0 0 -1"/>
     <limit lower="{-2 * math.pi:.9f}" upper="{2 * math.pi:.9f}" velocity="{speed:.9f}" effort="100"/>
   </joint>
-  <link name="column">{column_parts}{_INERTIAL}</link>
-  <joint name="camera_mount_joint" type="fixed">
-    <parent link="column"/>
-    <child link="camera_link"/>
-    <origin xyz="{x:.9f} {y:.9f} {z:.9f}" rpy="{roll:.12f} {pitch:.12f} {yaw:.12f}"/>
-  </joint>
-  <link name="camera_link">
-    <visual><geometry><box size="{bx} {by} {bz}"/></geometry></visual>
-    <collision><geometry><box size="{bx} {by} {bz}"/></geometry></collision>
-    <inertial><mass value="0.1"/><origin xyz="0 0 0"/>
-      <inertia ixx="1e-4" ixy="0" ixz="0" iyy="1e-4" iyz="0" izz="1e-4"/></inertial>
-  </link>
-  <joint name="camera_optical_joint" type="fixed">
-    <parent link="camera_link"/>
-    <child link="{CAMERA_FRAME}"/>
-    <!-- optical z = camera x, optical x = -camera y, optical y = -camera z -->
-    <origin xyz="{bx / 2:.6f} 0 0" rpy="-1.5707963267949 0 -1.5707963267949"/>
-  </joint>
-  <link name="{CAMERA_FRAME}"/>
-</robot>
-"""
+  <link name="column">{column_parts}</link>
+</robot>"""
+    )
+    xyz = " ".join(f"{v:.9f}" for v in body[:3, 3])
+    root.extend(camera_links("column", xyz, " ".join(f"{v:.12f}" for v in urdf_rpy(body[:3, :3]))))
+    give_massless_links_inertia(root)
+    return ET.tostring(root, encoding="unicode")
