@@ -82,7 +82,8 @@ def test_labels_depth_instances_are_raycasts_bytes(cell, kin, lab_scene, seg_mod
     T = look_at(target + np.array([0.9, -0.9, 0.6]), target)
     settings = RenderConfig(seg_mode=seg_mode, labels="organs")
     ray = RaycastRenderer(lab_scene, cell, settings, RaycastOptions()).render(camera, T, poses)
-    mit = renderer(lab_scene, cell, seg_mode=seg_mode, labels="organs", spp=4).render(camera, T, poses)
+    # (2 samples denoised: the stream test's path tracer, compiled once for both)
+    mit = renderer(lab_scene, cell, seg_mode=seg_mode, labels="organs", spp=2, denoise="on").render(camera, T, poses)
     assert len(np.unique(ray.labels)) > 2 and ray.instances is not None and ray.instances.max() > 1
     np.testing.assert_array_equal(mit.labels, ray.labels)
     np.testing.assert_array_equal(mit.depth, ray.depth)
@@ -158,11 +159,36 @@ def small_lab_view(lab_scene):  # noqa: ANN001, ANN201
     return camera, look_at(target + np.array([0.7, -0.7, 0.5]), target)
 
 
+def at_seed(r, seed: int, camera: CameraModel, T: np.ndarray, *, raw: bool = False) -> np.ndarray:  # noqa: ANN001
+    """Renderer ``r``'s radiance of a view drawn with another ``seed``: the same kernel (the
+    seed is an opaque variable), so no compilation; ``raw``: before the denoiser, the very
+    samples it is given."""
+    r.options = r.options.model_copy(update={"seed": seed})
+    if raw:
+        return np.asarray(r._launch(camera, T)[0], np.float32)[..., :3]
+    return r.radiance(camera, T)
+
+
 @pytest.fixture(scope="module")
-def reference(lab_scene):  # noqa: ANN001, ANN201
-    """A 512-sample render of the small lab view, other seed."""
+def sampled(lab_scene):  # noqa: ANN001, ANN201
+    """The small lab view at 2, 8 and 32 samples a pixel, not denoised (each a path tracer of
+    its own: the sample count shapes multijitter's strata), and ``"reference"``, the view at
+    512: the mean of 16 32-sample renders of other seeds (independent, so unbiased, and no
+    path tracer to compile). Only the images are kept: a live renderer's shapes would enter
+    every later kernel's dispatch (Dr.Jit's calls cover all the live instances)."""
     camera, T = small_lab_view(lab_scene)
-    return renderer(lab_scene, spp=512, seed=7, denoise="off").radiance(camera, T)
+    images = {}
+    for spp in (2, 8, 32):
+        r = renderer(lab_scene, spp=spp, denoise="off")
+        images[spp] = at_seed(r, 0, camera, T)
+    images["reference"] = np.mean([at_seed(r, 100 + k, camera, T) for k in range(16)], axis=0)
+    return images
+
+
+@pytest.fixture(scope="module")
+def reference(sampled):  # noqa: ANN001, ANN201
+    """The small lab view at 512 samples a pixel (:func:`sampled`)."""
+    return sampled["reference"]
 
 
 def rmse(a: np.ndarray, b: np.ndarray) -> float:
@@ -172,20 +198,19 @@ def rmse(a: np.ndarray, b: np.ndarray) -> float:
     return float(np.sqrt(((shown(a) - shown(b)) ** 2).mean()))
 
 
-def test_error_falls_as_samples_rise(lab_scene, reference):
-    camera, T = small_lab_view(lab_scene)
-    errors = [rmse(renderer(lab_scene, spp=s, denoise="off").radiance(camera, T), reference) for s in (2, 8, 32)]
+def test_error_falls_as_samples_rise(sampled, reference):
+    errors = [rmse(sampled[s], reference) for s in (2, 8, 32)]
     assert errors[0] > 1.5 * errors[1] > 2.25 * errors[2], errors
 
 
 @pytest.fixture(scope="module")
 def four_samples(lab_scene):  # noqa: ANN001, ANN201
-    """The small lab view at 4 samples a pixel, raw and denoised, drawn once for the tests
-    below (a new renderer compiles its kernels anew, 5-10 s; only the images are kept, so
-    that one renderer is alive at a time): radiances, and the denoised renderer's frame."""
+    """The small lab view at 4 samples a pixel, raw and denoised (the same samples, before
+    and after the denoiser), drawn once for the tests below (a new path tracer compiles in
+    5-10 s): radiances, and the denoised renderer's frame."""
     camera, T = small_lab_view(lab_scene)
-    raw = renderer(lab_scene, spp=4, denoise="off").radiance(camera, T)
     denoising = renderer(lab_scene, spp=4, denoise="on")
+    raw = at_seed(denoising, 0, camera, T, raw=True)
     return {"raw": raw, "clean": denoising.radiance(camera, T), "frame": denoising.render(camera, T, {})}
 
 
@@ -267,11 +292,12 @@ def test_frozen_views_are_the_traced_views_bit_for_bit(lab_scene):
     target = lab_scene.mesh("plant").vertices.mean(axis=0)
     offsets = ((0.9, -0.9, 0.6), (-0.8, -0.7, 0.8), (0.2, 1.0, 0.5), (0.7, 0.6, 0.9))
     views = [look_at(target + np.array(o), target) for o in offsets]
-    frozen = renderer(lab_scene, spp=2, denoise="on", freeze="on")
+    # (4 samples: the path tracer of the four_samples renderers, compiled once)
+    frozen = renderer(lab_scene, spp=4, denoise="on", freeze="on")
     images = [frozen.render_rgb(camera, T, {})[0] for T in views]
     assert frozen._frozen["image"].n_recordings == 2  # type: ignore[attr-defined]
     del frozen  # one renderer alive at a time: Dr.Jit's kernels name the live instances
-    traced = renderer(lab_scene, spp=2, denoise="on", freeze="off")
+    traced = renderer(lab_scene, spp=4, denoise="on", freeze="off")
     for rgb, T in zip(images, views, strict=True):
         np.testing.assert_array_equal(rgb, traced.render_rgb(camera, T, {})[0])
     assert not traced._frozen  # and this one the traced path
@@ -298,7 +324,9 @@ def test_a_stream_of_views_gives_each_views_own_bytes(cell, kin, lab_scene, deno
     larger kernel, and each view's tracing four times dearer), and must move its links rather
     than make new ones as it leaves other links out at each view (a new kernel a view, 5 s each
     at 96x54 on a Xeon, before)."""
-    camera = CameraModel(48, 36, 40.0, 40.0, 23.5, 17.5)
+    # (the labels test's camera: the image's size is a literal in the path tracer, which
+    # that test compiled with denoise on)
+    camera = CameraModel(96, 72, 80.0, 80.0, 47.5, 35.5)
     target = lab_scene.mesh("plant").vertices.mean(axis=0)
     offsets = [(0.9, -0.9, 0.6), (-0.8, -0.7, 0.8), (0.2, 1.0, 0.5)]
     views = [look_at(target + np.array(o), target) for o in offsets]
