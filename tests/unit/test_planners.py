@@ -62,6 +62,17 @@ def test_ompl_goes_round_the_wall(algorithm):
     assert max(q[1] for q in path) > 1.5  # it went through the gap
 
 
+def test_ompl_plans_from_a_start_a_hair_beyond_a_joint_limit():
+    """A simulated arm stopped at a limit may rest a hair beyond it: the path starts there."""
+    start = START.copy()
+    start[0] = LOWER[0] - 1e-7
+    planner = OmplPlanner(OmplOptions(time=1.0, search_resolution=0.02))
+    path = planner.plan(start, GOAL, outside_grown_wall, LOWER, UPPER, 0, 0.02)
+    np.testing.assert_array_equal(path[0], start)
+    np.testing.assert_allclose(path[-1], GOAL)
+    assert _dense_check(path, outside_wall, 0.002)
+
+
 def test_ompl_reports_an_impossible_problem():
     planner = OmplPlanner(OmplOptions(time=0.2, attempts=2))
     sealed = lambda q: abs(q[0]) >= 0.3  # noqa: E731 - a wall with no gap

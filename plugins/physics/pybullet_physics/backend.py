@@ -19,6 +19,11 @@ with native_output_silenced():  # pybullet prints its build time on import
     import pybullet as pb
     from pybullet_utils.bullet_client import BulletClient
 
+#: an arm whose joints all move slower than this, rad/s, has come to rest
+REST_SPEED = 1e-4
+#: at most one trim of an arm's hold command in this long, s (the arm must answer the last)
+TRIM_INTERVAL = 0.25
+
 
 def _without_visuals(urdf: str) -> str:
     """The URDF without its ``<visual>`` elements: the worlds here only simulate and test
@@ -349,6 +354,12 @@ class BulletPhysics(PhysicsBackend):
         # The commanded joints at every step of each plan, interpolated up front: one np.interp
         # per joint over all steps instead of one per joint and step (the same values).
         commands = {r: self._commands(plans[r], ends[r]) for r in robots}
+        # what each arm is told to hold once its plan has ended: its last waypoint, trimmed by
+        # the error it rests at (position motors under gravity stop short of their target; a
+        # Panda's wrist by 0.06 mm at the camera, past the reach tolerance)
+        holds = {r: plans[r].q[-1].copy() for r in robots}
+        trimmed = {r: -np.inf for r in robots}
+        last = {r: self._q[r].copy() for r in robots}
         while len(done) < len(robots):
             t = step * self.dt
             for r in robots:
@@ -358,7 +369,7 @@ class BulletPhysics(PhysicsBackend):
                 if step < len(qs):
                     q, qd = qs[step], qds[step]
                 else:
-                    q, qd = plans[r].q[-1], np.zeros(plans[r].q.shape[1])
+                    q, qd = holds[r], np.zeros(plans[r].q.shape[1])
                 self._command(r, q, qd)
             self.sim.client.stepSimulation()
             step += 1
@@ -376,6 +387,14 @@ class BulletPhysics(PhysicsBackend):
                     done[r] = t - ends[r]
                 elif t >= ends[r] + timeout:
                     done[r] = -1.0
+                elif (
+                    t >= ends[r]
+                    and t - trimmed[r] >= TRIM_INTERVAL
+                    and np.abs(q - last[r]).max() < REST_SPEED * self.dt
+                ):
+                    holds[r] = holds[r] + (plans[r].q[-1] - q)
+                    trimmed[r] = t
+                last[r] = q
             if t > horizon:
                 break
         out = {}

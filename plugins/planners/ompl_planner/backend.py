@@ -54,9 +54,12 @@ class OmplPlanner(Planner):
         dof = len(start)
         space = ob.RealVectorStateSpace(dof)
         bounds = ob.RealVectorBounds(dof)
+        # the space holds the start where the arm stands: a simulated arm that stopped at a
+        # joint's limit may sit a hair beyond it, and OMPL drops a start outside its bounds
+        low, high = np.minimum(lower, start), np.maximum(upper, start)
         for i in range(dof):
-            bounds.setLow(i, float(lower[i]))
-            bounds.setHigh(i, float(upper[i]))
+            bounds.setLow(i, float(low[i]))
+            bounds.setHigh(i, float(high[i]))
         space.setBounds(bounds)
         ss = og.SimpleSetup(space)
         ss.setStateValidityChecker(lambda s: bool(is_valid(np.array([s[i] for i in range(dof)]))))

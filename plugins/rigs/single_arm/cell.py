@@ -5,6 +5,7 @@ the paper's hemisphere (:func:`agrisim.plugins.rigs.paper.cell.hemisphere`) at t
 from __future__ import annotations
 
 import dataclasses
+import math
 from functools import cached_property
 from pathlib import Path
 
@@ -42,6 +43,10 @@ MIN_JOINTS = 6
 TABLE_GAP = 0.03
 #: how far below shoulder-at-aim-height a stand is tried when no layout reaches every probe, m
 STAND_DROPS = (0.0, 0.15, 0.3)
+#: how far inside the hemisphere's lowest ring the table's edge stays, m: a camera there looks
+#: at the plant from just above the table top, and the wrist behind it (a Panda's hand is 10 cm
+#: deep) must pass beyond the edge rather than into the top
+RING_CLEARANCE = 0.1
 
 
 class SingleArmRig(Rig):
@@ -108,7 +113,12 @@ class SingleArmRig(Rig):
         within limits."""
         cfg, desc = self.settings, self.description
         stand_size = min(cfg.stand_size, max(0.12, 0.4 * distance))
-        table_size = min(cfg.table_size, 2 * (distance - stand_size / 2 - TABLE_GAP))
+        ring = radius * math.sin(math.radians(RoutineConfig().phi_deg[1]))
+        table_size = min(
+            cfg.table_size,
+            2 * (distance - stand_size / 2 - TABLE_GAP),
+            max(2 * (ring - RING_CLEARANCE), 2 * cfg.pot_radius + 0.04),
+        )
         if table_size < 2 * cfg.pot_radius:
             raise UserError(
                 f"rig single-arm: at distance {distance:.2f} m the arm's stand leaves no room for the pot "
