@@ -122,10 +122,12 @@ class GantryRig(Rig):
         joints = [viewpoint_joints(T, arm.world_T_base) for _, _, T in views]
         self._check_travel(kin, views, joints)
         levels, columns = parse_grid(routine.setpoints)
-        self.notes.append(
+        note = (
             f"the whole hemisphere for one camera: {levels} level(s) x {columns} azimuths over a turn, "
             f"radius {routine.radius:g} m"
         )
+        if note not in self.notes:  # a tool may ask the same rig for its routine more than once
+            self.notes.append(note)
         return {arm.name: [Setpoint(arm.name, k, kin.fk(q)) for k, q in enumerate(joints)]}
 
     def _check_travel(
