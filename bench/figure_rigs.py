@@ -23,13 +23,15 @@ RIGS = [
         "turntable in the cabinet room (--set room.backend=cabinet)",
         {"rig": {"backend": "turntable"}, "room": {"backend": "cabinet"}, "routine": {"setpoints": "3x8"}},
     ),
+    ("gantry: an XYZ stage, a pan-tilt camera (--rig gantry)", {"rig": {"backend": "gantry"}}),
 ]
-#: where the outside camera stands, relative to the plant, m: far enough for the paper's arms,
-#: within the cabinet's backdrop (1.5 m) for the turntable
+#: where the outside camera stands, relative to the plant, m: far enough for the paper's arms and
+#: the gantry's portal, within the cabinet's backdrop (1.5 m) for the turntable
 OUTSIDE = {
     "paper": np.array([1.7, -2.3, 1.3]),
     "single-arm": np.array([1.2, -1.6, 0.9]),
     "turntable": np.array([0.7, -1.0, 0.6]),
+    "gantry": np.array([1.1, -1.9, 1.5]),
 }
 #: the outside view's size; the rig's own view keeps its camera's aspect at this width
 SIZE = (480, 320)

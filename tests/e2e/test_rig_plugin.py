@@ -40,9 +40,9 @@ def test_it_is_listed_and_keeps_the_rig_contract(site: Path, cli) -> None:  # no
     rigs = out[out.index("rig:") : out.index("sink:")]
     assert "offset" in rigs and "[agrisim-offset-rig 0.1.0]" in rigs and "paper" in rigs
     check("rig", "offset", Registry(make_plugin_manager()))
-    code, out, err = cli(["run", "--rig", "gantry", "--out", str(site / "never")])
+    code, out, err = cli(["run", "--rig", "scara", "--out", str(site / "never")])
     assert code == 2 and len(err.strip().splitlines()) == 1, err
-    assert "'gantry'" in err and "offset, paper" in err and not (site / "never").exists()
+    assert "'scara'" in err and "offset, paper" in err and not (site / "never").exists()
 
 
 def test_a_run_puts_the_arms_where_the_rig_put_them(site: Path, tmp_path: Path, cli) -> None:  # noqa: ANN001
