@@ -27,7 +27,7 @@ from agrisim.scene.camera import CameraModel
 __all__ = ["Chosen", "Validated", "check_run", "imager_spec", "open_imager", "open_rig", "pose_source"]
 
 #: the entry points of agrisim's own rigs, which every run loads whatever plugins are chosen
-OWN_RIGS = ("rig-paper", "rig-single-arm", "rig-turntable")
+OWN_RIGS = ("rig-paper", "rig-single-arm", "rig-turntable", "rig-gantry")
 #: (the backend, its options validated by its own model)
 Chosen = tuple[BackendSpec, BaseModel]
 
