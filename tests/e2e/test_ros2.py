@@ -111,12 +111,17 @@ def test_a_bad_ros_domain_id_is_refused_before_anything_is_written(tmp_path) -> 
     assert result.stderr.strip().count("\n") == 0 and not out.exists()
 
 
-def test_routine_runs_the_papers_setpoints_while_serving(tmp_path) -> None:
-    """``--routine``: the setpoints run (unpaced here), then the session serves on until Ctrl-C."""
+@pytest.mark.parametrize(
+    ("rig", "grid", "frames"),
+    [("paper", "1x1", ["r1_000", "r2_000"]), ("turntable", "2x2", ["c1_000", "c1_001", "c2_000", "c2_001"])],
+)
+def test_routine_runs_the_rigs_setpoints_while_serving(tmp_path, rig: str, grid: str, frames: list[str]) -> None:
+    """``--routine``: the setpoints run (unpaced here), then the session serves on until Ctrl-C;
+    on the turntable each camera is served as its own robot, its joint the stage's angle."""
     out = tmp_path / "live"
-    with live_server("2", out, _env(), "--routine", "--setpoints", "1x1", "--real-time-factor", "0",
+    with live_server("2", out, _env(), "--rig", rig, "--routine", "--setpoints", grid, "--real-time-factor", "0",
                      ready="the routine is done") as server:  # fmt: skip
         pass
     assert server.returncode == 0, server.output
     run = json.loads((out / "run.json").read_text())
-    assert run["summary"]["status"] == "complete" and run["frames_complete"] == ["r1_000", "r2_000"]
+    assert run["summary"]["status"] == "complete" and run["frames_complete"] == frames
