@@ -131,10 +131,8 @@ class Frame:
 
 @dataclass
 class Capture:
-    """A camera's capture at a reached setpoint (``agrisim_capture``).
-
-    ``images`` is the renderer's :class:`Frame`, or None when the run has no renderer.
-    """
+    """A camera's capture at a reached setpoint (``agrisim_capture``); ``images`` is the
+    renderer's :class:`Frame`, or None when the run has no renderer."""
 
     robot: str
     frame: str  # r1_000 ... r2_049

@@ -52,10 +52,8 @@ class Validated:
 def check_run(registry: Registry, config: RunConfig, *, preflight: bool = True) -> Validated:
     """Check everything ``config`` names against ``registry``, in the order a run would meet it,
     so that the first bad input is the one reported (a :class:`~agrisim.errors.UserError`).
-
     ``preflight`` runs the backends' own checks that need this machine (a GPU, a file they would
-    write): a run's process does; a sweep or a compare planning runs for other hosts does not.
-    """
+    write): a run's process does; a sweep or a compare planning runs for other hosts does not."""
 
     def chosen(kind: str, choice: BackendChoice) -> Chosen:
         spec = registry.get(kind, choice.backend)
@@ -184,7 +182,10 @@ def open_rig(config: RunConfig, registry: Registry | None = None, chosen: Chosen
     spec, options = chosen
     with blame("rig", spec, " building the cell"):
         rig: Rig = registry.build("rig", spec, config.cell, options)
-        return rig, rig.cell()
+        cell = rig.cell()
+    if not cell.arms:  # (a fixed camera is an arm too: a turntable's are one-joint robots)
+        raise ConfigError(f"rig {spec.name!r} has no camera: its cell holds no arm to carry one")
+    return rig, cell
 
 
 def pose_source(registry: Registry, name: str) -> BackendSpec:

@@ -45,6 +45,13 @@ def test_it_is_listed_and_keeps_the_rig_contract(site: Path, cli) -> None:  # no
     assert "'scara'" in err and "offset, paper" in err and not (site / "never").exists()
 
 
+def test_a_rig_with_no_camera_is_refused_in_one_line(site: Path, cli) -> None:  # noqa: ANN001
+    out = site / "never"
+    code, _, err = cli(["run", "--rig", "offset", "--set", "rig.offset.arms=0", "--out", str(out)])
+    assert code == 2 and len(err.strip().splitlines()) == 1, err
+    assert "rig 'offset'" in err and "no camera" in err and not out.exists()
+
+
 def test_a_run_puts_the_arms_where_the_rig_put_them(site: Path, tmp_path: Path, cli) -> None:  # noqa: ANN001
     out = tmp_path / "run"
     args = ["run", "--rig", "offset", "--set", f"rig.offset.shift={SHIFT}", "--physics", "kinematic"]

@@ -20,6 +20,8 @@ from agrisim.scene.transforms import translation
 class OffsetOptions(Options):
     shift: float = Field(default=0.3, ge=-1.0, le=1.0)
     """How far the arms and their stands move along +y, m."""
+    arms: int = Field(default=2, ge=0, le=2)
+    """How many of the paper's arms the cell keeps (0: a rig with no camera, which a run refuses)."""
 
 
 class OffsetRig(Rig):
@@ -29,7 +31,9 @@ class OffsetRig(Rig):
         stands = {arm.stand for arm in paper.arms}
         return dataclasses.replace(
             paper,
-            arms=tuple(dataclasses.replace(a, world_T_base=move @ a.world_T_base) for a in paper.arms),
+            arms=tuple(dataclasses.replace(a, world_T_base=move @ a.world_T_base) for a in paper.arms)[
+                : self.options.arms
+            ],
             obstacles=tuple(
                 dataclasses.replace(ob, world_T=move @ ob.world_T) if ob.name in stands else ob
                 for ob in paper.obstacles
