@@ -241,6 +241,17 @@ class KinematicPhysics(PhysicsBackend):
             return []
         return self._colliding(*self._geometry_data(robots), full)
 
+    def self_distance(self, robot: str, q: np.ndarray) -> float:
+        """The least distance, m, between ``robot``'s own links that no joint joins, at ``q``
+        (coal's exact meshes; 0 where two touch)."""
+        self._check(robot)
+        full = self._q.copy()
+        full[self._slices[robot]] = self._as_q(robot, q)
+        gdata, active = self._geometry_data(frozenset((robot,)))
+        own = [k for k in active if self._geoms[self._pairs[k][0]].owner == self._geoms[self._pairs[k][1]].owner]
+        pin.computeDistances(self.model, self.data, self.geom, gdata, full)
+        return min((max(gdata.distanceResults[k].min_distance, 0.0) for k in own), default=np.inf)
+
     def _colliding(self, gdata: pin.GeometryData, active: list[int], full: np.ndarray) -> list[str]:
         if not pin.computeCollisions(self.model, self.data, self.geom, gdata, full, False):
             return []

@@ -42,6 +42,10 @@ HOME_POLAR_DEG = (36.0, 60.0)
 #: how far a computed home keeps from every obstacle, m: pybullet refuses to plan from a start
 #: within its clearance (5 mm by default), which the kinematic backend's exact test would pass
 HOME_MARGIN = 0.01
+#: ...and its own links at least as far apart as at its zero joints, less this, m: pybullet's
+#: convex hulls of a UR5's forearm and wrist came within its clearance at a home whose exact
+#: meshes were 10 mm apart (15 mm at zero joints)
+HOME_SELF_SLACK = 0.002
 
 
 @dataclass(frozen=True)
@@ -170,13 +174,18 @@ def home_pose(cell: Cell, arm: Arm, kin: ArmKinematics, radius: float, aim: floa
     towards[2] = 0.0
     towards /= max(float(np.linalg.norm(towards)), 1e-9)
     start = np.clip(np.zeros(kin.dof), kin.lower, kin.upper)
+    apart = physics.self_distance(arm.name, start) - HOME_SELF_SLACK
+
+    def free(q: np.ndarray) -> bool:
+        return not physics.in_collision(arm.name, q) and physics.self_distance(arm.name, q) >= apart
+
     for polar in np.radians(HOME_POLAR_DEG):
         eye = centre + radius * (math.sin(polar) * towards + np.array([0.0, 0.0, math.cos(polar)]))
         target = look_at(eye, centre + np.array([0.0, 0.0, aim]))
         found = kin.ik(
             target,
             start,
-            is_valid=lambda q: not physics.in_collision(arm.name, q),
+            is_valid=free,
             rng=np.random.default_rng(0),
             max_restarts=200,
         )
@@ -189,7 +198,7 @@ def home_pose(cell: Cell, arm: Arm, kin: ArmKinematics, radius: float, aim: floa
     free = [
         q
         for q in rng.uniform(kin.lower, kin.upper, (HOME_SAMPLES, kin.dof))
-        if kin.fk(q)[2, 3] > table + 0.1 and not physics.in_collision(arm.name, q)
+        if kin.fk(q)[2, 3] > table + 0.1 and free(q)
     ]
     if free:
         return min(free, key=lambda q: float(np.linalg.norm(q)))
