@@ -176,7 +176,7 @@ def home_pose(cell: Cell, arm: Arm, kin: ArmKinematics, radius: float, aim: floa
     start = np.clip(np.zeros(kin.dof), kin.lower, kin.upper)
     apart = physics.self_distance(arm.name, start) - HOME_SELF_SLACK
 
-    def free(q: np.ndarray) -> bool:
+    def clear(q: np.ndarray) -> bool:
         return not physics.in_collision(arm.name, q) and physics.self_distance(arm.name, q) >= apart
 
     for polar in np.radians(HOME_POLAR_DEG):
@@ -185,7 +185,7 @@ def home_pose(cell: Cell, arm: Arm, kin: ArmKinematics, radius: float, aim: floa
         found = kin.ik(
             target,
             start,
-            is_valid=free,
+            is_valid=clear,
             rng=np.random.default_rng(0),
             max_restarts=200,
         )
@@ -198,7 +198,7 @@ def home_pose(cell: Cell, arm: Arm, kin: ArmKinematics, radius: float, aim: floa
     free = [
         q
         for q in rng.uniform(kin.lower, kin.upper, (HOME_SAMPLES, kin.dof))
-        if kin.fk(q)[2, 3] > table + 0.1 and free(q)
+        if kin.fk(q)[2, 3] > table + 0.1 and clear(q)
     ]
     if free:
         return min(free, key=lambda q: float(np.linalg.norm(q)))
