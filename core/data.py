@@ -194,10 +194,8 @@ class SurfaceMesh:
 
 @dataclass
 class Reconstruction:
-    """What a reconstructor built, per label name, plus ``"all"`` (every plant label together).
-
-    ``clouds`` go to ``clouds/<label>.ply``, ``meshes`` to ``clouds/<label>_mesh.ply``.
-    """
+    """What a reconstructor built, per label name, plus ``"all"`` (every plant label together):
+    ``clouds`` go to ``clouds/<label>.ply``, ``meshes`` to ``clouds/<label>_mesh.ply``."""
 
     clouds: dict[str, Cloud] = field(default_factory=dict)
     meshes: dict[str, SurfaceMesh] = field(default_factory=dict)

@@ -87,12 +87,12 @@ class Episode:
         self.kinematics = {arm.name: ArmKinematics(arm) for arm in self.cell.arms}
         m = config.motion
         self.limits = {
-            name: Limits(
-                k.velocity_limit * m.velocity_scale,
-                np.full(k.dof, m.max_acceleration),
-                np.full(k.dof, m.max_jerk),
+            arm.name: Limits(
+                self.kinematics[arm.name].velocity_limit * m.velocity_scale,
+                np.minimum(np.full(len(arm.joints), m.max_acceleration), arm.accelerations or np.inf),
+                np.full(len(arm.joints), m.max_jerk),
             )
-            for name, k in self.kinematics.items()
+            for arm in self.cell.arms
         }
         # Rendering needs a plant and the room around it; a robot-only run (renderer "none")
         # builds neither (check_run has looked the plant up).

@@ -89,9 +89,7 @@ class PhysicsBackend(ABC):
     @abstractmethod
     def in_collision(self, robot: str, q: np.ndarray, others: Mapping[str, np.ndarray] | None = None) -> bool:
         """Is ``robot`` at ``q`` in collision with itself, the cell, or the other arms?
-
-        ``others`` gives other arms' configurations; arms not named stay where they are.
-        """
+        ``others`` gives other arms' configurations; arms not named stay where they are."""
 
     def arms_in_collision(self, configs: Mapping[str, np.ndarray]) -> bool:
         """Do the arms at ``configs`` touch each other? (Each arm's own path is already checked

@@ -55,6 +55,9 @@ class Arm:
     joints: tuple[str, ...] = ARM_JOINTS
     camera_frame: str = CAMERA_FRAME
     home: tuple[float, ...] = (0.0, -1.9, 1.9, -1.57, -1.57, 0.0)
+    #: each joint's acceleration limit, rad/s^2 or m/s^2, where the machine has its own (a stage's,
+    #: a gantry's axes'); a run keeps within it and ``[motion] max_acceleration`` both
+    accelerations: tuple[float, ...] | None = None
 
 
 @dataclass(frozen=True)

@@ -29,7 +29,14 @@ from agrisim.testing.contracts import check
 SMALL = ["--resolution", "48x36", "--recon", "none", "--no-rrd", "--shadow-samples", "0", "--setpoints", "2x3"]
 #: the run's speed limits, other than the defaults so that a test sees them reach the joints:
 #: x, y, z in m/s, the head in degrees a second
-SPEEDS = {"speed_x": 0.25, "speed_y": 0.3, "speed_z": 0.15, "pan_tilt_speed_deg_s": 60.0}
+SPEEDS = {
+    "speed_x": 0.25,
+    "speed_y": 0.3,
+    "speed_z": 0.15,
+    "pan_tilt_speed_deg_s": 60.0,
+    "acceleration": 0.4,
+    "pan_tilt_acceleration_deg_s2": 120.0,
+}
 
 
 def viewpoints(routine: RoutineConfig, centre: np.ndarray) -> list[tuple[np.ndarray, np.ndarray, float]]:
@@ -115,10 +122,12 @@ def test_a_run_reaches_every_viewpoint_of_the_hemisphere(run: Path) -> None:
 
 def test_every_move_keeps_within_the_axes_speed_limits(run: Path) -> None:
     """Every sample of every planned move keeps each joint within its speed (its velocity and
-    its steps between samples), a move takes at least its longest axis's distance over that
-    axis's speed, and some move runs an axis at its limit (the limits bind, not a slower one)."""
+    its steps between samples) and its acceleration (the gantry's own, below [motion]'s), a move
+    takes at least its longest axis's distance over that axis's speed, and some move runs an
+    axis at its speed and one at its acceleration (the limits bind, not slower ones)."""
     limits = np.array([SPEEDS["speed_x"], SPEEDS["speed_y"], SPEEDS["speed_z"], *[math.radians(60.0)] * 2])
-    fastest = np.zeros(5)
+    accelerations = np.array([SPEEDS["acceleration"]] * 3 + [math.radians(120.0)] * 2)
+    fastest, hardest = np.zeros(5), np.zeros(5)
     moves = sorted((run / layout.TRAJECTORIES).glob("g1_*.json"))
     assert len(moves) == 6
     for path in moves:
@@ -130,7 +139,11 @@ def test_every_move_keeps_within_the_axes_speed_limits(run: Path) -> None:
         assert (steps <= limits * (1 + 1e-3)).all(), (path.name, steps.max(axis=0))
         assert t[-1] - t[0] >= (np.abs(q[-1] - q[0]) / limits).max() - 1e-9, path.name
         fastest = np.maximum(fastest, np.abs(qd).max(axis=0))
+        qdd = np.abs(np.diff(qd, axis=0)) / np.diff(t)[:, None]
+        assert (qdd <= accelerations * (1 + 1e-6)).all(), (path.name, qdd.max(axis=0), accelerations)
+        hardest = np.maximum(hardest, qdd.max(axis=0))
     assert (fastest / limits).max() > 0.95, fastest / limits
+    assert (hardest / accelerations).max() > 0.95, hardest / accelerations
 
 
 def test_a_run_on_pybullet_reaches_every_viewpoint(tmp_path: Path, cli) -> None:  # noqa: ANN001

@@ -31,13 +31,18 @@ class GantryOptions(Options):
     """The lowest the camera's optical centre may go (the ram's lower limit), m above the floor."""
     speed_x: float = Field(default=0.3, gt=0.0, le=5.0)
     """The x axis's speed limit, m/s (its joint's velocity limit: Ruckig times every move by the
-    limits and ``[motion]``'s acceleration and jerk)."""
+    limits, the accelerations below and ``[motion]``'s jerk)."""
     speed_y: float = Field(default=0.3, gt=0.0, le=5.0)
     """The y axis's speed limit, m/s."""
     speed_z: float = Field(default=0.2, gt=0.0, le=5.0)
     """The vertical ram's speed limit, m/s."""
     pan_tilt_speed_deg_s: float = Field(default=90.0, gt=0.0, le=720.0)
     """The pan-tilt head's speed limit, degrees a second (both axes)."""
+    acceleration: float = Field(default=0.5, gt=0.0, le=20.0)
+    """The x, y and z axes' acceleration limit, m/s^2 (a belt-driven gantry's; within ``[motion]
+    max_acceleration`` too)."""
+    pan_tilt_acceleration_deg_s2: float = Field(default=180.0, gt=0.0, le=3600.0)
+    """The pan-tilt head's acceleration limit, degrees a second squared."""
 
     @model_validator(mode="after")
     def _fits(self) -> GantryOptions:

@@ -103,6 +103,7 @@ class GantryRig(Rig):
             joints=JOINTS,
             camera_frame=CAMERA_FRAME,
             home=home,
+            accelerations=(o.acceleration,) * 3 + (math.radians(o.pan_tilt_acceleration_deg_s2),) * 2,
         )
         if not self.notes:
             self.notes.append(

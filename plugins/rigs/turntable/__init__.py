@@ -31,7 +31,10 @@ class TurntableOptions(Options):
     """Radius of the stage (the round table the pot stands on), m; within ``distance``."""
     stage_speed_deg_s: float = Field(default=30.0, gt=0.0, le=720.0)
     """The stage's top speed, degrees a second (the stage joint's velocity limit: a move's time
-    is Ruckig's, with ``[motion]``'s acceleration and jerk)."""
+    is Ruckig's, with the acceleration below and ``[motion]``'s jerk)."""
+    stage_acceleration_deg_s2: float = Field(default=30.0, gt=0.0, le=3600.0)
+    """The stage's acceleration limit, degrees a second squared (a pot's plant must not sway:
+    a second to top speed; within ``[motion] max_acceleration`` too)."""
 
     @model_validator(mode="after")
     def _fits(self) -> TurntableOptions:

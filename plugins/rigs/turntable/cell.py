@@ -80,6 +80,7 @@ class TurntableRig(Rig):
                     joints=(STAGE_JOINT,),
                     camera_frame=CAMERA_FRAME,
                     home=(0.0,),
+                    accelerations=(math.radians(o.stage_acceleration_deg_s2),),
                 )
             )
         if not self.notes:
