@@ -146,7 +146,13 @@ def choose_layout(
         raise UserError(
             f"rig single-arm: {robot} (camera reach about {reach.radius:.2f} m) reaches {best[0]} of {total} test "
             f"viewpoints around the plant at best; "
-            + ("try another rig.single-arm.radius or a larger robot" if radius is not None else "choose a larger robot")
+            # (the Z1 reaches 0.95 m, but its wrist's limits, +-87 and +-77 degrees, turn its camera
+            # onto the plant from few viewpoints: not only size decides)
+            + (
+                "try another rig.single-arm.radius or another robot"
+                if radius is not None
+                else "its size or its joints' limits keep the plant out of its camera's view; choose another robot"
+            )
         )
     return best[1], best[2], best[3]
 
