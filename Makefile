@@ -11,17 +11,18 @@ run: setup
 	$(VENV)/bin/agrisim run $(ARGS)
 
 # The suite: one worker a core (at most 4: each holds Open3D, Dr.Jit and a Ray cluster), a test
-# module's tests together (their fixtures are built once); the slowest tests listed at the end.
+# module's tests together (their fixtures are built once), the heaviest modules handed out first
+# (tests/conftest.py's MODULE_SECONDS); the slowest tests listed at the end.
 test: setup
 	bash scripts/test-deps.sh
 	VENV=$(VENV) bash scripts/lint.sh
-	$(VENV)/bin/python -m pytest -q -n auto --maxprocesses=4 --dist loadfile --durations=15 tests
+	$(VENV)/bin/python -m pytest -q -n auto --maxprocesses=4 --dist loadfile --no-loadscope-reorder --durations=15 tests
 
 # The edit-test loop: the unit and contract tests and one small run, without the path tracer's
 # module (Mitsuba's kernels take minutes to compile); no lint, no browser or ROS set-up. It does
 # not replace `make test`, which CI runs.
 test-fast: setup
-	$(VENV)/bin/python -m pytest -q -n auto --maxprocesses=4 --dist loadfile --durations=5 \
+	$(VENV)/bin/python -m pytest -q -n auto --maxprocesses=4 --dist loadfile --no-loadscope-reorder --durations=5 \
 		--ignore=tests/unit/test_render_mitsuba.py tests/unit tests/contracts tests/e2e/test_episode.py
 
 # Debian's ROS 1, for agrisim ros --ros 1 (make test installs it too)

@@ -33,7 +33,17 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 SITE = Path(__file__).resolve().parent / "suite_profile_site"
 #: pytest's arguments as `make test` gives them (the Makefile's test target)
-MAKE_TEST_ARGS = ["-q", "-n", "auto", "--maxprocesses=4", "--dist", "loadfile", "--durations=15", "tests"]
+MAKE_TEST_ARGS = [
+    "-q",
+    "-n",
+    "auto",
+    "--maxprocesses=4",
+    "--dist",
+    "loadfile",
+    "--no-loadscope-reorder",
+    "--durations=15",
+    "tests",
+]
 COLUMNS = (
     "setup",
     "call",

@@ -185,7 +185,47 @@ def local_ray(module: str, **resources: float) -> Iterator[None]:
         ray.shutdown()
 
 
+#: the heaviest test modules' time, seconds under the AVX2 emulation (bench/suite_profile.py,
+#: 2026-11-29; the rest take less than 10). They are collected heaviest first and, with
+#: ``--no-loadscope-reorder`` (the Makefile's), xdist hands modules out in that order: the two
+#: workers end within a short module of each other, where the path tracer's module, collected
+#: late, kept one busy for a minute after the other had finished.
+MODULE_SECONDS = {
+    "tests/unit/test_render_mitsuba.py": 200,
+    "tests/e2e/test_colmap.py": 99,
+    "tests/e2e/test_render_command.py": 78,
+    "tests/e2e/test_compare.py": 58,
+    "tests/e2e/test_web_view.py": 51,
+    "tests/contracts/test_contracts.py": 40,
+    "tests/e2e/test_helios.py": 39,
+    "tests/e2e/test_docs_snippets.py": 36,
+    "tests/e2e/test_sweep_cluster.py": 34,
+    "tests/e2e/test_sweep.py": 33,
+    "tests/e2e/test_recon.py": 25,
+    "tests/e2e/test_resume.py": 22,
+    "tests/e2e/test_plant_view_env.py": 22,
+    "tests/unit/test_plants.py": 20,
+    "tests/e2e/test_docs_site.py": 19,
+    "tests/e2e/test_traits_command.py": 19,
+    "tests/e2e/test_single_arm.py": 18,
+    "tests/unit/test_arm_visuals.py": 17,
+    "tests/e2e/test_reliability.py": 17,
+    "tests/unit/test_exact_pass_agreement.py": 16,
+    "tests/e2e/test_depth_sensor_runs.py": 16,
+    "tests/e2e/test_ros1.py": 15,
+    "tests/e2e/test_episode.py": 14,
+    "tests/e2e/test_ros2.py": 13,
+    "tests/e2e/test_wheel.py": 13,
+    "tests/unit/test_plant_surfaces.py": 13,
+    "tests/unit/test_render_raycast.py": 13,
+    "tests/e2e/test_turntable.py": 12,
+    "tests/e2e/test_gantry.py": 10,
+}
+
+
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    # heaviest modules first (a stable sort: within a module, and among the light ones, as collected)
+    items[:] = sorted(items, key=lambda item: -MODULE_SECONDS.get(item.nodeid.split("::")[0], 0))
     gpu = [item for item in items if "gpu" in item.keywords]
     if gpu and not _cuda_usable():
         skip = pytest.mark.skip(reason="needs an NVIDIA GPU usable by Mitsuba (run on the GPU machine)")

@@ -374,3 +374,12 @@ def test_no_module_is_over_600_lines() -> None:
 def test_the_core_stays_within_its_size() -> None:
     lines = sum(len(p.read_text().splitlines()) for p in (REPO / "core").rglob("*.py"))
     assert lines <= CORE_LINES, f"core/ holds {lines} lines of Python, more than {CORE_LINES}"
+
+
+def test_the_modules_the_scheduler_hands_out_first_exist() -> None:
+    """tests/conftest.py's MODULE_SECONDS orders the suite: a renamed module would silently fall
+    back to its collection order."""
+    from conftest import MODULE_SECONDS
+
+    missing = [name for name in MODULE_SECONDS if not (REPO / name).is_file()]
+    assert not missing, missing
