@@ -20,8 +20,8 @@ RIGS = [
     ("paper: two UR10s, the hemisphere", {}),
     ("single-arm --robot xarm7", {"rig": {"backend": "single-arm", "single-arm": {"robot": "xarm7"}}}),
     (
-        "turntable in the cabinet room (--set room.backend=cabinet)",
-        {"rig": {"backend": "turntable"}, "room": {"backend": "cabinet"}, "routine": {"setpoints": "3x8"}},
+        "turntable, in the cabinet room (--rig turntable)",
+        {"rig": {"backend": "turntable"}, "routine": {"setpoints": "3x8"}},
     ),
     ("gantry: an XYZ stage, a pan-tilt camera (--rig gantry)", {"rig": {"backend": "gantry"}}),
 ]

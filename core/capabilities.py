@@ -58,6 +58,15 @@ class PhysicsCapabilities:
 
 
 @dataclass(frozen=True)
+class RigCapabilities:
+    """What a rig's cell asks of the run."""
+
+    room: str | None = None
+    """The room drawn around it where ``[room] backend`` is not set (the turntable's ``cabinet``,
+    symmetric about the stage's axis: its views are then the turned plant's exactly)."""
+
+
+@dataclass(frozen=True)
 class ReconstructorCapabilities:
     """What a reconstructor produces."""
 
@@ -92,6 +101,7 @@ CAPABILITIES: dict[str, type] = {
     "sensor": SensorCapabilities,
     "physics": PhysicsCapabilities,
     "reconstructor": ReconstructorCapabilities,
+    "rig": RigCapabilities,
 }
 
 
@@ -103,6 +113,8 @@ def describe(capabilities: object) -> str:
             parts.append(f"{name.replace('_', ' ')} {', '.join(sorted(value)) or 'none'}")
         elif value is True:
             parts.append(name.replace("_", " "))
+        elif isinstance(value, str):  # e.g. a rig's room
+            parts.append(f"{name.replace('_', ' ')} {value}")
     return "; ".join(parts) or "none"
 
 
@@ -119,8 +131,7 @@ def check_renderer(
     ``points``; through a distorting lens, with ``lens``; keeping linear radiance for an imager,
     with ``radiance``) if it cannot do them.
 
-    ``renderers`` are all installed renderers, to name those that could.
-    """
+    ``renderers`` are all installed renderers, to name those that could."""
 
     def missing(caps: RendererCapabilities) -> list[str]:
         out = [f"segmentation mode {m!r}" for m in seg_modes if m not in caps.seg_modes]

@@ -175,8 +175,7 @@ def agrisim_run_started(run: Run) -> None:
     """The run is validated and its backends are built; nothing has moved yet.
 
     ``run.config`` is the configuration actually used, ``run.cell`` the robot cell, and
-    ``run.out_dir`` the output directory (already created).
-    """
+    ``run.out_dir`` the output directory (already created)."""
 
 
 @hookspec

@@ -116,8 +116,7 @@ class PhysicsBackend(ABC):
         """Run the arms' trajectories together from the current simulated time.
 
         Each trajectory's ``t`` starts at 0. After its end an arm holds its last position until
-        ``settled(robot, q)`` holds or ``timeout`` seconds of simulated time pass.
-        """
+        ``settled(robot, q)`` holds or ``timeout`` seconds of simulated time pass."""
 
     @property
     @abstractmethod
@@ -148,8 +147,7 @@ class Planner(ABC):
         """Waypoints (M x dof, first = start, last = goal) whose straight segments are valid
         when checked every ``resolution`` radians (see :mod:`agrisim.robot.segments`).
 
-        Raises :class:`PlanningFailed` when there is none within the planner's budget.
-        """
+        Raises :class:`PlanningFailed` when there is none within the planner's budget."""
 
 
 class Renderer(ABC):
@@ -158,8 +156,7 @@ class Renderer(ABC):
     Built once per run as ``factory(scene, cell, settings, options)``: ``scene`` is the
     :class:`agrisim.scene.model.Scene` (room, plant, lights, label table), ``cell`` gives the arms'
     URDFs (their visual meshes), ``settings`` the run-wide :class:`agrisim.config.RenderConfig`
-    (segmentation mode, shadow samples, ...) and ``options`` the backend's own options.
-    """
+    (segmentation mode, shadow samples, ...) and ``options`` the backend's own options."""
 
     def __init__(self, scene: Scene, cell: Cell, settings: RenderConfig, options: Any) -> None:
         self.scene = scene
@@ -219,8 +216,7 @@ class DepthSensor(ABC):
 
     Built once per run as ``factory(scene, cell, settings, options)``, like a renderer (the
     sensor casts its own rays into the same scene); the exact sensor measures what the renderer
-    drew and returns None.
-    """
+    drew and returns None."""
 
     def __init__(self, scene: Scene, cell: Cell | None, settings: RenderConfig, options: Any) -> None:
         self.scene = scene
@@ -255,8 +251,7 @@ class Reconstructor(ABC):
     Built once per run as ``factory(labels, options)``: ``labels`` is the run's
     :class:`agrisim.scene.model.LabelTable`; every non-background label is reconstructed on its own and
     all of them together as ``"all"``. Views arrive as :class:`View` (images as the
-    dataset stores them), in capture order.
-    """
+    dataset stores them), in capture order."""
 
     def __init__(self, labels: LabelTable, options: Any) -> None:
         self.labels = labels

@@ -101,8 +101,7 @@ class BackendSpec:
     ``factory(*context, options)`` builds the backend: the kind's context first, as
     :attr:`KindInfo.factory` names it (``factory(cell, options)`` for physics, ``factory(options)``
     for a planner), then ``options``, an instance of ``options_model`` validated from the user's
-    configuration (its field docstrings are the documentation users see).
-    """
+    configuration (its field docstrings are the documentation users see)."""
 
     name: str
     factory: Callable[..., Any]
@@ -124,8 +123,7 @@ class LazyFactory:
     """A factory named by ``"module:attribute"`` and imported on its first call.
 
     Describing a backend (``agrisim plugins``, validating a configuration) then imports none of
-    its libraries; building it does. A provider writes ``factory=lazy("pkg.backend:MyBackend")``.
-    """
+    its libraries; building it does. A provider writes ``factory=lazy("pkg.backend:MyBackend")``."""
 
     def __init__(self, target: str) -> None:
         module, sep, attribute = target.partition(":")

@@ -35,8 +35,7 @@ class Options(BaseModel):
 
     Subclass it and give every field a docstring under it: ``agrisim plugins --options`` shows
     them, and they are the descriptions of the JSON schema. Unknown keys are refused (a typo is
-    an error, not a setting silently ignored), and so is ``true``/``false`` for a number.
-    """
+    an error, not a setting silently ignored), and so is ``true``/``false`` for a number."""
 
     model_config = ConfigDict(extra="forbid", use_attribute_docstrings=True)
 

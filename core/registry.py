@@ -50,8 +50,7 @@ def make_plugin_manager(*, autoload: bool | None = None) -> pluggy.PluginManager
     """A fresh plugin manager with agrisim's hookspecs and the installed plugins.
 
     Built per run (nothing happens at import time). ``check_pending()`` turns a misspelt hook
-    implementation into an error instead of silently ignoring it.
-    """
+    implementation into an error instead of silently ignoring it."""
     pm = pluggy.PluginManager(hookspecs.PROJECT)
     pm.add_hookspecs(hookspecs)
     if autoload is None:
@@ -209,8 +208,7 @@ class Registry:
 
         Raises:
             BackendFailure: the factory returned something else; names the plugin and its
-                distribution. (Exceptions of the factory itself propagate unchanged.)
-        """
+                distribution. (Exceptions of the factory itself propagate unchanged.)"""
         built = spec.factory(*args)
         abc = KINDS[kind].abc
         if abc is not None and not isinstance(built, abc):

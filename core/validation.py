@@ -67,6 +67,8 @@ def check_run(registry: Registry, config: RunConfig, *, preflight: bool = True) 
         return spec, options
 
     rig = chosen("rig", config.rig)
+    if "backend" not in config.room.model_fields_set and (room := getattr(rig[0].capabilities, "room", None)):
+        config.room.backend = room  # (then set, as run.json records it)
     found = Validated(chosen("physics", config.physics), chosen("planner", config.planner), camera_of(config.camera))
     found.rig = rig
     found.sinks = _sink_options(registry, config, preflight)

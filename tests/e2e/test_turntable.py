@@ -58,6 +58,26 @@ def test_every_camera_shoots_at_every_stage_angle(run: Path) -> None:
     assert reached == [f"c{c}_{k:03d}" for c in (1, 2) for k in range(4)]
 
 
+@pytest.mark.parametrize(("room", "drawn"), [(None, "cabinet"), ("lab", "lab"), ("cabinet", "cabinet")])
+def test_the_turntable_stands_in_the_cabinet_unless_a_room_is_named(room: str | None, drawn: str) -> None:
+    """The cabinet is symmetric about the stage's axis (the orbit is then the turned plant
+    exactly): the rig asks for it where ``[room] backend`` is not set, and a run records it."""
+    from agrisim.config import build_config
+    from agrisim.validation import check_run
+
+    sections: dict = {"rig": {"backend": "turntable"}, "physics": {"backend": "kinematic"}}
+    if room is not None:
+        sections["room"] = {"backend": room}
+    config = build_config(sections)
+    check_run(Registry(make_plugin_manager()), config, preflight=False)
+    assert config.room.backend == drawn
+    assert build_config(json.loads(config.model_dump_json())).room.backend == drawn  # as run.json has it
+
+
+def test_a_run_records_the_room_its_rig_asked_for(run: Path) -> None:
+    assert json.loads((run / layout.RUN_JSON).read_text())["config"]["room"]["backend"] == "cabinet"
+
+
 def test_the_cameras_orbit_the_plant_by_minus_the_stage_angle(run: Path) -> None:
     """In the plant's frame a camera at stage angle a is its pose at 0 turned by -a about the
     stage's axis; the two cameras stay on one column (the same azimuth, other heights)."""

@@ -13,6 +13,7 @@ from __future__ import annotations
 from pydantic import Field, model_validator
 
 from agrisim import BackendSpec, Options, hookimpl
+from agrisim.capabilities import RigCapabilities
 from agrisim.kinds import lazy
 
 
@@ -56,5 +57,8 @@ def agrisim_rigs() -> list[BackendSpec]:
             description="the plant on a rotating stage, one to three cameras fixed on a column; the stage's "
             "angles times the cameras",
             options_model=TurntableOptions,
+            # the cabinet is symmetric about the stage's axis: simulated in the stage's frame, the
+            # views are those of the turned plant in front of fixed cameras (the lab would turn)
+            capabilities=RigCapabilities(room="cabinet"),
         )
     ]
