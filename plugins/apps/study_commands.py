@@ -31,9 +31,24 @@ def _nextview_arguments(nextview: argparse.ArgumentParser) -> None:
     nextview.add_argument(
         "--policies", default=",".join(POLICIES), help=f"comma-separated: {', '.join(POLICIES)} (all)"
     )
-    nextview.add_argument("--views", type=int, default=30, metavar="N", help="views each policy but paper takes (30)")
+    nextview.add_argument(
+        "--views", type=int, metavar="N", help="views each policy but paper takes: the one budget N (see --budgets)"
+    )
+    nextview.add_argument(
+        "--budgets",
+        metavar="N,N,...",
+        help="the views to report coverage at, comma-separated; each policy but paper takes the largest (5,10,20,30); "
+        "with --report, the views to report the benchmark in --out at",
+    )
     nextview.add_argument("--resolution", default="480x270", metavar="WxH", help="the camera's images (480x270)")
-    nextview.add_argument("--seed", type=int, default=0, metavar="N", help="plant and policy seed (0)")
+    nextview.add_argument("--seed", type=int, metavar="S", help="the one seed S: the plant's, the episode's (0)")
+    nextview.add_argument(
+        "--seeds",
+        type=int,
+        metavar="N",
+        help="N seeds, 0 to N-1, each the plant's and the episode's: the mean and 95%% interval over them, "
+        "each policy paired against random",
+    )
     nextview.add_argument("--out", type=Path, default=Path("nextview"), help="output directory (./nextview)")
     nextview.add_argument("--overwrite", action="store_true", help="replace a benchmark already in --out")
     nextview.add_argument(
@@ -159,12 +174,13 @@ def _cmd_nextview(args: argparse.Namespace) -> int:
     from agrisim.plugins.apps.nextview.study import (
         check_candidates,
         check_request,
-        pivot,
         plot,
         prepare_out,
-        read_episodes,
+        read_benchmark,
+        report,
+        resolve_budgets,
+        resolve_seeds,
         run_benchmark,
-        table,
     )
     from agrisim.plugins.apps.progress import EpisodeProgress
     from agrisim.registry import Registry, make_plugin_manager
@@ -173,16 +189,20 @@ def _cmd_nextview(args: argparse.Namespace) -> int:
     if args.report:
         if not (out / "nextview.json").is_file():
             raise UserError(f"{out} holds no benchmark (nextview.json) to report")
-        episodes = read_episodes(out / "nextview.json")
-        print(table(episodes) + "\n\n" + pivot(episodes))
-        plot(episodes, out / "nextview.png")
+        episodes, budgets = read_benchmark(out / "nextview.json")
+        if args.budgets is not None or args.views is not None:
+            budgets = resolve_budgets(args.views, args.budgets)
+        print(report(episodes, budgets))
+        plot(episodes, out / "nextview.png", budgets)
         return 0
 
+    budgets = resolve_budgets(args.views, args.budgets)
+    seeds = resolve_seeds(args.seed, args.seeds)
     # "all": the paper's ten species (the built-in species; Helios crops are named one by one)
     species = [name for name in Registry(make_plugin_manager()).specs("plant") if ":" not in name]
     plants = species if args.plant == ["all"] else list(args.plant)
     policies = [p.strip() for p in args.policies.split(",") if p.strip()]
-    check_request(plants, policies, args.views)
+    check_request(plants, policies, max(budgets))
     overrides: dict[str, Any] = {}
     apply_sets(overrides, args.set)
     options = {"resolution": args.resolution, "config": overrides}
@@ -190,9 +210,11 @@ def _cmd_nextview(args: argparse.Namespace) -> int:
         check_candidates(plant, options)
     prepare_out(out, args.overwrite)
     with EpisodeProgress("views") as progress:
-        episodes = run_benchmark(plants, policies, args.views, out, options, args.seed, progress.stage)
-    print(table(episodes) + "\n\n" + pivot(episodes))
-    plot(episodes, out / "nextview.png")
+        episodes = run_benchmark(
+            plants, policies, max(budgets), out, options, progress=progress.stage, seeds=seeds, budgets=budgets
+        )
+    print(report(episodes, budgets))
+    plot(episodes, out / "nextview.png", budgets)
     print(f"wrote {out / 'nextview.json'} and {out / 'nextview.png'}")
     return 0
 
@@ -236,7 +258,9 @@ COMMANDS = [
         help="which views to take: policies compared on agrisim/PlantView-v0 (coverage against views and motion)",
         description="Run each policy's episode on each plant in agrisim/PlantView-v0 (the paper's 100 views first: "
         "the coverage the others must reach), and write OUT/nextview.json (coverage and motion after every view), "
-        "OUT/nextview.png and a run directory per episode; print the table.",
+        "OUT/nextview.png and a run directory per episode; print the table. --seeds N runs every episode on N "
+        "seeds and reports each policy's mean coverage at each of --budgets with a 95% interval, paired against "
+        "random, the share of the oracle's gap it closes and its time deciding beside the arms' motion.",
         add_arguments=_nextview_arguments,
         run=_cmd_nextview,
     ),
