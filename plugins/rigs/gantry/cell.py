@@ -16,7 +16,8 @@ from agrisim.errors import UserError
 from agrisim.interfaces import Rig
 from agrisim.plugins.rigs.gantry import GantryOptions
 from agrisim.plugins.rigs.gantry.urdf import HEAD_TOP, JOINTS, gantry_urdf, portal, viewpoint_joints, z_max
-from agrisim.robot.cell import Arm, Box, Cell, Cylinder, Obstacle
+from agrisim.plugins.rigs.paper.cell import plant_table
+from agrisim.robot.cell import Arm, Cell
 from agrisim.robot.kinematics import ArmKinematics
 from agrisim.robot.setpoints import Setpoint
 from agrisim.robot.urdf import CAMERA_FRAME
@@ -67,22 +68,8 @@ class GantryRig(Rig):
 
     def cell(self) -> Cell:
         cfg, o = self.settings, self.options
-        top = cfg.table_height
-        centre = np.array([0.0, 0.0, top])
-        obstacles: list[Obstacle] = [
-            Box("floor", (6.0, 6.0, 0.02), translation(0.0, 0.0, -0.01)),
-            Box("table", (cfg.table_size, cfg.table_size, top), translation(0.0, 0.0, top / 2)),
-            Cylinder("pot", cfg.pot_radius, cfg.pot_height, translation(0.0, 0.0, top + cfg.pot_height / 2)),
-        ]
-        if cfg.keepout_radius > 0 and cfg.keepout_height > 0:
-            obstacles.append(
-                Cylinder(
-                    "plant_keepout",
-                    cfg.keepout_radius,
-                    cfg.keepout_height,
-                    translation(0.0, 0.0, top + cfg.keepout_height / 2),
-                )
-            )
+        centre = np.array([0.0, 0.0, cfg.table_height])
+        obstacles = plant_table(cfg)
         travel = (o.travel_x, o.travel_y)
         obstacles += portal(travel, o.beam_height, centre)
         urdf = gantry_urdf(

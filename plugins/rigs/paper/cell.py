@@ -13,14 +13,14 @@ from agrisim.robot.setpoints import Setpoint
 from agrisim.robot.urdf import ur10_with_camera
 from agrisim.scene.transforms import look_at, translation, yaw_matrix
 
-__all__ = ["PaperRig", "build_cell", "hemisphere"]
+__all__ = ["PaperRig", "build_cell", "hemisphere", "plant_table"]
 
 
-def build_cell(cfg: CellConfig) -> Cell:
-    """The paper's cell: arms ``r1`` (+x side) and ``r2`` (-x side), facing the plant."""
-    urdf = ur10_with_camera()
+def plant_table(cfg: CellConfig) -> list[Obstacle]:
+    """The floor, the square plant table, the pot on it and the plant's keep-out (where
+    ``[cell]`` gives it one), as ``[cell]`` sizes them: what the paper's cell and the gantry's
+    stand around."""
     table_top = cfg.table_height
-    center = np.array([0.0, 0.0, table_top])
     obstacles: list[Obstacle] = [
         Box("floor", (6.0, 6.0, 0.02), translation(0.0, 0.0, -0.01)),
         Box("table", (cfg.table_size, cfg.table_size, table_top), translation(0.0, 0.0, table_top / 2)),
@@ -35,6 +35,14 @@ def build_cell(cfg: CellConfig) -> Cell:
                 translation(0.0, 0.0, table_top + cfg.keepout_height / 2),
             )
         )
+    return obstacles
+
+
+def build_cell(cfg: CellConfig) -> Cell:
+    """The paper's cell: arms ``r1`` (+x side) and ``r2`` (-x side), facing the plant."""
+    urdf = ur10_with_camera()
+    center = np.array([0.0, 0.0, cfg.table_height])
+    obstacles = plant_table(cfg)
     arms = []
     for i, side in enumerate((1.0, -1.0)[: cfg.arms]):
         name = f"r{i + 1}"
