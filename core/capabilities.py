@@ -47,6 +47,8 @@ class RendererCapabilities:
     radiance: bool = False
     """Keeps each view's linear radiance when its options' ``radiance`` is set (an imager
     makes its images from it)."""
+    plants: bool = False
+    """Tells a bench's plants apart: ``Frame.plants``, which plant each pixel shows."""
 
 
 @dataclass(frozen=True)
@@ -126,10 +128,11 @@ def check_renderer(
     points: bool = False,
     lens: bool = False,
     radiance: bool = False,
+    bench: bool = False,
 ) -> None:
     """Refuse rendering with ``spec`` in ``seg_modes`` with ``labels`` (and a point plant, with
     ``points``; through a distorting lens, with ``lens``; keeping linear radiance for an imager,
-    with ``radiance``) if it cannot do them.
+    with ``radiance``; a bench of plants, with ``bench``) if it cannot do them.
 
     ``renderers`` are all installed renderers, to name those that could."""
 
@@ -143,6 +146,8 @@ def check_renderer(
             out.append("through a lens's distortion")
         if radiance and not getattr(caps, "radiance", False):
             out.append("linear radiance for an imager")
+        if bench and not getattr(caps, "plants", False):
+            out.append("a bench's plants apart")
         return out
 
     lacking = missing(spec.capabilities)

@@ -344,6 +344,40 @@ class PointsConfig(_Model):
     spacing."""
 
 
+class BenchPlantConfig(_Model):
+    """One plant of a listed bench (``[[bench.plants]]``)."""
+
+    x: float = Field(ge=-5.0, le=5.0)
+    """Where its pot stands from the cell's plant centre along x, m."""
+    y: float = Field(ge=-5.0, le=5.0)
+    """... and along y, m."""
+    plant: str | None = None
+    """A species or a plant file, as ``--plant``; None: the run's plant."""
+    seed: int | None = Field(default=None, ge=0, le=2**32 - 1)
+    """The individual it grows; None: the run's plant seed plus its index on the bench."""
+
+
+class BenchConfig(_Model):
+    """Several plants in pots on one table: a grid (``--bench RxC --spacing M``) or a list."""
+
+    grid: str | None = None
+    """``RxC``: R rows along y by C columns along x, centred on the cell's plant centre."""
+    spacing: float = Field(default=0.5, gt=0.0, le=3.0)
+    """Distance between neighbouring pots of the grid, centre to centre, m."""
+    plants: list[BenchPlantConfig] = []
+    """The plants one by one, instead of a grid."""
+
+    @model_validator(mode="after")
+    def _one_layout(self) -> BenchConfig:
+        if (self.grid is None) == (not self.plants):
+            raise ValueError("[bench] takes a grid (--bench RxC) or a list of [[bench.plants]], one of them")
+        if self.grid is not None:
+            rows, cols = parse_grid(self.grid, "bench")
+            if rows * cols > 99:
+                raise ValueError(f"bench {self.grid}: at most 99 plants")
+        return self
+
+
 class RunConfig(_Model):
     """Everything one episode needs. Defaults reproduce the paper's experiment."""
 
@@ -355,6 +389,8 @@ class RunConfig(_Model):
     """Options for a plant read from a file."""
     points: PointsConfig = PointsConfig()
     """The plant as points (``--as-points``, ``--point-size``)."""
+    bench: BenchConfig | None = None
+    """Several plants instead of one (``--bench``); None: one plant in one pot."""
     plants: dict[str, dict[str, Any]] = {}
     """Options per plant species (``[plants.boxwood]``), validated by the species' own model;
     every species also takes ``seed`` (``--plant-seed``): the individual it grows, 0 to 2^32 - 1,
@@ -395,14 +431,15 @@ def depth_read(config: RunConfig) -> str:
     return "truth" if config.recon.depth == "truth" else f"sensor:{config.sensor.backend}"
 
 
-def parse_grid(text: str) -> tuple[int, int]:
-    """``"5x10"`` -> (5, 10)."""
+def parse_grid(text: str, what: str = "setpoints") -> tuple[int, int]:
+    """``"5x10"`` -> (5, 10); ``what`` names the setting in messages (``bench``: rows x columns)."""
+    form = "LxC (e.g. 5x10)" if what == "setpoints" else "RxC (e.g. 2x3)"
     parts = text.lower().split("x")
     if len(parts) != 2 or not all(p.strip().isdigit() for p in parts):
-        raise ValueError(f"setpoints must look like LxC (e.g. 5x10), got {text!r}")
+        raise ValueError(f"{what} must look like {form}, got {text!r}")
     levels, columns = int(parts[0]), int(parts[1])
     if not (1 <= levels <= 100 and 1 <= columns <= 100):
-        raise ValueError(f"setpoints {text!r}: L and C must be between 1 and 100")
+        raise ValueError(f"{what} {text!r}: {form[0]} and C must be between 1 and 100")
     return levels, columns
 
 

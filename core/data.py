@@ -5,6 +5,7 @@ exchange them are :mod:`agrisim.interfaces`, which serves these names too."""
 
 from __future__ import annotations
 
+import dataclasses
 import zlib
 from dataclasses import dataclass, field
 from typing import Any
@@ -87,6 +88,9 @@ class Frame:
     #: uint16 H x W raw Bayer frame (digital numbers, black level included) that an imager
     #: developed ``rgb`` from, when the run keeps it (``raw/<frame>.png``)
     raw: np.ndarray | None = None
+    #: uint16 H x W: which plant of a bench each pixel shows (its index in ``Scene.bench`` plus
+    #: one; 0 where no plant), or None for one plant
+    plants: np.ndarray | None = None
     # depth_mm's answer, kept: the dataset writer, the recording and the reconstruction all ask
     _depth_mm: np.ndarray | None = field(default=None, init=False, repr=False, compare=False)
 
@@ -104,7 +108,7 @@ class Frame:
         ``agrisim recon`` integrate bit-identical data."""
         depth = np.asarray(self.depth, np.float32) if exact_depth else mm_to_depth(self.depth_mm())
         sensed = None if self.depth_sensor is None else mm_to_depth(depth_to_mm(self.depth_sensor))
-        return Frame(self.rgb, self.labels, depth, self.instances, self.radiance, sensed, self.raw)
+        return dataclasses.replace(self, depth=depth, depth_sensor=sensed)
 
     def with_depth(self, source: str) -> Frame:
         """These images with the depth that ``source`` names: ``truth`` (as they are) or
@@ -112,21 +116,12 @@ class Frame:
         sensor is exact)."""
         if source == "truth" or self.depth_sensor is None:
             return self
-        return Frame(
-            self.rgb, self.labels, self.depth_sensor, self.instances, self.radiance, self.depth_sensor, self.raw
-        )
+        return dataclasses.replace(self, depth=self.depth_sensor)
 
     def copy(self) -> Frame:
         """A deep copy (the arrays too)."""
-        return Frame(
-            self.rgb.copy(),
-            self.labels.copy(),
-            self.depth.copy(),
-            None if self.instances is None else self.instances.copy(),
-            None if self.radiance is None else self.radiance.copy(),
-            None if self.depth_sensor is None else self.depth_sensor.copy(),
-            None if self.raw is None else self.raw.copy(),
-        )
+        fields = (f.name for f in dataclasses.fields(self) if f.init)
+        return Frame(**{name: None if (a := getattr(self, name)) is None else a.copy() for name in fields})  # type: ignore[arg-type]
 
 
 @dataclass

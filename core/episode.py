@@ -111,6 +111,7 @@ class Episode:
         with _timed(self._prep_wall, "scene"), blame("room", room_spec, " building the scene"):
             room = self.registry.build("room", room_spec, self.cell, room_options)
             self.scene = room.scene(self.plant, seed=config.pcg_seed, labels=config.render.labels)
+            self.scene.bench = list(self.plant.bench)  # (the room joined the bench's plants as one)
         if checked.recon is not None:
             self.recon_spec, self.recon_options = checked.recon
 

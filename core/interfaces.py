@@ -30,7 +30,7 @@ from agrisim.data import (
 )
 from agrisim.errors import PlanningFailed
 from agrisim.scene.camera import CameraModel
-from agrisim.scene.model import LabelTable, Mesh, Plant, Scene
+from agrisim.scene.model import BenchPlant, LabelTable, Mesh, Plant, Scene
 
 if TYPE_CHECKING:
     from agrisim.config import CellConfig, PlantFileConfig, RenderConfig, RoutineConfig
@@ -350,6 +350,10 @@ class Rig(ABC):
     UR10s on stands either side of the pot): its arms (URDF, base pose, joints, camera frame,
     home), the obstacles, where the plant stands, and the routine's default viewpoints. Built
     once a run by ``factory(settings: CellConfig, options)``, ``settings`` the run's ``[cell]``."""
+
+    #: the run's bench of plants, set before :meth:`cell` is asked (a rig may size itself to
+    #: it; the core then adds a pot for each plant, :func:`agrisim.bench.bench_cell`); empty: one plant
+    bench: tuple[BenchPlant, ...] = ()
 
     def __init__(self, settings: CellConfig, options: Any) -> None:
         self.settings = settings

@@ -5,18 +5,20 @@ glTF/GLB/OBJ mesh, a PLY/PCD point cloud, or a plugin's format); then drawn as p
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Iterator, Mapping
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
 from pydantic import BaseModel
 
+from agrisim.bench import bench_layout, join_plants
 from agrisim.config import RunConfig, backend_options
 from agrisim.errors import UserError
 from agrisim.interfaces import PlantReader
 from agrisim.kinds import BackendSpec
 from agrisim.registry import DISTRIBUTION, Registry, blame
-from agrisim.scene.model import Plant
+from agrisim.scene.model import BenchPlant, Plant
 from agrisim.scene.plant_cache import grown
 from agrisim.scene.points import as_points, check_count, check_size
 
@@ -62,9 +64,28 @@ def _check_points(config: RunConfig) -> None:
         check_size(config.points.size)
 
 
+def bench_configs(registry: Registry, config: RunConfig) -> list[tuple[BenchPlant, RunConfig]]:
+    """Each plant of the run's bench with the run's settings for it alone (its plant, its seed)."""
+    species = registry.specs("plant")
+    out = []
+    for slot in bench_layout(config):
+        plants = dict(config.plants)
+        if slot.plant in species:
+            plants[slot.plant] = {**plants.get(slot.plant, {}), "seed": slot.seed}
+        out.append((slot, config.model_copy(update={"plant": slot.plant, "plants": plants, "bench": None})))
+    return out
+
+
 def check_plant_name(registry: Registry, config: RunConfig) -> None:
-    """Is ``config.plant`` a registered species or an asset file that exists, and are the
-    ``[points]`` settings sane? (Without growing or reading it.)"""
+    """Is ``config.plant`` (each of a bench's) a registered species or an asset file that exists,
+    and are the ``[points]`` settings sane? (Without growing or reading it.)"""
+    if config.bench is not None:
+        if draws_points(registry, config):
+            raise UserError("bench: plants are drawn as meshes; a point cloud or --as-points holds one plant")
+        for slot, one in bench_configs(registry, config):
+            with _on_bench(slot):
+                check_plant_name(registry, one)
+        return
     _check_points(config)
     name = config.plant
     if name in registry.specs("plant"):
@@ -90,6 +111,15 @@ def _read_file(registry: Registry, config: RunConfig, reader: PlantReader | None
     return reader.read(Path(name), config.plant_file)
 
 
+@contextmanager
+def _on_bench(slot: BenchPlant) -> Iterator[None]:
+    """A bench plant's errors name it."""
+    try:
+        yield
+    except UserError as exc:
+        raise type(exc)(f"bench {slot.name}: {exc}") from None
+
+
 def plant_seed(name: str, value: object) -> int:
     """``[plants.NAME] seed`` (``--plant-seed``), checked: an integer 0 .. 2^32 - 1."""
     if isinstance(value, bool) or not isinstance(value, int) or not 0 <= value <= 2**32 - 1:
@@ -109,8 +139,15 @@ def species_options(spec: BackendSpec, name: str, table: Mapping[str, Any], defa
 
 def resolve_plant(registry: Registry, config: RunConfig) -> Plant:
     """The plant ``config.plant`` names: a registered species grown from its ``seed`` (its
-    table's, else ``config.seed``), or a
-    mesh or point-cloud file; drawn as points as ``config.points`` says."""
+    table's, else ``config.seed``), or a mesh or point-cloud file; drawn as points as
+    ``config.points`` says. A bench's plants are joined into one (:func:`agrisim.bench.join_plants`)."""
+    if config.bench is not None:
+        slots, plants = [], []
+        for slot, one in bench_configs(registry, config):
+            with _on_bench(slot):
+                plants.append(resolve_plant(registry, one))
+            slots.append(slot)
+        return join_plants(plants, slots)
     _check_points(config)
     name = config.plant
     species = registry.specs("plant")

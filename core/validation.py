@@ -13,6 +13,7 @@ from dataclasses import dataclass, field
 
 from pydantic import BaseModel
 
+from agrisim.bench import bench_cell, bench_layout
 from agrisim.camera_choice import camera_of
 from agrisim.capabilities import check_reconstructor, check_renderer, check_sensor
 from agrisim.config import BackendChoice, ImagerConfig, RunConfig, backend_options
@@ -100,6 +101,7 @@ def check_run(registry: Registry, config: RunConfig, *, preflight: bool = True) 
         points=points,
         lens=not found.camera.pinhole,
         radiance=config.imager.model != "none",
+        bench=config.bench is not None,
     )
     found.sensor = chosen("sensor", config.sensor)
     check_sensor(found.sensor[0], registry.specs("sensor"), points=points)
@@ -184,9 +186,12 @@ def open_rig(config: RunConfig, registry: Registry | None = None, chosen: Chosen
     spec, options = chosen
     with blame("rig", spec, " building the cell"):
         rig: Rig = registry.build("rig", spec, config.cell, options)
+        rig.bench = tuple(bench_layout(config)) if config.bench is not None else ()
         cell = rig.cell()
     if not cell.arms:  # (a fixed camera is an arm too: a turntable's are one-joint robots)
         raise ConfigError(f"rig {spec.name!r} has no camera: its cell holds no arm to carry one")
+    if rig.bench:
+        cell = bench_cell(cell, list(rig.bench), spec.name)
     return rig, cell
 
 

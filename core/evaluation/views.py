@@ -66,7 +66,7 @@ def load_depth(run_dir: Path, frame: str) -> np.ndarray:
 
 def load_frame(run_dir: Path, frame: str, camera: CameraModel) -> Frame:
     """A frame's images on disk (``rgb/``, ``labels/``, ``depth/`` as EXR if there, else PNG,
-    ``instances/`` and ``depth_sensor/`` where the run has them)."""
+    ``instances/``, ``plants/`` and ``depth_sensor/`` where the run has them)."""
     rgb = _read_png(layout.image(run_dir, "rgb", frame), "rgb")
     labels = _read_png(layout.image(run_dir, "labels", frame), "labels")
     depth = load_depth(run_dir, frame)
@@ -83,7 +83,9 @@ def load_frame(run_dir: Path, frame: str, camera: CameraModel) -> Frame:
     path = layout.image(run_dir, layout.DEPTH_SENSOR, frame)
     if path.exists():
         sensed = mm_to_depth(_read_png(path, "depth_sensor").astype(np.uint16))
-    return Frame(rgb, labels.astype(np.uint8), depth, instances, depth_sensor=sensed)
+    path = layout.image(run_dir, layout.PLANTS, frame)
+    plants = _read_png(path, "plants").astype(np.uint16) if path.exists() else None
+    return Frame(rgb, labels.astype(np.uint8), depth, instances, depth_sensor=sensed, plants=plants)
 
 
 def load_view(run_dir: Path, frame: str, camera: CameraModel, world_T_camera: np.ndarray, depth: str = "truth") -> View:

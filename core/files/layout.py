@@ -4,7 +4,7 @@
 
     OUT/run.json               what ran and how far it got (status, per-setpoint results)
     OUT/cameras.json           intrinsics and the pose of every complete frame
-    OUT/<folder>/<frame>.png   folder: rgb, labels, labels_vis, depth, instances
+    OUT/<folder>/<frame>.png   folder: rgb, labels, labels_vis, depth, instances, plants (a bench's)
     OUT/depth/<frame>.exr      float32 planar depth in metres (--depth-format exr or both)
     OUT/masks/<frame>.png      nerfstudio's masks (255 = plant)
     OUT/clouds/<label>.ply     reconstructed clouds; <label>_mesh.ply for surfaces
@@ -52,8 +52,10 @@ COLMAP = "colmap"
 DEPTH_SENSOR = "depth_sensor"
 #: the imager's raw Bayer frames (``imager.raw``)
 RAW = "raw"
+#: which plant of a bench each pixel shows (uint16; 0: none, k: the bench's k-th plant)
+PLANTS = "plants"
 #: the image folders of a frame, each holding ``<frame>.png``
-FRAME_FOLDERS = ("rgb", "labels", "labels_vis", "depth", "instances", DEPTH_SENSOR, RAW)
+FRAME_FOLDERS = ("rgb", "labels", "labels_vis", "depth", "instances", PLANTS, DEPTH_SENSOR, RAW)
 #: the folders every complete rendered frame has (instances only where leaves are numbered)
 REQUIRED_FOLDERS = ("rgb", "labels", "depth")
 

@@ -13,7 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from agrisim.robot.urdf import ARM_JOINTS, CAMERA_FRAME
-from agrisim.scene.model import Label, LabelTable, Mesh, Plant, PointSet
+from agrisim.scene.model import BenchPlant, Label, LabelTable, Mesh, Plant, PointSet
 from agrisim.scene.transforms import translation
 
 SOIL_INSET = 0.015
@@ -67,6 +67,8 @@ class Cell:
     arms: tuple[Arm, ...]
     obstacles: tuple[Obstacle, ...]
     plant_center: np.ndarray
+    #: the plants of a bench (their pots ``pot_01``...; :func:`agrisim.bench.bench_cell`), else empty
+    bench: tuple[BenchPlant, ...] = ()
 
     def arm(self, name: str) -> Arm:
         for arm in self.arms:
@@ -80,12 +82,14 @@ class Cell:
 
 
 def soil_pose(cell: Cell) -> np.ndarray:
-    """``world_T_plant``: the plant frame on the soil surface (centre of the pot, z up)."""
-    pot = next((ob for ob in cell.obstacles if ob.name == "pot"), None)
+    """``world_T_plant``: the plant frame on the soil surface (centre of the pot, z up); a
+    bench's frame: on its soil, below the cell's plant centre."""
+    pot = next((ob for ob in cell.obstacles if ob.name in ("pot", "pot_01")), None)
     if pot is None:
         return translation(*cell.plant_center)
     assert isinstance(pot, Cylinder)
-    return pot.world_T @ translation(0.0, 0.0, pot.height / 2 - min(SOIL_INSET, pot.height / 3))
+    soil = pot.world_T @ translation(0.0, 0.0, pot.height / 2 - min(SOIL_INSET, pot.height / 3))
+    return translation(cell.plant_center[0], cell.plant_center[1], soil[2, 3]) if cell.bench else soil
 
 
 @dataclass

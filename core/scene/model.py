@@ -80,7 +80,7 @@ class Material:
     """glTF's ``normalTexture.scale``: multiplies the map's x and y before normalising."""
     nir: float | None = None
     """Diffuse reflectance in the near infrared (about 850 nm, where depth cameras illuminate),
-    0 to 1; None: estimated from the visible albedo (:func:`agrisim.scene.nir.nir_reflectance`).
+    0 to 1; None: estimated from the visible albedo (:func:`agrisim.plugins.sensors.nir.nir_reflectance`).
     Depth sensors use it; leaves are far brighter there than their green suggests."""
     back_color: tuple[float, float, float] | None = None
     """Double-sided surfaces whose back differs from their front (a leaf's lower side, paler
@@ -304,6 +304,20 @@ PLANT_FIT_RADIUS = 0.27
 PLANT_FIT_HEIGHT = 0.39
 
 
+@dataclass(frozen=True)
+class BenchPlant:
+    """One plant of a bench (``[bench]``): its name (``plant_01``...), what grew it (a species or
+    a file) and from which seed, where its pot stands from the bench's centre (x, y, m), and
+    which faces of the joined plant mesh are its own (``range(*faces)``). Its id in the
+    ``plants/`` masks is its place in the bench's list plus one."""
+
+    name: str
+    plant: str
+    seed: int
+    xy: tuple[float, float]
+    faces: tuple[int, int] = (0, 0)
+
+
 @dataclass
 class Plant:
     """A plant asset: its mesh in the plant frame and the label table its materials use.
@@ -324,6 +338,8 @@ class Plant:
     seed: int = 0
     notes: list[str] = field(default_factory=list)
     points: PointSet | None = None
+    bench: list[BenchPlant] = field(default_factory=list)
+    """The plants it joins, when it is a bench (:func:`agrisim.bench.join_plants`); else empty."""
 
 
 @dataclass
@@ -344,6 +360,8 @@ class Scene:
     source: Mesh | None = None
     """The surface a point plant was sampled from (world; ``--as-points``), not drawn: the
     ground truth of accuracy. None for mesh plants and for scans."""
+    bench: list[BenchPlant] = field(default_factory=list)
+    """The bench's plants, each a range of the plant mesh's faces; empty for one plant."""
 
     def plant_surface(self) -> Mesh | None:
         """The plant's true surface in world coordinates: its drawn mesh, or the mesh its points

@@ -55,6 +55,10 @@ def episode_flags(parser: argparse.ArgumentParser) -> None:
         "--plant-seed", type=int, metavar="N", help="grow another individual of the species (default: --seed)"
     )
     run.add_argument(
+        "--bench", metavar="RxC", help="a bench of R rows by C columns of plants instead of one (e.g. 2x3)"
+    )
+    run.add_argument("--spacing", type=float, metavar="M", help="the bench's pot spacing, metres (default: 0.5)")
+    run.add_argument(
         "--as-points",
         type=int,
         metavar="N",
@@ -177,6 +181,8 @@ def overrides_from_args(args: argparse.Namespace) -> dict[str, Any]:
         "plant": args.plant,
         "plant_age": args.plant_age,
         "plant_seed": args.plant_seed,
+        "bench.grid": args.bench,
+        "bench.spacing": args.spacing,
         "points.count": args.as_points,
         "points.size": args.point_size,
         "render.seg_mode": args.seg_mode,

@@ -54,7 +54,7 @@ from agrisim.files import layout
 from agrisim.files.atomic import staged_dir
 from agrisim.files.rundir import read_json, read_run
 from agrisim.interfaces import Exporter
-from agrisim.robot.tf_tree import WORLD, ArmFrames, quaternions
+from agrisim.plugins.ros.tf_tree import WORLD, ArmFrames, quaternions
 from agrisim.scene.calibration import ros_distortion
 from agrisim.scene.encoding import rep118
 

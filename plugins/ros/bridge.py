@@ -15,8 +15,8 @@ import numpy as np
 from agrisim import hookimpl
 from agrisim.interfaces import Bridge, Capture
 from agrisim.plugins.ros.live import LiveSession, Refused
+from agrisim.plugins.ros.tf_tree import ArmFrames, quaternions
 from agrisim.records import Run
-from agrisim.robot.tf_tree import ArmFrames, quaternions
 from agrisim.scene.calibration import ros_distortion
 from agrisim.scene.encoding import rep118
 

@@ -25,7 +25,7 @@ Each imager's image is the scene's infrared radiance through its pixel centres, 
 as the renderer has them). The radiance has two parts. The passive part is the room's light on
 the surface's texture: its visible albedo's luminance under a uniform ``ambient``. The active
 part is the projector's dot pattern on the surface's near-infrared reflectance
-(:mod:`agrisim.scene.nir`), with the inverse-square falloff from the projector and its
+(:mod:`agrisim.plugins.sensors.nir`), with the inverse-square falloff from the projector and its
 incidence. A point the projector cannot see gets no dots (a shadow ray, cut-out texels letting
 light through). Then shot noise and read noise, and 8 bits, as the imagers' Y8 output.
 

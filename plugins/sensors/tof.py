@@ -9,7 +9,7 @@ Each pixel integrates the returns of ``subsamples`` x ``subsamples`` rays over i
 traced exactly into the scene (:class:`~agrisim.plugins.render.raycast.tracing.SceneTracer`,
 cut-out texels and culled faces as the renderer has them). A return is a phasor: amplitude
 ``rho cos(theta) / r^2`` (the scene is lit by the camera's own emitter: near-infrared
-reflectance ``rho``, :mod:`agrisim.scene.nir`; incidence ``theta``; range ``r``) and phase
+reflectance ``rho``, :mod:`agrisim.plugins.sensors.nir`; incidence ``theta``; range ``r``) and phase
 ``4 pi f r / c``. The pixel measures the phase of their sum: where a pixel straddles a depth
 edge, foreground and background mix into a range between them, the flying pixels of real ToF
 cameras, and their amplitudes partly cancel. The phase is unwrapped to the interval nearest the

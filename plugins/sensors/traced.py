@@ -13,10 +13,10 @@ import numpy as np
 
 from agrisim.config import RenderConfig
 from agrisim.interfaces import DepthSensor, Frame, SensorGeometry
+from agrisim.plugins.sensors.nir import nir_reflectance
 from agrisim.robot.cell import Cell
 from agrisim.scene.camera import CameraModel, view_seed
 from agrisim.scene.model import Scene
-from agrisim.scene.nir import nir_reflectance
 
 
 class TracedSensor(DepthSensor):

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 import trimesh
 
-from agrisim.scene.mesh_builder import MeshBuilder
+from agrisim.plugins.mesh_builder import MeshBuilder
 from agrisim.scene.model import Material
 from agrisim.scene.transforms import translation, yaw_matrix
 

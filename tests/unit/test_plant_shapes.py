@@ -175,8 +175,8 @@ def test_a_plate_cups_ripples_and_droops_as_it_says():
 def test_stems_taper_from_their_base_to_their_end():
     """A stem given one radius is a tube whose rings shrink linearly from that radius at its
     base to TAPER of it at its end (its vertices' distances from the straight axis)."""
+    from agrisim.plugins.mesh_builder import MeshBuilder
     from agrisim.plugins.plants.procedural.growing import TAPER, add_tubes
-    from agrisim.scene.mesh_builder import MeshBuilder
 
     b = MeshBuilder()
     path = np.stack([np.zeros(5), np.zeros(5), np.linspace(0.0, 0.2, 5)], axis=-1)[None]

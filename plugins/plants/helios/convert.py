@@ -31,7 +31,7 @@ from typing import Any
 
 import numpy as np
 
-from agrisim.scene import nir
+from agrisim.plugins.sensors import nir
 from agrisim.scene.colour import srgb_to_linear
 from agrisim.scene.model import LEAF_ROUGHNESS, LEAF_TRANSMITTANCE, Label, LabelTable, Material, Mesh
 from agrisim.scene.palette import PALETTE
@@ -51,7 +51,7 @@ TRANSLUCENT_ORGANS = ("leaf", "flower")
 
 def _look(organ: str) -> dict:
     """Looks of an organ's material: translucent leaves and petals, rougher stems (path
-    tracers), and its near-infrared reflectance (depth sensors, :mod:`agrisim.scene.nir`)."""
+    tracers), and its near-infrared reflectance (depth sensors, :mod:`agrisim.plugins.sensors.nir`)."""
     if organ in TRANSLUCENT_ORGANS:
         return {
             "roughness": LEAF_ROUGHNESS,

@@ -17,7 +17,8 @@ from pydantic import Field
 
 from agrisim import BackendSpec, Options, hookimpl
 from agrisim.interfaces import PlantSpecies
-from agrisim.scene import colour, nir
+from agrisim.plugins.sensors import nir
+from agrisim.scene import colour
 from agrisim.scene.model import (
     PLANT_FIT_HEIGHT,
     PLANT_FIT_RADIUS,

@@ -9,7 +9,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from agrisim.scene.mesh_builder import MeshBuilder
+from agrisim.plugins.mesh_builder import MeshBuilder
 from agrisim.scene.model import Label, LabelTable
 from agrisim.scene.palette import BACKGROUND, PALETTE
 

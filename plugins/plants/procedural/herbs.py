@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from agrisim.scene.mesh_builder import MeshBuilder
+from agrisim.plugins.mesh_builder import MeshBuilder
 
 from . import painters as P
 from .growing import (

@@ -79,6 +79,7 @@ def agrisim_renderers() -> list[BackendSpec]:
                 seg_modes=frozenset(SEG_MODES),
                 organ_labels=True,
                 leaf_instances=True,
+                plants=True,
                 soft_shadows=True,
                 supersampling=True,
                 rerender=True,

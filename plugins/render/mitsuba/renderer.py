@@ -267,7 +267,12 @@ class MitsubaRenderer(Renderer):
         )
         rgb, radiance = self.render_rgb(camera, world_T_camera, link_poses)
         return Frame(
-            rgb=rgb, labels=exact["labels"], depth=exact["depth"], instances=exact.get("instances"), radiance=radiance
+            rgb=rgb,
+            labels=exact["labels"],
+            depth=exact["depth"],
+            instances=exact.get("instances"),
+            radiance=radiance,
+            plants=exact.get("plants"),
         )
 
     def close(self) -> None:

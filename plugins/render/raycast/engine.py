@@ -143,6 +143,8 @@ class Engine:
         groups: dict[bool, tuple[list[np.ndarray], list[np.ndarray]]] = {False: ([], []), True: ([], [])}
         n_faces = 0
         self.has_instances = False
+        self.has_plants = False  # face_inst holds plant << 16 | leaf instance (a bench)
+        self.leaf_instances = True  # ... and the bench has leaf instances in the low bits
         self.plant_faces = (0, 0)  # global face range of the plant mesh (the first so named)
         meshes = [m for m in scene.meshes if len(m.faces)]
         plant_mesh = next((i for i, m in enumerate(meshes) if m.name == scene.plant), -1)
@@ -162,7 +164,15 @@ class Engine:
             face_rgb.append(
                 mesh.colors[mesh.faces] if mesh.colors is not None else np.ones((len(mesh.faces), 3, 3), F32)
             )
-            if plant and mesh.face_instance is not None:
+            if plant and scene.bench:  # a bench: each face's plant in the high 16 bits
+                self.has_instances = self.has_plants = True
+                self.leaf_instances = mesh.face_instance is not None
+                owner = np.zeros(len(mesh.faces), np.uint32)
+                for k, member in enumerate(scene.bench):
+                    owner[slice(*member.faces)] = k + 1
+                leaf = np.zeros(len(mesh.faces), np.uint32) if mesh.face_instance is None else mesh.face_instance
+                face_inst.append(leaf.astype(np.uint32) | owner << 16)
+            elif plant and mesh.face_instance is not None:
                 self.has_instances = True
                 face_inst.append(mesh.face_instance)
             else:

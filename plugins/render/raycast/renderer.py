@@ -97,7 +97,14 @@ class RaycastRenderer(Renderer):
             tracer.place_arms(link_poses, (camera, T))
         seed = view_seed(camera, T, self.options.seed)
         repopa = self.seg_mode == "repopa"
-        parts: dict[str, list[np.ndarray]] = {"rgb": [], "labels": [], "depth": [], "instances": [], "radiance": []}
+        parts: dict[str, list[np.ndarray]] = {
+            "rgb": [],
+            "labels": [],
+            "depth": [],
+            "instances": [],
+            "radiance": [],
+            "plants": [],
+        }
         keep = self.options.radiance
         step = max(1, self.options.batch_pixels // W)
         UInt8 = dr.uint8_array_t(tracer.mi.Float)
@@ -129,7 +136,7 @@ class RaycastRenderer(Renderer):
             if keep:
                 parts["radiance"].append(np.stack([np.asarray(linear[c]) for c in range(3)], -1).reshape(h, W, 3))
             if instances is not None:
-                parts["instances"].append(np.asarray(instances).astype(np.uint16).reshape(h, W))
+                tracer.add_ids(np.asarray(instances).reshape(h, W), parts)
         images = {k: (v[0] if len(v) == 1 else np.concatenate(v)) if v else None for k, v in parts.items()}
         return Frame(**images)
 

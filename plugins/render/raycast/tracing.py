@@ -278,10 +278,10 @@ class SceneTracer:
     ) -> dict[str, np.ndarray]:
         """The exact images of one view, for renderers that shade by other means: ``labels``,
         ``depth`` (planar, m; 0 where nothing is hit) and ``instances`` (when the plant numbers
-        its leaves) from rays through the pixel centres, what the raycast renderer gives (the
+        its leaves) and ``plants`` (a bench's) from rays through the pixel centres, what the raycast renderer gives (the
         same rays, traced by the same code). Place the arms first."""
         H, W = camera.height, camera.width
-        parts: dict[str, list[np.ndarray]] = {"labels": [], "depth": [], "instances": []}
+        parts: dict[str, list[np.ndarray]] = {"labels": [], "depth": [], "instances": [], "plants": []}
         UInt8 = dr.uint8_array_t(self.mi.Float)
         rows = max(1, pixels_per_batch // W)
         for r0 in range(0, H, rows):  # bounded memory at any resolution
@@ -294,8 +294,16 @@ class SceneTracer:
             parts["labels"].append(np.asarray(labels).reshape(r1 - r0, W))
             parts["depth"].append(np.asarray(depth).reshape(r1 - r0, W))
             if instances is not None:
-                parts["instances"].append(np.asarray(instances).astype(np.uint16).reshape(r1 - r0, W))
+                self.add_ids(np.asarray(instances).reshape(r1 - r0, W), parts)
         return {k: v[0] if len(v) == 1 else np.concatenate(v) for k, v in parts.items() if v}
+
+    def add_ids(self, ids: np.ndarray, parts: dict[str, list[np.ndarray]]) -> None:
+        """Append a batch of :meth:`annotate`'s instance ids to ``parts``: the leaf instances,
+        and a bench's plants (the ids' high 16 bits, :class:`.engine.SceneEngine`)."""
+        if self.engine.has_plants:
+            parts["plants"].append((ids >> 16).astype(np.uint16))
+        if self.engine.leaf_instances:
+            parts["instances"].append((ids & 0xFFFF).astype(np.uint16))
 
     def close(self) -> None:
         """Drop the Mitsuba scenes."""

@@ -19,11 +19,13 @@ from agrisim.kinds import lazy
 class GantryOptions(Options):
     """Options of the ``gantry`` rig (``[rig.gantry]``)."""
 
-    travel_x: float = Field(default=1.2, gt=0.1, le=4.0)
+    travel_x: float | None = Field(default=None, gt=0.1, le=8.0)
     """The stage's travel along x, m, centred on the plant: the camera reaches x within
-    plus or minus half of it. The portal's posts stand outside it."""
-    travel_y: float = Field(default=1.2, gt=0.1, le=4.0)
-    """The stage's travel along y, m, centred on the plant."""
+    plus or minus half of it. The portal's posts stand outside it. None: 1.2 m, plus twice the
+    farthest plant's x on a bench."""
+    travel_y: float | None = Field(default=None, gt=0.1, le=8.0)
+    """The stage's travel along y, m, centred on the plant; None: 1.2 m, plus twice the
+    farthest plant's y on a bench."""
     beam_height: float = Field(default=1.8, gt=0.5, le=2.8)
     """Height of the portal's rails (the top of the frame the bridge rides on) above the floor, m.
     The camera reaches up to a head's height below it (the head clear of the carriage above)."""

@@ -17,7 +17,7 @@ from agrisim.interfaces import Rig
 from agrisim.plugins.rigs.gantry import GantryOptions
 from agrisim.plugins.rigs.gantry.urdf import HEAD_TOP, JOINTS, gantry_urdf, portal, viewpoint_joints, z_max
 from agrisim.plugins.rigs.paper.cell import plant_table
-from agrisim.robot.cell import Arm, Cell
+from agrisim.robot.cell import Arm, Cell, Cylinder
 from agrisim.robot.kinematics import ArmKinematics
 from agrisim.robot.setpoints import Setpoint
 from agrisim.robot.urdf import CAMERA_FRAME
@@ -30,6 +30,10 @@ ARM = "g1"
 #: a viewpoint this close beyond a joint limit is within it, m or rad (the rounding of the
 #: hemisphere's trigonometry)
 LIMIT_SLACK = 1e-9
+#: the stage's travel in x and y over one plant, m (a bench's adds twice its farthest plant's offset)
+TRAVEL = 1.2
+#: a bench's viewpoint closer than this to a neighbour's keep-out is left out, m (the head's size)
+NEIGHBOUR_CLEARANCE = 0.08
 
 
 def hemisphere_views(centre: np.ndarray, routine: RoutineConfig) -> list[tuple[float, float, np.ndarray]]:
@@ -66,11 +70,19 @@ class GantryRig(Rig):
         super().__init__(settings, options if options is not None else GantryOptions())
         self.notes: list[str] = []
 
+    @property
+    def travel(self) -> tuple[float, float]:
+        """The stage's travel in x and y, m: the options', else :data:`TRAVEL` plus twice the
+        bench's farthest plant's offset along the axis."""
+        far = np.abs([p.xy for p in self.bench]).max(axis=0) if self.bench else np.zeros(2)
+        given = (self.options.travel_x, self.options.travel_y)
+        return tuple(float(t) if t is not None else round(TRAVEL + 2 * f, 6) for t, f in zip(given, far, strict=True))  # type: ignore[return-value]
+
     def cell(self) -> Cell:
         cfg, o = self.settings, self.options
         centre = np.array([0.0, 0.0, cfg.table_height])
         obstacles = plant_table(cfg)
-        travel = (o.travel_x, o.travel_y)
+        travel = self.travel
         obstacles += portal(travel, o.beam_height, centre)
         urdf = gantry_urdf(
             ARM,
@@ -94,7 +106,7 @@ class GantryRig(Rig):
         )
         if not self.notes:
             self.notes.append(
-                f"gantry {ARM}: travel {o.travel_x:g} x {o.travel_y:g} m, the camera from {o.z_min:.2f} to "
+                f"gantry {ARM}: travel {travel[0]:g} x {travel[1]:g} m, the camera from {o.z_min:.2f} to "
                 f"{z_max(o.beam_height):.2f} m above the floor under rails at {o.beam_height:g} m; x and y at "
                 f"{o.speed_x:g} and {o.speed_y:g} m/s, z at {o.speed_z:g} m/s, the head at {o.pan_tilt_speed_deg_s:g} deg/s"
             )
@@ -106,17 +118,54 @@ class GantryRig(Rig):
         kinematics there. A viewpoint beyond the gantry's travel is refused (:class:`UserError`)."""
         arm = cell.arm(ARM)
         kin = ArmKinematics(arm)
-        views = hemisphere_views(cell.plant_center, routine)
+        if cell.bench:
+            views, note = self._bench_views(cell, routine)
+        else:
+            views = hemisphere_views(cell.plant_center, routine)
+            levels, columns = parse_grid(routine.setpoints)
+            note = (
+                f"the whole hemisphere for one camera: {levels} level(s) x {columns} azimuths over a turn, "
+                f"radius {routine.radius:g} m"
+            )
         joints = [viewpoint_joints(T, arm.world_T_base) for _, _, T in views]
         self._check_travel(kin, views, joints)
-        levels, columns = parse_grid(routine.setpoints)
-        note = (
-            f"the whole hemisphere for one camera: {levels} level(s) x {columns} azimuths over a turn, "
-            f"radius {routine.radius:g} m"
-        )
         if note not in self.notes:  # a tool may ask the same rig for its routine more than once
             self.notes.append(note)
         return {arm.name: [Setpoint(arm.name, k, kin.fk(q)) for k, q in enumerate(joints)]}
+
+    def _bench_views(self, cell: Cell, routine: RoutineConfig) -> tuple[list[tuple[float, float, np.ndarray]], str]:
+        """A bench's viewpoints: the hemisphere around each plant, the plants in the order of a
+        short tour (each next the nearest not yet visited, from ``plant_01``), without the
+        viewpoints that come within :data:`NEIGHBOUR_CLEARANCE` of another plant's keep-out."""
+        keepouts = {
+            ob.name.removeprefix("plant_keepout"): ob
+            for ob in cell.obstacles
+            if ob.name.startswith("plant_keepout_") and isinstance(ob, Cylinder)
+        }
+        todo, tour = list(cell.bench[1:]), [cell.bench[0]]
+        while todo:
+            here = np.array(tour[-1].xy)
+            tour.append(todo.pop(int(np.argmin([np.hypot(*(np.array(p.xy) - here)) for p in todo]))))
+        views, dropped = [], 0
+        for plant in tour:
+            centre = cell.plant_center + np.array([*plant.xy, 0.0])
+            others = [ob for key, ob in keepouts.items() if key != plant.name.removeprefix("plant")]
+            for view in hemisphere_views(centre, routine):
+                if any(_near(view[2][:3, 3], ob) for ob in others):
+                    dropped += 1
+                else:
+                    views.append(view)
+        levels, columns = parse_grid(routine.setpoints)
+        note = (
+            f"a bench of {len(tour)}: the hemisphere around each plant ({levels} level(s) x {columns} azimuths, "
+            f"radius {routine.radius:g} m), in the order {', '.join(p.name for p in tour)}"
+            + (
+                f"; {dropped} viewpoints left out, within {NEIGHBOUR_CLEARANCE:g} m of a neighbour's keep-out"
+                if dropped
+                else ""
+            )
+        )
+        return views, note
 
     def _check_travel(
         self, kin: ArmKinematics, views: list[tuple[float, float, np.ndarray]], joints: list[np.ndarray]
@@ -137,7 +186,7 @@ class GantryRig(Rig):
         )
         if not lower[0] <= q[0] <= upper[0] or not lower[1] <= q[1] <= upper[1]:
             i = 0 if not lower[0] <= q[0] <= upper[0] else 1
-            span = (o.travel_x, o.travel_y)[i]
+            span = self.travel[i]
             what = f"{'xy'[i]} = {q[i]:+.3f} m from the plant's axis, beyond +-{span / 2:.3f} m (rig.gantry.travel_{'xy'[i]} = {span:g})"
         elif not lower[2] <= q[2] <= upper[2]:
             what = f"the camera {q[2]:.3f} m above the floor, " + (
@@ -168,3 +217,12 @@ class GantryRig(Rig):
             f"{where}{what}; to reach every viewpoint set {' and '.join(needs)}, or choose "
             + " and ".join(dict.fromkeys(instead))
         )
+
+
+def _near(p: np.ndarray, keepout: Cylinder) -> bool:
+    """Is ``p`` within :data:`NEIGHBOUR_CLEARANCE` of the cylinder ``keepout``?"""
+    c = keepout.world_T[:3, 3]
+    return bool(
+        np.hypot(p[0] - c[0], p[1] - c[1]) < keepout.radius + NEIGHBOUR_CLEARANCE
+        and abs(p[2] - c[2]) < keepout.height / 2 + NEIGHBOUR_CLEARANCE
+    )

@@ -31,12 +31,12 @@ import numpy as np
 
 from agrisim import interfaces
 from agrisim.errors import UserError
+from agrisim.plugins.mesh_builder import MeshBuilder
 from agrisim.plugins.rooms.cabinet import CabinetOptions, Colour
-from agrisim.plugins.rooms.lab.clutter import NOT_DRAWN
+from agrisim.plugins.rooms.lab.clutter import has_visual
 from agrisim.plugins.rooms.lab.primitives import cylinder_side, disc
 from agrisim.plugins.rooms.lab.room import POT_SEGMENTS, Materials, obstacle_meshes
 from agrisim.robot.cell import Cell, Cylinder, Obstacle, place_plant, soil_pose
-from agrisim.scene.mesh_builder import MeshBuilder
 from agrisim.scene.model import Light, Material, Mesh, Plant, Scene
 from agrisim.scene.transforms import translation
 
@@ -69,7 +69,7 @@ def check_fits(cell: Cell, options: CabinetOptions) -> None:
     above the ceiling (it would be drawn through the cabinet's walls)."""
     axis = np.asarray(cell.plant_center, float)[:2]
     for ob in cell.obstacles:
-        if ob.name in NOT_DRAWN:
+        if not has_visual(ob):
             continue
         top = ob.world_T[2, 3] + (ob.height if isinstance(ob, Cylinder) else ob.size[2]) / 2
         out = reach(ob, axis)
@@ -160,7 +160,7 @@ def build_scene(
     plate = _plain("stage", options.stage_color, 0.5)
     meshes = _shell(axis, options) + _stage(cell, axis, options)
     for ob in cell.obstacles:
-        if ob.name not in NOT_DRAWN:
+        if has_visual(ob):
             meshes.extend(obstacle_meshes(ob, mats, plate if ob.name == "stage" else plain))
     if placed.points is None:
         meshes.append(placed.mesh)

@@ -9,11 +9,16 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from agrisim.robot.cell import Cell, Cylinder
+from agrisim.robot.cell import Box, Cell, Cylinder
 from agrisim.scene.transforms import translation, yaw_matrix
 
 NOT_DRAWN = ("floor", "plant_keepout")
 """Obstacles without a visual of their own (the room's floor covers the physics floor)."""
+
+
+def has_visual(ob: Box | Cylinder) -> bool:
+    """Has ``ob`` a visual of its own? (Not in :data:`NOT_DRAWN`, a bench's ``plant_keepout_01``... neither.)"""
+    return ob.name.rstrip("0123456789").removesuffix("_") not in NOT_DRAWN
 
 
 @dataclass(frozen=True)
@@ -217,7 +222,7 @@ def cell_keepouts(cell: Cell, margin: float = 0.1) -> list[Footprint]:
     off them whatever the cell's configuration."""
     out = []
     for ob in cell.obstacles:
-        if ob.name in NOT_DRAWN:
+        if not has_visual(ob):
             continue
         x, y = float(ob.world_T[0, 3]), float(ob.world_T[1, 3])
         if isinstance(ob, Cylinder):

@@ -8,7 +8,7 @@ from collections.abc import Iterable, Sequence
 import numpy as np
 from numpy.typing import ArrayLike
 
-from agrisim.scene.mesh_builder import Part
+from agrisim.plugins.mesh_builder import Part
 
 
 def quad(

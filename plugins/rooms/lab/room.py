@@ -29,11 +29,11 @@ from typing import Any, Literal
 import numpy as np
 
 from agrisim import interfaces
+from agrisim.plugins.mesh_builder import MeshBuilder
 from agrisim.plugins.rooms.lab import textures as tex
-from agrisim.plugins.rooms.lab.clutter import NOT_DRAWN, Item, Room, cell_keepouts, clutter_layout, room_for
+from agrisim.plugins.rooms.lab.clutter import Item, Room, cell_keepouts, clutter_layout, has_visual, room_for
 from agrisim.plugins.rooms.lab.primitives import annulus, box, cylinder_side, disc, quad
 from agrisim.robot.cell import SOIL_INSET, Box, Cell, Cylinder, place_plant, soil_pose
-from agrisim.scene.mesh_builder import MeshBuilder
 from agrisim.scene.model import Light, Material, Mesh, Plant, Scene
 from agrisim.scene.transforms import translation, yaw_matrix
 
@@ -108,7 +108,7 @@ def _room_meshes(room: Room, mats: Materials) -> list[Mesh]:
 def pot_meshes(pot: Cylinder, mats: Materials) -> list[Mesh]:
     """The pot as the lab draws it, at ``pot``'s size and pose: a terracotta shell with a rim
     (``POT_WALL``) and a soil disc ``SOIL_INSET`` below it, ``POT_SEGMENTS`` sides; meshes
-    ``pot`` and ``soil``."""
+    ``pot`` and ``soil`` (a bench's ``pot_01`` and ``soil_01``...)."""
     r, h = pot.radius, pot.height
     wall, inset = min(POT_WALL, r / 3), min(SOIL_INSET, h / 3)
     clay = mats.textured("terracotta", tex.terracotta(), roughness=0.9)
@@ -119,7 +119,7 @@ def pot_meshes(pot: Cylinder, mats: Materials) -> list[Mesh]:
     b.add_part(cylinder_side(r - wall, h / 2 - inset, h / 2, POT_SEGMENTS, inward=True, u_repeats=2.0), inner)
     soil = MeshBuilder()
     soil.add_part(disc(r - wall, h / 2 - inset, POT_SEGMENTS), mats.textured("soil", tex.soil(), roughness=1.0))
-    return [b.build(pot.name, T=pot.world_T), soil.build("soil", T=pot.world_T)]
+    return [b.build(pot.name, T=pot.world_T), soil.build("soil" + pot.name[3:], T=pot.world_T)]
 
 
 def obstacle_meshes(ob: Box | Cylinder, mats: Materials, plain: Material | None = None) -> list[Mesh]:
@@ -128,7 +128,7 @@ def obstacle_meshes(ob: Box | Cylinder, mats: Materials, plain: Material | None 
     floor. ``plain``: one material for all but the pot instead of the lab's textured table top,
     metal and stands (a room whose surfaces must look the same turned about an axis cannot have
     textures that do not turn with it)."""
-    if isinstance(ob, Cylinder) and ob.name == "pot":
+    if isinstance(ob, Cylinder) and (ob.name == "pot" or ob.name.startswith("pot_")):  # a bench's pot_01...
         return pot_meshes(ob, mats)
     b = MeshBuilder()
     if isinstance(ob, Cylinder):
@@ -293,7 +293,7 @@ def build_scene(
     mats = Materials()
     meshes = _room_meshes(room, mats)
     for ob in cell.obstacles:
-        if ob.name not in NOT_DRAWN:
+        if has_visual(ob):
             meshes.extend(obstacle_meshes(ob, mats))
     if placed.points is None:
         meshes.append(placed.mesh)

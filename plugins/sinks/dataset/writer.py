@@ -12,7 +12,7 @@ run got (``status`` running / complete / failed / interrupted) and what each set
 ``trajectories/`` every move of an arm (planned and executed joints in simulated time, what the
 ROS 2 bag export publishes as joint states and TF), rendered or not. Rendered
 frames go to ``rgb/``, ``labels/`` (uint8 ids), ``labels_vis/`` (label colours), ``depth/``
-(uint16 millimetres, 0 = no hit), ``instances/`` (uint16 leaf ids) and, with a depth sensor
+(uint16 millimetres, 0 = no hit), ``instances/`` (uint16 leaf ids), ``plants/`` (a bench's: uint16, which plant) and, with a depth sensor
 other than the exact one, ``depth_sensor/`` (what it measured, aligned to the camera's pixels,
 uint16 millimetres, 0 = no measurement; its imager and pose in ``cameras.json``), each PNG written
 atomically; a frame is listed in ``run.json`` only once all its files exist. A complete run's
@@ -328,6 +328,8 @@ def write_frame(
         write_png(layout.image(out, "depth", frame), images.depth_mm())
     if images.instances is not None:
         write_png(layout.image(out, "instances", frame), images.instances.astype(np.uint16))
+    if images.plants is not None:
+        write_png(layout.image(out, layout.PLANTS, frame), images.plants.astype(np.uint16))
     if images.depth_sensor is not None:
         write_png(layout.image(out, layout.DEPTH_SENSOR, frame), depth_to_mm(images.depth_sensor))
     if images.raw is not None:
