@@ -63,14 +63,35 @@ def bench_cell(cell: Cell, plants: list[BenchPlant], rig: str) -> Cell:
         (table.size[0] + hi[0] - lo[0], table.size[1] + hi[1] - lo[1], table.size[2]),
         translation(*mid) @ table.world_T,
     )
+    reach = _footprint(grown)
+    for ob in cell.obstacles:
+        lo_ob, hi_ob = _footprint(ob)
+        if (
+            ob.name not in ("floor", "table", "pot", "plant_keepout")
+            and (lo_ob < reach[1]).all()
+            and (hi_ob > reach[0]).all()
+        ):
+            size = f"{grown.size[0]:.2f} x {grown.size[1]:.2f} m"
+            raise UserError(
+                f"bench: its table ({size}) would reach the rig's {ob.name}; use a smaller --spacing or fewer plants"
+            )
     obstacles = [grown if ob is table else ob for ob in cell.obstacles if ob.name not in ("pot", "plant_keepout")]
     for p in plants:
         at = translation(p.xy[0], p.xy[1], 0.0)
         index = p.name.removeprefix("plant")
-        for ob in (pot, by_name.get("plant_keepout")):
-            if ob is not None:
-                obstacles.append(dataclasses.replace(ob, name=ob.name + index, world_T=at @ ob.world_T))
+        for each in (pot, by_name.get("plant_keepout")):
+            if each is not None:
+                obstacles.append(dataclasses.replace(each, name=each.name + index, world_T=at @ each.world_T))
     return dataclasses.replace(cell, obstacles=tuple(obstacles), bench=tuple(plants))
+
+
+def _footprint(ob: Box | Cylinder) -> tuple[np.ndarray, np.ndarray]:
+    """The corners (x, y) of the box on the floor that holds ``ob``'s outline."""
+    c = ob.world_T[:2, 3]
+    if isinstance(ob, Cylinder):
+        return c - ob.radius, c + ob.radius
+    half = np.abs(ob.world_T[:2, :2]) @ np.array(ob.size[:2]) / 2
+    return c - half, c + half
 
 
 def join_plants(plants: list[Plant], bench: list[BenchPlant]) -> Plant:

@@ -159,12 +159,13 @@ def test_a_plant_far_from_its_neighbour_is_labelled_as_alone(tmp_path: Path, cli
         (["--bench", "0x2"], "bench '0x2': R and C must be between 1 and 100"),
         (["--spacing", "0.6"], "[bench] takes a grid (--bench RxC) or a list of [[bench.plants]]"),
         (["--bench", "1x2", "--rig", "turntable"], "rig 'turntable' holds one plant"),
+        (["--bench", "3x3", "--spacing", "0.6"], "bench: its table (1.70 x 1.70 m) would reach the rig's r1_stand"),
         (["--bench", "1x2", "--as-points", "2000"], "bench: plants are drawn as meshes"),
         (["--bench", "1x2", "--renderer", "pybullet"], "or a bench's plants apart ("),
         (["--bench", "1x3", "--rig", "gantry", "--set", "rig.gantry.travel_x=0.8"], "beyond the gantry's travel"),
         ([{"x": 0.0, "y": 0.0}, {"x": 0.5, "y": 0.0, "plant": "no_such"}], "bench plant_02: unknown plant 'no_such'"),
     ],
-    ids=["overlap", "grid", "spacing-alone", "turntable", "points", "renderer", "travel", "species"],
+    ids=["overlap", "grid", "spacing-alone", "turntable", "stand", "points", "renderer", "travel", "species"],
 )
 def test_bad_benches_are_refused_in_one_line(args: list, says: str, tmp_path: Path, cli) -> None:  # noqa: ANN001
     if isinstance(args[0], dict):
