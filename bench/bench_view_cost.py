@@ -2,7 +2,9 @@
 labels, depth, leaf instances and the plants' ids in one pass) for a renderer, with 1 plant and
 with benches of more, the same views of the same first plant (its hemisphere on the gantry, its
 neighbours around and behind it), and each bench's cost as a multiple of the one plant's,
-measured in one run. Prints figures; asserts nothing.
+measured in one run. The first plant stands on the cell's centre on every bench (the grid's most
+central pot), so every bench is seen through the same camera poses. Prints figures; asserts
+nothing.
 
     python bench/bench_view_cost.py                          # raycast on the CPU (LLVM), 1080p
     python bench/bench_view_cost.py --variant cuda           # ... on an NVIDIA GPU (OptiX)
@@ -65,16 +67,21 @@ def main() -> None:
     for grid in args.benches.split(","):
         rows, cols = (int(n) for n in grid.split("x"))
         settings = {"plant": args.plant, "rig": {"backend": "gantry"}}
-        if rows * cols > 1:
-            settings["bench"] = {"grid": grid, "spacing": args.spacing}
+        if rows * cols > 1:  # the grid's most central pot on the plant centre, listed first
+            spots = sorted(
+                ((c - (cols - 1) // 2) * args.spacing, (r - (rows - 1) // 2) * args.spacing)
+                for r in range(rows)
+                for c in range(cols)
+            )
+            spots.sort(key=lambda xy: xy != (0.0, 0.0))
+            settings["bench"] = {"plants": [{"x": x, "y": y} for x, y in spots]}
         config = build_config(settings, {"renderer": {args.renderer: {"variant": args.variant}}})
         rig, cell = open_rig(config, registry)
         plant = resolve_plant(registry, config)
         room = registry.build("room", registry.get("room", "lab"), cell, registry.get("room", "lab").options_model())
         scene = room.scene(plant, seed=config.pcg_seed, labels="plant")
         scene.bench = list(plant.bench)
-        first = cell.bench[0].xy if cell.bench else (0.0, 0.0)
-        centre = cell.plant_center + np.array([*first, 0.0])
+        centre = cell.plant_center  # the first plant's, on every bench: the same views
         routine = config.routine.model_copy(update={"setpoints": f"2x{max(1, args.views // 2)}"})
         views = [T for _, _, T in hemisphere_views(centre, routine)][: args.views]
         arm = cell.arms[0]
