@@ -11,6 +11,7 @@ none of it.
 from __future__ import annotations
 
 import json
+import shutil
 from pathlib import Path
 from typing import Any
 
@@ -200,3 +201,27 @@ def test_one_plant_gains_no_bench_keys(tmp_path: Path) -> None:
     nerf = json.loads((run / layout.TRANSFORMS_JSON).read_text())
     assert "plants" not in nerf and not any("plant_mask_path" in f for f in nerf["frames"])
     assert not any(c.entity_path.endswith("/plants") for c in RrdReader(run / layout.RECORDING).stream())
+
+
+@pytest.mark.parametrize(
+    ("export", "harm", "says"),
+    [
+        ("coco", lambda run: _bench(run, [dict(BENCH[0], id=2)]), "run.json: malformed bench (plant 1 is"),
+        ("nerfstudio", lambda run: _bench(run, "plant_01"), "run.json: malformed bench (not a list of plants)"),
+        ("rosbag", lambda run: _bench(run, [dict(BENCH[0], seed="0")]), "run.json: malformed bench (plant 1 is"),
+        ("nerfstudio", lambda run: layout.image(run, "plants", "g1_001").unlink(), "g1_001.png is missing"),
+        ("coco", lambda run: layout.image(run, "plants", "g1_001").unlink(), "g1_001.png: the bench's frames are"),
+    ],
+    ids=["coco-id", "nerfstudio-rows", "rosbag-seed", "nerfstudio-image", "coco-image"],
+)
+def test_a_broken_bench_record_is_refused_in_one_line(export, harm, says, bench: Path, tmp_path: Path, cli) -> None:  # noqa: ANN001
+    run = Path(shutil.copytree(bench, tmp_path / "run"))
+    harm(run)
+    code, _, err = cli(["export", export, str(run), *([str(tmp_path / "out")] if export != "nerfstudio" else [])])
+    assert code == 2 and len(err.strip().splitlines()) == 1 and says in err, err
+    assert "Traceback" not in err and not (tmp_path / "out").exists()
+
+
+def _bench(run: Path, rows: object) -> None:
+    doc = json.loads((run / layout.RUN_JSON).read_text())
+    (run / layout.RUN_JSON).write_text(json.dumps(dict(doc, bench=rows)))
