@@ -133,6 +133,20 @@ def test_the_recording_names_each_plants_pixels(bench: Path) -> None:
     assert sorted(images) == sorted(entry["setpoint"] for entry in frames.values())
     for name, entry in frames.items():
         assert np.array_equal(images[entry["setpoint"]], plants[name]), name
+    # the blueprint: the camera's panel holds the plants as an overlay, switched off
+    reader = RrdReader(bench / layout.RECORDING)
+    (store,) = reader.blueprints()
+    queries, hidden = [], set()
+    for chunk in reader.stream(store=store):
+        rb = chunk.to_record_batch()
+        if "ViewContents:query" in rb.schema.names:
+            queries += rb.column("ViewContents:query").to_pylist()[-1]
+        if "EntityBehavior:visible" in rb.schema.names and rb.column("EntityBehavior:visible").to_pylist()[-1] == [
+            False
+        ]:
+            hidden.add(chunk.entity_path.removesuffix("/visualizers"))
+    assert f"$origin/{paths.PLANTS}" in queries
+    assert any(h.endswith(f"/ViewContents/overrides/{entity}") for h in hidden), hidden
 
 
 def test_the_ros_bag_publishes_each_frames_plants(bench: Path, tmp_path: Path) -> None:
