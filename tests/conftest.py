@@ -218,6 +218,7 @@ MODULE_SECONDS = {
     "tests/e2e/test_episode.py": 14,
     "tests/e2e/test_ros2.py": 13,
     "tests/e2e/test_wheel.py": 13,
+    "tests/e2e/test_bench_exports.py": 13,
     "tests/unit/test_plant_surfaces.py": 13,
     "tests/unit/test_render_raycast.py": 13,
     "tests/e2e/test_turntable.py": 12,

@@ -11,6 +11,11 @@ instance format, which pycocotools, Detectron2, MMDetection and Ultralytics' con
   one annotation each. Masks are exact: the arms and the lab are background. Each has an RLE
   ``segmentation`` (pycocotools' compressed counts), ``area`` (pixels), ``bbox`` [x, y, w, h]
   and ``iscrowd`` 0.
+- a bench (``run.json``'s ``bench``): each annotation also carries ``plant``, the id of the
+  plant it lies on (``plants/<frame>.png``'s value; a leaf instance lies on one plant, and the
+  other labels' regions are split where two plants touch), and the document's ``plants`` names
+  them (id, name, what grew it, seed, x, y: :mod:`agrisim.plugins.sinks.dataset.bench`). COCO
+  readers (pycocotools) keep extra keys as they are. A run of one plant has neither.
 
 The semantic masks are the run's ``labels/<frame>.png`` themselves (uint8 label ids).
 """
@@ -30,6 +35,7 @@ from agrisim.files import layout
 from agrisim.files.atomic import write_json
 from agrisim.files.rundir import read_run
 from agrisim.interfaces import Exporter
+from agrisim.plugins.sinks.dataset.bench import bench_rows, read_bench
 
 COCO_JSON = Path("coco") / "annotations.json"
 #: 8-connectivity: diagonal neighbours belong to one region (thin stems stay whole)
@@ -41,22 +47,30 @@ def _png(path: Path) -> np.ndarray:
         return np.asarray(im)
 
 
-def frame_regions(labels: np.ndarray, instances: np.ndarray | None) -> list[tuple[int, np.ndarray]]:
-    """(category, mask) of every annotation of one frame, by the module's rule."""
+def frame_regions(
+    labels: np.ndarray, instances: np.ndarray | None, plants: np.ndarray | None = None
+) -> list[tuple[int, int, np.ndarray]]:
+    """(category, plant, mask) of every annotation of one frame, by the module's rule; with a
+    bench's ``plants`` image, regions are split where two plants touch and each has its plant's
+    id (a leaf instance lies on one plant), else plant 0."""
     from scipy import ndimage
 
-    out: list[tuple[int, np.ndarray]] = []
+    out: list[tuple[int, int, np.ndarray]] = []
     rest = labels != 0
+    owner = np.zeros(labels.shape, np.uint16) if plants is None else plants
+
     if instances is not None:
         for inst in np.unique(instances[rest]):
             if inst == 0:
                 continue
             mask = (instances == inst) & rest
-            out.append((int(np.bincount(labels[mask]).argmax()), mask))
+            out.append((int(np.bincount(labels[mask]).argmax()), int(np.bincount(owner[mask]).argmax()), mask))
         rest &= instances == 0
-    for label in np.unique(labels[rest]):
-        regions, n = ndimage.label(rest & (labels == label), structure=EIGHT)
-        out += [(int(label), regions == k) for k in range(1, n + 1)]
+    # each (label, plant) present, as label << 16 | plant, in label order
+    for pair in np.unique(labels[rest].astype(np.uint32) << 16 | owner[rest]):
+        label, plant = int(pair) >> 16, int(pair) & 0xFFFF
+        regions, n = ndimage.label(rest & (labels == label) & (owner == plant), structure=EIGHT)
+        out += [(label, plant, regions == k) for k in range(1, n + 1)]
     return out
 
 
@@ -69,6 +83,12 @@ def coco_document(run_dir: Path) -> dict[str, Any]:
     if not frames:
         raise UserError(f"the run in {run_dir} has no rendered frames to annotate (was it made with --renderer none?)")
     width, height = int(cameras["intrinsics"]["width"]), int(cameras["intrinsics"]["height"])
+    bench = read_bench(run, run_dir / layout.RUN_JSON)
+    lacking = [f for f in frames if bench and not layout.image(run_dir, layout.PLANTS, f).is_file()]
+    if lacking:
+        raise UserError(
+            f"missing {layout.image(run_dir, layout.PLANTS, lacking[0])}: the bench's frames are incomplete"
+        )
     categories = [
         {"id": int(r["id"]), "name": r["name"], "supercategory": "plant"} for r in run["labels"] if int(r["id"]) != 0
     ]
@@ -79,7 +99,8 @@ def coco_document(run_dir: Path) -> dict[str, Any]:
         labels = _png(layout.image(run_dir, "labels", frame))
         path = layout.image(run_dir, "instances", frame)
         instances = _png(path) if path.is_file() else None
-        for category, mask in frame_regions(labels, instances):
+        plants = _png(layout.image(run_dir, layout.PLANTS, frame)) if bench else None
+        for category, plant, mask in frame_regions(labels, instances, plants):
             encoded = rle.encode(np.asfortranarray(mask.astype(np.uint8)))
             annotations.append(
                 {
@@ -90,14 +111,18 @@ def coco_document(run_dir: Path) -> dict[str, Any]:
                     "area": int(rle.area(encoded)),
                     "bbox": [float(x) for x in rle.toBbox(encoded)],
                     "iscrowd": 0,
+                    **({"plant": plant} if bench else {}),
                 }
             )
-    return {
+    doc = {
         "info": {"description": f"agrisim run {run_dir.name}", "version": str(run.get("agrisim_version", ""))},
         "images": images,
         "annotations": annotations,
         "categories": categories,
     }
+    if bench:
+        doc["plants"] = bench_rows(bench)
+    return doc
 
 
 def write_coco(run_dir: Path, overwrite: bool = False, out: Path | None = None) -> Path:

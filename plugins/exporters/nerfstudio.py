@@ -17,6 +17,13 @@ readable by nerfstudio's ``nerfstudio-data`` parser (``ns-train nerfacto --data 
 - ``mask_path`` is ``masks/<frame>.png``: single-channel uint8, 255 where any plant label is
   (label id != 0), 0 elsewhere. nerfstudio trains only on nonzero mask pixels, so a NeRF of this
   export models the plant, not the lab; drop ``mask_path`` to train on the whole image.
+- A bench (``run.json``'s ``bench``): ``masks/`` stay what nerfstudio reads (255 on every
+  plant: nerfstudio takes a mask as nonzero or not, so ids in it would change nothing it does),
+  and each frame adds ``plant_mask_path``, the run's own ``plants/<frame>.png`` (uint16, the id of
+  the plant each pixel shows, 0 none), with the top-level ``plants`` naming each id (name, what
+  grew it, seed, x, y: :mod:`agrisim.plugins.sinks.dataset.bench`). nerfstudio's parser ignores
+  keys it does not know; a mask of one plant (to train on it alone) is ``plants == id``. A run of
+  one plant has neither key.
 - Only frames listed in ``run.json``'s ``frames_complete`` are exported, in name order.
 
 Bad input (not a run directory, missing ``run.json``/``cameras.json``/frame images, a run still
@@ -42,6 +49,7 @@ from agrisim.files.atomic import write_bytes, write_json
 from agrisim.files.png import encode_png
 from agrisim.files.rundir import read_json
 from agrisim.interfaces import ALL, Exporter
+from agrisim.plugins.sinks.dataset.bench import bench_rows, read_bench
 
 #: OpenCV optical frame -> OpenGL camera frame (negate y and z), as a right factor on camera-to-world
 CV_TO_GL = np.diag([1.0, -1.0, -1.0, 1.0])
@@ -57,13 +65,17 @@ def opencv_to_opengl(world_T_camera: np.ndarray) -> np.ndarray:
 
 
 def nerfstudio_transforms(
-    intrinsics: dict[str, Any], frames: dict[str, dict[str, Any]], depth_png: bool = True
+    intrinsics: dict[str, Any],
+    frames: dict[str, dict[str, Any]],
+    depth_png: bool = True,
+    bench: list[dict[str, Any]] | None = None,
 ) -> dict[str, Any]:
     """The ``transforms.json`` document for ``frames`` (name -> cameras.json frame entry).
 
     ``intrinsics`` is cameras.json's: ``K`` (pixel centres at integers), ``width``, ``height``.
     Paths are relative to the run directory, where transforms.json lives; ``depth_png``: the
-    frames have millimetre depth PNGs to name (not an EXR-only run).
+    frames have millimetre depth PNGs to name (not an EXR-only run); ``bench``: the rows of a
+    bench's plants (each frame then names its ``plant_mask_path``).
     """
     K = np.asarray(intrinsics["K"], np.float64)
     lens = intrinsics.get("distortion") or {"model": "brown-conrady"}
@@ -87,9 +99,11 @@ def nerfstudio_transforms(
                 "transform_matrix": np.round(opencv_to_opengl(frames[name]["world_T_camera"]), 12).tolist(),
                 "mask_path": f"masks/{name}.png",
                 **({"depth_file_path": f"depth/{name}.png"} if depth_png else {}),
+                **({"plant_mask_path": f"{layout.PLANTS}/{name}.png"} if bench else {}),
             }
             for name in sorted(frames)
         ],
+        **({"plants": bench} if bench else {}),
     }
 
 
@@ -168,11 +182,15 @@ def write_nerfstudio(run_dir: Path) -> Path:
         for folder in layout.REQUIRED_FOLDERS:
             if not layout.has_image(run_dir, folder, name):
                 raise ExportError(f"{layout.image(run_dir, folder, name)} is missing: a half-written run")
+    bench = read_bench(run, run_dir / layout.RUN_JSON, ExportError)
+    for name in complete if bench else []:
+        if not layout.image(run_dir, layout.PLANTS, name).is_file():
+            raise ExportError(f"{layout.image(run_dir, layout.PLANTS, name)} is missing: a half-written bench run")
     width, height = int(intrinsics["width"]), int(intrinsics["height"])
     masks = {name: _mask_png(layout.image(run_dir, "labels", name), width, height) for name in complete}
     # nerfstudio reads PNG depth: an EXR-only run (--depth-format exr) names none
     depth_png = all(layout.image(run_dir, "depth", name).is_file() for name in complete)
-    doc = nerfstudio_transforms(intrinsics, {name: known[name] for name in complete}, depth_png)
+    doc = nerfstudio_transforms(intrinsics, {name: known[name] for name in complete}, depth_png, bench_rows(bench))
     if layout.cloud(run_dir, ALL).is_file():
         doc["ply_file_path"] = layout.cloud(Path(), ALL).as_posix()  # splatfacto starts from it: clouds/all.ply
 

@@ -23,9 +23,10 @@ message's log time; play it with ``ros2 bag play --clock``). Topics, for each ar
 - ``/A/camera/image_raw`` (``rgb8``), ``/A/camera/depth`` (``32FC1``, planar z in metres, REP
   118; +Inf where nothing was hit, REP 117's "no return"; a depth sensor's measurement where the
   run has one, the exact depth then on ``/A/camera/depth_truth``), ``/A/camera/labels`` (``mono8`` label
-  ids), ``/A/camera/instances`` (``mono16`` leaf ids, where the run numbers leaves) and
-  ``/A/camera/camera_info`` (K, P, the lens's distortion): one each per rendered frame, in
-  ``A/camera_optical_frame`` (OpenCV axes, which are ROS's optical-frame axes).
+  ids), ``/A/camera/instances`` (``mono16`` leaf ids, where the run numbers leaves),
+  ``/A/camera/plants`` (``mono16``, a bench's: which plant, 0 none) and ``/A/camera/camera_info``
+  (K, P, the lens's distortion): one each per rendered frame, in ``A/camera_optical_frame``
+  (OpenCV axes, which are ROS's optical-frame axes).
 - ``/reconstruction/cloud`` (``sensor_msgs/PointCloud2`` in ``world``): the merged clouds of
   every label, fields ``x y z`` (float32), ``rgb`` (PCL's packed float) and ``label`` (uint8), at
   the last frame's stamp.
@@ -33,7 +34,8 @@ message's log time; play it with ``ros2 bag play --clock``). Topics, for each ar
 The timeline is every sample the physics reported for any arm (``trajectories/``), every
 capture and 0; between its own samples an arm holds its last one, so TF is complete at every
 stamp and at each image's stamp equals the pose it was rendered from. The bag's custom data
-holds the label table (``agrisim.labels``, JSON).
+holds the label table (``agrisim.labels``, JSON) and a bench's plants (``agrisim.bench``, JSON:
+the rows of :mod:`agrisim.plugins.sinks.dataset.bench`, whose ids ``plants`` holds).
 """
 
 from __future__ import annotations
@@ -55,6 +57,7 @@ from agrisim.files.atomic import staged_dir
 from agrisim.files.rundir import read_json, read_run
 from agrisim.interfaces import Exporter
 from agrisim.plugins.ros.tf_tree import WORLD, ArmFrames, quaternions
+from agrisim.plugins.sinks.dataset.bench import bench_rows, read_bench
 from agrisim.scene.calibration import ros_distortion
 from agrisim.scene.encoding import rep118
 
@@ -321,6 +324,7 @@ class RosbagExport:
         self.rendered = bool(self.run.get("frames_complete")) and isinstance(self.run.get("labels"), list)
         labels = self.run.get("labels")
         self.labels: list[Any] = labels if isinstance(labels, list) else []
+        self.bench = bench_rows(read_bench(self.run, self.run_dir / layout.RUN_JSON))
         captures = to_ns([float(f["sim_time"]) for f in self.frames.values()]) if self.frames else np.zeros(0, np.int64)
         self.capture_ns = dict(zip(self.frames, (int(c) for c in captures), strict=True))
         self.stamps = np.unique(
@@ -462,6 +466,13 @@ def bag_messages(export: RosbagExport, msgs: BagMessages) -> Iterator[tuple[str,
                     stamp,
                     msgs.image(stamp, optical, images.instances, "mono16"),
                 )
+            if images.plants is not None:
+                yield (
+                    f"/{arm}/camera/plants",
+                    "sensor_msgs/msg/Image",
+                    stamp,
+                    msgs.image(stamp, optical, images.plants, "mono16"),
+                )
         else:
             points, colors, labels = [np.zeros((0, 3))], [np.zeros((0, 3), np.uint8)], [np.zeros(0, np.uint8)]
             for row in export.labels:
@@ -504,6 +515,8 @@ def write_rosbag(
         writer.set_compression(CompressionMode.STORAGE, CompressionFormat.ZSTD)
         writer.set_custom_data("agrisim.labels", json.dumps(export.labels))
         writer.set_custom_data("agrisim.run", str(run_dir.resolve()))
+        if export.bench:
+            writer.set_custom_data("agrisim.bench", json.dumps(export.bench))
         connections: dict[str, Any] = {}
         total = len(export.stamps) + len(export.frames)
         done = 0

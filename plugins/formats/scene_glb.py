@@ -1,5 +1,6 @@
 """Reads agrisim's saved scene back (``OUT/scene/lab.glb``, written by
-:mod:`agrisim.plugins.sinks.dataset.scene_glb`): every mesh, the arms' link meshes, the lights, the label table.
+:mod:`agrisim.plugins.sinks.dataset.scene_glb`): every mesh, the arms' link meshes, the lights, the label table
+and a bench's plants (:attr:`Scene.bench`, each plant's faces of the plant mesh).
 
 Reading gives back float32-exact vertices (the run's renderers see float64 world coordinates, but
 every renderer casts them to float32 as stored here), the same texels, the same material settings.
@@ -14,6 +15,7 @@ import numpy as np
 
 from agrisim.errors import UserError
 from agrisim.plugins.formats.gltf import GltfReader
+from agrisim.plugins.sinks.dataset.bench import read_bench
 from agrisim.plugins.sinks.dataset.scene_glb import ARM_PREFIX, FORMAT
 from agrisim.scene.model import LabelTable, Light, Material, Mesh, Scene
 
@@ -54,9 +56,16 @@ def read_scene(path: Path) -> Scene:
                 arms.setdefault(str(extras["robot"]), []).append((str(extras["link"]), mesh))
             else:
                 meshes.append(mesh)
-        return Scene(meshes, lights, labels, plant=str(info["plant"]), arms=arms)
+        scene = Scene(meshes, lights, labels, plant=str(info["plant"]), arms=arms)
     except (KeyError, IndexError, TypeError, ValueError) as exc:
         raise UserError(f"{shown}: malformed agrisim scene ({type(exc).__name__}: {exc})") from None
+    scene.bench = read_bench(info, shown)
+    if scene.bench:  # the plants' faces must tile the plant mesh, as the renderers take them
+        ends = [p.faces for p in scene.bench]
+        n = len(scene.mesh(scene.plant).faces) if any(m.name == scene.plant for m in meshes) else -1
+        if ends[0][0] != 0 or ends[-1][1] != n or any(a[1] != b[0] for a, b in zip(ends, ends[1:], strict=False)):
+            raise UserError(f"{shown}: malformed agrisim scene (its bench's faces {ends} do not tile the plant's {n})")
+    return scene
 
 
 def _read_mesh(doc: GltfReader, node: dict[str, Any]) -> Mesh:

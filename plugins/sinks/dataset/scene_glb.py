@@ -13,7 +13,9 @@ What it holds, and how:
   frame, placed by the node's matrix at the pose of the first frame (so that a glTF viewer shows
   the arms where they stood); the reader ignores that matrix: a renderer poses the links
   per frame from ``link_poses/<frame>.json``;
-* the lights, the label table and which mesh is the plant in the asset's ``extras``.
+* the lights, the label table and which mesh is the plant in the asset's ``extras``, and a
+  bench's plants (:mod:`agrisim.plugins.sinks.dataset.bench`, with each plant's range of the
+  plant mesh's faces: the writer keeps each plant's faces together, in the order of its materials).
 
 Reading gives back float32-exact vertices (the run's renderers see float64 world coordinates, but
 every renderer casts them to float32 as stored here), the same texels, the same material settings.
@@ -28,6 +30,7 @@ from typing import Any
 import numpy as np
 
 from agrisim.files.atomic import write_bytes
+from agrisim.plugins.sinks.dataset import bench
 from agrisim.plugins.sinks.dataset.glb import GlbWriter
 from agrisim.scene.model import Light, Scene
 
@@ -67,6 +70,8 @@ def scene_glb_bytes(scene: Scene, arm_poses: dict[str, dict[str, np.ndarray]] | 
         "labels": scene.labels.to_json(),
         "lights": [_light_json(light) for light in scene.lights],
     }
+    if scene.bench:  # each plant's faces of the plant mesh (a run of one plant writes no key)
+        agrisim[bench.KEY] = bench.bench_rows(scene.bench, faces=True)
     gltf: dict[str, Any] = {
         "asset": {"version": "2.0", "generator": "agrisim", "extras": {"agrisim": agrisim}},
         "scene": 0,

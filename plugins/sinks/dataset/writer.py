@@ -7,7 +7,8 @@ through the exporters installed. The episode registers it for every run before a
 sink plugin; it observes the run through the same event hooks.
 
 ``run.json`` is rewritten atomically after every setpoint, so at any moment it tells how far the
-run got (``status`` running / complete / failed / interrupted) and what each setpoint did.
+run got (``status`` running / complete / failed / interrupted) and what each setpoint did; a
+bench's run.json names its plants (``bench``: :mod:`agrisim.plugins.sinks.dataset.bench`).
 ``cameras.json`` holds the intrinsics and the camera pose of every captured frame;
 ``trajectories/`` every move of an arm (planned and executed joints in simulated time, what the
 ROS 2 bag export publishes as joint states and TF), rendered or not. Rendered
@@ -38,7 +39,7 @@ from agrisim.files.exr import write_exr
 from agrisim.files.png import encode_png
 from agrisim.files.rundir import camera_to_json
 from agrisim.interfaces import CameraModel, Capture, Frame, JointTrajectory, Trajectory
-from agrisim.plugins.sinks.dataset import json_text
+from agrisim.plugins.sinks.dataset import bench, json_text
 from agrisim.plugins.sinks.dataset.glb import export_glb
 from agrisim.plugins.sinks.dataset.point_cloud import write_points_ply
 from agrisim.plugins.sinks.dataset.reconstruction import write_reconstruction
@@ -130,7 +131,7 @@ class DatasetWriter:
         self._frame_texts = json_text.MemberCache(to_json)
 
     def _run_json(self, run: Run) -> dict[str, Any]:
-        return {
+        doc: dict[str, Any] = {
             "agrisim": __version__,
             "status": self.status,
             "started_at": run.started_at,
@@ -147,6 +148,9 @@ class DatasetWriter:
             "results": self._result_texts.array([_result_row(r) for r in run.results]),
             "summary": self.summary,
         }
+        if run.cell.bench:  # the plants, for readers that do not grow them again (a run of one has none)
+            doc[bench.KEY] = bench.bench_rows(run.cell.bench)
+        return doc
 
     def _collect(self, wait: bool = False) -> bool:
         """Move frames whose files are written into the index; True if any moved."""

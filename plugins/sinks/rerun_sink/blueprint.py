@@ -18,8 +18,8 @@ EYE_OFFSET = np.array([0.4, -2.2, 1.1])
 
 
 def blueprint(cell: Cell) -> rrb.Blueprint:
-    """The default layout: the cell in 3D; per arm, its camera's photograph (labels and leaf
-    instances as overlays, off) and, in a panel of its own, its depth; the reach errors.
+    """The default layout: the cell in 3D; per arm, its camera's photograph (labels, leaf
+    instances and a bench's plants as overlays, off) and, in a panel of its own, its depth; the reach errors.
 
     Everything else the recording holds stays in the views, hidden but one click (the eye in
     the blueprint panel) from showing: in 3D, each view's back-projected depth and cloud,
@@ -34,7 +34,7 @@ def blueprint(cell: Cell) -> rrb.Blueprint:
     """
     arms = cell.arm_names
     hidden = rrb.EntityBehavior(visible=False)
-    overlays = ("labels", "instances")
+    overlays = ("labels", "instances", *((paths.PLANTS,) if cell.bench else ()))
     cameras = [
         rrb.Spatial2DView(
             origin=paths.camera(a),

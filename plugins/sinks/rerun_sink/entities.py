@@ -63,6 +63,8 @@ class paths:  # noqa: N801 - a namespace of path builders, used like a module
     IMAGE_KINDS = ("rgb", "labels", "depth", "instances")
     #: beside a depth sensor's ``depth``: the exact depth
     DEPTH_TRUTH = "depth_truth"
+    #: a bench's: which plant each pixel shows (its annotation context names ``plant_01``...)
+    PLANTS = "plants"
 
     @staticmethod
     def obstacle(name: str) -> str:
@@ -104,7 +106,8 @@ class paths:  # noqa: N801 - a namespace of path builders, used like a module
     @staticmethod
     def camera_image(robot: str, kind: str) -> str:
         """``kind`` is ``rgb``, ``labels``, ``depth`` (a depth sensor's measurement where the run
-        has one), ``instances`` or ``depth_truth`` (the exact depth, beside a sensor's)."""
+        has one), ``instances``, ``depth_truth`` (the exact depth, beside a sensor's) or
+        ``plants`` (a bench's)."""
         return f"world/{robot}/camera/{kind}"
 
     @staticmethod

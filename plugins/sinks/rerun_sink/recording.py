@@ -404,6 +404,10 @@ class RerunSink:
             self._log_scene(run.scene)
         if run.labels is not None:
             self.log_label_table({lab.id: (lab.name, lab.color) for lab in run.labels.labels})
+        if run.scene is not None and run.cell.bench:  # each plant's pixels selectable by its name
+            context = rr.AnnotationContext([(k + 1, p.name) for k, p in enumerate(run.cell.bench)])
+            for arm in run.cell.arms:
+                rec.log(paths.camera_image(arm.name, paths.PLANTS), context, static=True)
         for arm in run.cell.arms:
             self._log_robot_geometry(arm.name)
         self._set_time(0, 0.0)
@@ -476,7 +480,8 @@ class RerunSink:
             self.log_images(capture.robot, capture.images)
 
     def log_images(self, robot: str, images: Frame) -> None:
-        """Log a capture's ``rgb``, ``labels``, ``depth`` and leaf ``instances`` at the current time."""
+        """Log a capture's ``rgb``, ``labels``, ``depth``, leaf ``instances`` and a bench's
+        ``plants`` at the current time."""
         assert self.rec is not None
         image = rr.Image(images.rgb)
         # JPEG keeps a full run's frames in tens of MB instead of GB; Pillow is optional.
@@ -487,6 +492,8 @@ class RerunSink:
         if images.instances is not None:
             # leaf instance ids (uint16, 0 = none): no annotation context, Rerun colours each id
             self.rec.log(paths.camera_image(robot, "instances"), rr.SegmentationImage(images.instances))
+        if images.plants is not None:  # a bench's: which plant (0 none), named by the annotation context
+            self.rec.log(paths.camera_image(robot, paths.PLANTS), rr.SegmentationImage(images.plants))
         # Millimetres in uint16 (as the dataset's depth PNGs): half the size of float32 metres
         # and far more compressible; 1 mm steps are invisible at the cell's scale. With a depth
         # sensor, ``depth`` is what it measured (as a robot's camera would publish it) and the
