@@ -7,7 +7,7 @@
     OUT/<folder>/<frame>.png   folder: rgb, labels, labels_vis, depth, instances, plants (a bench's)
     OUT/depth/<frame>.exr      float32 planar depth in metres (--depth-format exr or both)
     OUT/masks/<frame>.png      nerfstudio's masks (255 = plant)
-    OUT/clouds/<label>.ply     reconstructed clouds; <label>_mesh.ply for surfaces
+    OUT/clouds/<label>.ply     reconstructed clouds; <label>_mesh.ply for surfaces; clouds/plant_01/... a bench's
     OUT/metrics.json           accuracy against the true plant
     OUT/transforms.json        the nerfstudio export
     OUT/scene/plant.glb        the plant as rendered, with its label textures
@@ -75,14 +75,14 @@ def has_image(root: Path, folder: str, frame: str) -> bool:
     return image(root, folder, frame).is_file() or (folder == "depth" and depth_exr(root, frame).is_file())
 
 
-def cloud(root: Path, label: str) -> Path:
-    """The reconstructed cloud of ``label``: ``root/clouds/<label>.ply``."""
-    return Path(root) / CLOUDS / f"{label}.ply"
+def cloud(root: Path, label: str, plant: str = "") -> Path:
+    """The reconstructed cloud of ``label``: ``root/clouds/[<plant>/]<label>.ply`` (a bench's ``plant``'s own)."""
+    return Path(root) / CLOUDS / plant / f"{label}.ply"
 
 
-def surface(root: Path, label: str) -> Path:
-    """The reconstructed surface of ``label``: ``root/clouds/<label>_mesh.ply``."""
-    return Path(root) / CLOUDS / f"{label}_mesh.ply"
+def surface(root: Path, label: str, plant: str = "") -> Path:
+    """The reconstructed surface of ``label``: ``root/clouds/[<plant>/]<label>_mesh.ply`` (a bench's ``plant``'s)."""
+    return Path(root) / CLOUDS / plant / f"{label}_mesh.ply"
 
 
 def radiance(root: Path, frame: str) -> Path:

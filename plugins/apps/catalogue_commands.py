@@ -6,11 +6,15 @@ from __future__ import annotations
 
 import argparse
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from agrisim.commands import Command
-from agrisim.config import build_config
+from agrisim.config import RunConfig, build_config
 from agrisim.errors import UserError
 from agrisim.files import layout
+
+if TYPE_CHECKING:
+    from agrisim.registry import Registry
 
 
 def _plants_arguments(plants: argparse.ArgumentParser) -> None:
@@ -145,6 +149,11 @@ def _cmd_traits(args: argparse.Namespace) -> int:
             raise UserError("--seed applies to a species, not to a run (a run's plant has the run's seed)")
         config = build_config(run["config"])
         out = args.out or target / "traits.json"
+        if args.measure and config.bench is not None:
+            raise UserError(
+                "--measure measures one plant from a run's views; a bench's plants are not measured apart yet "
+                f"(agrisim traits {target} gives each plant's exact traits)"
+            )
         if args.measure:
             measurable_frames(target, run)
     else:
@@ -155,6 +164,8 @@ def _cmd_traits(args: argparse.Namespace) -> int:
     check_plant_name(registry, config)
     if out.exists() and not args.overwrite:
         raise OutputError(f"{out} already exists; pass --overwrite to replace it")
+    if config.bench is not None:
+        return _bench_traits(registry, config, out)
     plant = resolve_plant(registry, config)
     with EpisodeProgress("triangles") as progress:
         truth = plant_traits(plant, progress.update)
@@ -193,6 +204,20 @@ def _cmd_traits(args: argparse.Namespace) -> int:
         )
     if len(leaves) > 20:
         print(f"  ... {len(leaves) - 20} more in {out}")
+    print(f"wrote {out}")
+    return 0
+
+
+def _bench_traits(registry: Registry, config: RunConfig, out: Path) -> int:
+    """A bench's traits: one row a plant, each grown alone (:mod:`.traits.bench`)."""
+    from agrisim.files.atomic import write_json
+    from agrisim.plugins.apps.progress import EpisodeProgress
+    from agrisim.plugins.apps.traits.bench import bench_document, bench_traits, print_bench
+
+    with EpisodeProgress("triangles") as progress:
+        rows = bench_traits(registry, config, lambda plant, done, total: progress.stage(plant, done, total))
+    write_json(out, bench_document(rows))
+    print_bench(rows)
     print(f"wrote {out}")
     return 0
 

@@ -20,9 +20,10 @@ from agrisim.evaluation.views import load_view
 from agrisim.files import layout
 from agrisim.files.rundir import camera_from_json, capture_order, read_run
 from agrisim.interfaces import ALL, Reconstructor
+from agrisim.plugins.sinks.dataset.plants import PLANTS_KEY, bench_of_run, evaluate_plants, plant_files, write_plants
 from agrisim.plugins.sinks.dataset.reconstruction import write_reconstruction
 from agrisim.registry import Registry
-from agrisim.scene.model import LabelTable
+from agrisim.scene.model import BenchPlant, LabelTable
 
 
 def truth_from_run(run_dir: Path, samples: int, seed: int = 0, registry: Registry | None = None) -> GroundTruth | None:
@@ -81,13 +82,16 @@ def rebuild(
     return session
 
 
-def check_writable(out_dir: Path, labels: LabelTable, overwrite: bool, folder: str | None = None) -> None:
+def check_writable(
+    out_dir: Path, labels: LabelTable, overwrite: bool, folder: str | None = None, bench: list[BenchPlant] | None = None
+) -> None:
     """Refuse, before any work, to replace a reconstruction's outputs (and the reconstructor's
-    own ``folder``) unless ``overwrite``."""
+    own ``folder``, and a ``bench``'s plants' clouds) unless ``overwrite``."""
     names = [lab.name for lab in labels.labels if lab.id != 0] + [ALL]
     candidates = [out_dir / layout.METRICS_JSON] + [
         path for name in names for path in (layout.cloud(out_dir, name), layout.surface(out_dir, name))
     ]
+    candidates += plant_files(out_dir, bench or [])
     if folder is not None:
         candidates.insert(0, out_dir / folder)
     existing = [p for p in candidates if p.exists()]
@@ -139,7 +143,8 @@ def reconstruct_saved_run(
         spec.preflight(config, options)
     labels = LabelTable.from_json(run["labels"])
     out = out_dir if out_dir is not None else run_dir
-    check_writable(out, labels, overwrite, getattr(spec.capabilities, "folder", None))
+    bench = bench_of_run(run)
+    check_writable(out, labels, overwrite, getattr(spec.capabilities, "folder", None), bench)
     # Accuracy against the true surface needs Open3D (Embree's closest points); a GPU machine's
     # minimal install reconstructs without it and says so in metrics.json.
     measurable = importlib.util.find_spec("open3d") is not None
@@ -148,9 +153,13 @@ def reconstruct_saved_run(
     if source is not None:
         with blame("poses", source, f" reading {run_dir}"):
             estimated = registry.build("poses", source, source.options_model()).poses(run_dir)
+
+    def make() -> Reconstructor:
+        return registry.build("reconstructor", spec, labels, options)
+
     session = rebuild(
         run_dir,
-        registry.build("reconstructor", spec, labels, options),
+        make(),
         labels,
         run,
         cameras,
@@ -173,5 +182,21 @@ def reconstruct_saved_run(
     if not measurable:
         meta["truth_note"] = "accuracy not measured: Open3D is not installed here"
     result, metrics = session.finish(meta)
+    if bench:  # each plant alone, as the run did it (the same function, the same files)
+        samples = config.metrics.truth_samples if measurable else None
+        plants = evaluate_plants(
+            run_dir,
+            bench,
+            make,
+            labels,
+            run,
+            cameras,
+            config.metrics.thresholds_mm,
+            samples,
+            registry,
+            depth=config.recon.depth,
+            poses=estimated,
+        )
+        metrics[PLANTS_KEY] = write_plants(out, plants)
     write_reconstruction(out, result, metrics)
     return out, metrics

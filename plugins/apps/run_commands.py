@@ -14,6 +14,7 @@ from agrisim.commands import Command
 from agrisim.config import RunConfig, build_config, first_difference, load_toml, outcome_settings
 from agrisim.errors import UserError
 from agrisim.files import layout
+from agrisim.interfaces import ALL
 from agrisim.plugins.apps.flags import (
     apply_sets,
     episode_flags,
@@ -304,7 +305,12 @@ def _cmd_recon(args: argparse.Namespace) -> int:
     with EpisodeProgress("views") as progress:
         out, metrics = reconstruct_saved_run(args.run_dir, overrides, args.out, args.overwrite, progress.update)
     print(f"reconstructed {metrics['frames']} views with {metrics['recon']}")
-    for name, row in metrics["labels"].items():
+    rows = list(metrics["labels"].items())
+    # a bench's plants, each alone (its every label: "all")
+    rows += [
+        (f"{plant} ({doc['frames']} views)", doc["labels"][ALL]) for plant, doc in metrics.get("plants", {}).items()
+    ]
+    for name, row in rows:
         line = f"  {name}: {row['pixels']:,} labelled pixels, {row['points']:,} points"
         if "fscore" in row:
             scores = ", ".join(f"F@{t}mm {v:.3f}" for t, v in row["fscore"].items())

@@ -41,10 +41,7 @@ def cloud_ply(cloud: Cloud) -> bytes:
 def write_reconstruction(out_dir: Path, result: Reconstruction, metrics: dict[str, Any]) -> None:
     """``clouds/<label>.ply`` (binary PLY, colours), ``clouds/<label>_mesh.ply``, the
     reconstructor's own files and ``metrics.json``, each written atomically."""
-    (out_dir / layout.CLOUDS).mkdir(parents=True, exist_ok=True)
-    for name, cloud in result.clouds.items():
-        # (an empty cloud too: Open3D refuses to write one, readers accept it)
-        write_bytes(layout.cloud(out_dir, name), cloud_ply(cloud) if len(cloud.points) else _EMPTY_PLY)
+    write_clouds(out_dir, result)
     for relative, data in result.files.items():
         write_bytes(out_dir / relative, data)
     # a replaced reconstructor folder keeps nothing of the old result (e.g. another split's views)
@@ -52,11 +49,21 @@ def write_reconstruction(out_dir: Path, result: Reconstruction, metrics: dict[st
     for folder in {Path(relative).parts[0] for relative in result.files}:
         for stale in [p for p in (out_dir / folder).rglob("*") if p.is_file() and p not in written]:
             stale.unlink()
+    write_json(out_dir / layout.METRICS_JSON, metrics)
+
+
+def write_clouds(out_dir: Path, result: Reconstruction, plant: str = "") -> None:
+    """``result``'s clouds and surfaces (``clouds/<label>.ply``, ``clouds/<label>_mesh.ply``;
+    a bench's ``plant``'s in ``clouds/<plant>/``), each written atomically."""
+    (out_dir / layout.CLOUDS / plant).mkdir(parents=True, exist_ok=True)
+    for name, cloud in result.clouds.items():
+        # (an empty cloud too: Open3D refuses to write one, readers accept it)
+        write_bytes(layout.cloud(out_dir, name, plant), cloud_ply(cloud) if len(cloud.points) else _EMPTY_PLY)
     if result.meshes:
         import open3d as o3d
     for name, mesh in result.meshes.items():
         if len(mesh.vertices) == 0:
-            write_bytes(layout.surface(out_dir, name), _EMPTY_PLY)
+            write_bytes(layout.surface(out_dir, name, plant), _EMPTY_PLY)
             continue
         tm = o3d.geometry.TriangleMesh(
             o3d.utility.Vector3dVector(mesh.vertices), o3d.utility.Vector3iVector(mesh.triangles)
@@ -67,8 +74,7 @@ def write_reconstruction(out_dir: Path, result: Reconstruction, metrics: dict[st
             # Open3D's stub asks for an os.PathLike; its binding takes a str as well
             return o3d.io.write_triangle_mesh(tmp, g, write_ascii=False)  # type: ignore[arg-type]
 
-        write_through(layout.surface(out_dir, name), write)
-    write_json(out_dir / layout.METRICS_JSON, metrics)
+        write_through(layout.surface(out_dir, name, plant), write)
 
 
 _EMPTY_PLY = (

@@ -41,6 +41,14 @@ from agrisim.files.rundir import camera_to_json
 from agrisim.interfaces import CameraModel, Capture, Frame, JointTrajectory, Trajectory
 from agrisim.plugins.sinks.dataset import bench, json_text
 from agrisim.plugins.sinks.dataset.glb import export_glb
+from agrisim.plugins.sinks.dataset.plants import (
+    BENCH_KEY,
+    PLANTS_KEY,
+    bench_record,
+    evaluate_plants,
+    run_reconstructor,
+    write_plants,
+)
 from agrisim.plugins.sinks.dataset.point_cloud import write_points_ply
 from agrisim.plugins.sinks.dataset.reconstruction import write_reconstruction
 from agrisim.plugins.sinks.dataset.scene_glb import write_scene
@@ -143,6 +151,8 @@ class DatasetWriter:
             "plant_notes": run.plant_notes,
             "versions": self.versions,
             "labels": run.labels.to_json() if run.labels is not None else None,
+            # a bench's plants, each its faces of scene/plant.glb (absent for one plant)
+            **({BENCH_KEY: bench_record(run.scene.bench)} if run.scene is not None and run.scene.bench else {}),
             "setpoints_planned": {robot: len(sps) for robot, sps in run.setpoints.items()},
             "frames_complete": sorted(self.frames),
             "results": self._result_texts.array([_result_row(r) for r in run.results]),
@@ -262,6 +272,26 @@ class DatasetWriter:
         self._pending.append((future, capture.frame, entry))
         self._collect()
 
+    def _plants(self, run: Run) -> dict[str, Any]:
+        """Each plant of the run's bench reconstructed and measured alone, from the frames on
+        disk as ``agrisim recon`` replays them (:func:`~.plants.evaluate_plants`)."""
+        from agrisim.registry import Registry, make_plugin_manager
+
+        assert run.scene is not None and run.labels is not None and self.camera is not None
+        registry = Registry(make_plugin_manager())
+        return evaluate_plants(
+            self.out,
+            run.scene.bench,
+            run_reconstructor(registry, run.config, run.labels),
+            run.labels,
+            {"results": [{"frame": r.frame} for r in run.results]},
+            {"intrinsics": camera_to_json(self.camera), "frames": self.frames},
+            run.config.metrics.thresholds_mm,
+            run.config.metrics.truth_samples,
+            registry,
+            depth=run.config.recon.depth,
+        )
+
     @hookimpl
     def agrisim_run_finished(self, run: Run, summary: RunSummary) -> None:
         try:
@@ -269,6 +299,8 @@ class DatasetWriter:
             if self._scene_written is not None:
                 self._scene_written.result()  # a failed write fails the run here, not silently
             if run.reconstruction is not None and run.metrics is not None:
+                if run.scene is not None and run.scene.bench:
+                    run.metrics[PLANTS_KEY] = write_plants(self.out, self._plants(run))
                 write_reconstruction(self.out, run.reconstruction, run.metrics)
         finally:
             self._writer.shutdown(wait=True)
