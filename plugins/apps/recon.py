@@ -20,7 +20,8 @@ from agrisim.evaluation.views import load_view
 from agrisim.files import layout
 from agrisim.files.rundir import camera_from_json, capture_order, read_run
 from agrisim.interfaces import ALL, Reconstructor
-from agrisim.plugins.sinks.dataset.plants import PLANTS_KEY, bench_of_run, evaluate_plants, plant_files, write_plants
+from agrisim.plugins.sinks.dataset.bench import read_bench
+from agrisim.plugins.sinks.dataset.plants import PLANTS_KEY, evaluate_plants, plant_files, write_plants
 from agrisim.plugins.sinks.dataset.reconstruction import write_reconstruction
 from agrisim.registry import Registry
 from agrisim.scene.model import BenchPlant, LabelTable
@@ -143,7 +144,7 @@ def reconstruct_saved_run(
         spec.preflight(config, options)
     labels = LabelTable.from_json(run["labels"])
     out = out_dir if out_dir is not None else run_dir
-    bench = bench_of_run(run)
+    bench = read_bench(run, run_dir / layout.RUN_JSON)
     check_writable(out, labels, overwrite, getattr(spec.capabilities, "folder", None), bench)
     # Accuracy against the true surface needs Open3D (Embree's closest points); a GPU machine's
     # minimal install reconstructs without it and says so in metrics.json.

@@ -54,9 +54,12 @@ def plant_images(run: Path) -> dict[str, np.ndarray]:
 
 
 def test_run_json_names_each_plant(bench: Path) -> None:
-    """run.json's ``bench``: each plant's id, name, what grew it, seed and place; each id is
-    seen in plants/."""
-    assert json.loads((bench / layout.RUN_JSON).read_text())["bench"] == BENCH
+    """run.json's ``bench``: each plant's id, name, what grew it, seed and place, and its faces of
+    the joined plant mesh (one range after another); each id is seen in plants/."""
+    rows = json.loads((bench / layout.RUN_JSON).read_text())["bench"]
+    assert [{k: v for k, v in row.items() if k != "faces"} for row in rows] == BENCH
+    starts, ends = [row["faces"][0] for row in rows], [row["faces"][1] for row in rows]
+    assert starts[0] == 0 and starts[1:] == ends[:-1] and all(a < b for a, b in zip(starts, ends, strict=True))
     seen = set().union(*(np.unique(ids).tolist() for ids in plant_images(bench).values()))
     assert seen == {0, 1, 2}
 

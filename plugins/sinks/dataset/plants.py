@@ -30,36 +30,8 @@ from agrisim.plugins.sinks.dataset.reconstruction import write_clouds
 from agrisim.registry import Registry
 from agrisim.scene.model import BenchPlant, LabelTable, Mesh
 
-#: run.json's key for the bench's plants (present only on a bench)
-BENCH_KEY = "bench"
 #: metrics.json's key for each plant's metrics (present only on a bench)
 PLANTS_KEY = "plants"
-
-
-def bench_record(bench: list[BenchPlant]) -> list[dict[str, Any]]:
-    """run.json's ``bench``: each plant's name, what grew it, its seed, where its pot stands
-    (x, y from the bench's centre, m) and its faces of ``scene/plant.glb`` (``range(*faces)``);
-    a plant's id in ``plants/`` is its place in this list plus one."""
-    return [{"name": p.name, "plant": p.plant, "seed": p.seed, "xy": list(p.xy), "faces": list(p.faces)} for p in bench]
-
-
-def bench_of_run(run: dict[str, Any]) -> list[BenchPlant]:
-    """The bench a run's run.json records (empty for one plant)."""
-    try:
-        return [
-            BenchPlant(
-                str(p["name"]),
-                str(p["plant"]),
-                int(p["seed"]),
-                (float(p["xy"][0]), float(p["xy"][1])),
-                (int(p["faces"][0]), int(p["faces"][1])),
-            )
-            for p in run.get(BENCH_KEY) or []
-        ]
-    except (KeyError, TypeError, IndexError, ValueError) as exc:
-        raise UserError(
-            f"run.json's bench is not a list of plants with name, plant, seed, xy and faces ({exc})"
-        ) from None
 
 
 def plant_view(view: View, plant_id: int) -> View | None:

@@ -42,9 +42,7 @@ from agrisim.interfaces import CameraModel, Capture, Frame, JointTrajectory, Tra
 from agrisim.plugins.sinks.dataset import bench, json_text
 from agrisim.plugins.sinks.dataset.glb import export_glb
 from agrisim.plugins.sinks.dataset.plants import (
-    BENCH_KEY,
     PLANTS_KEY,
-    bench_record,
     evaluate_plants,
     run_reconstructor,
     write_plants,
@@ -151,15 +149,16 @@ class DatasetWriter:
             "plant_notes": run.plant_notes,
             "versions": self.versions,
             "labels": run.labels.to_json() if run.labels is not None else None,
-            # a bench's plants, each its faces of scene/plant.glb (absent for one plant)
-            **({BENCH_KEY: bench_record(run.scene.bench)} if run.scene is not None and run.scene.bench else {}),
             "setpoints_planned": {robot: len(sps) for robot, sps in run.setpoints.items()},
             "frames_complete": sorted(self.frames),
             "results": self._result_texts.array([_result_row(r) for r in run.results]),
             "summary": self.summary,
         }
-        if run.cell.bench:  # the plants, for readers that do not grow them again (a run of one has none)
-            doc[bench.KEY] = bench.bench_rows(run.cell.bench)
+        # the plants, for readers that do not grow them again (a run of one has none), each with
+        # its faces of scene/plant.glb where the run drew them
+        plants = run.scene.bench if run.scene is not None and run.scene.bench else run.cell.bench
+        if plants:
+            doc[bench.KEY] = bench.bench_rows(plants, faces=bool(run.scene is not None and run.scene.bench))
         return doc
 
     def _collect(self, wait: bool = False) -> bool:
