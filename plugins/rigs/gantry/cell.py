@@ -160,7 +160,8 @@ class GantryRig(Rig):
             f"a bench of {len(tour)}: the hemisphere around each plant ({levels} level(s) x {columns} azimuths, "
             f"radius {routine.radius:g} m), in the order {', '.join(p.name for p in tour)}"
             + (
-                f"; {dropped} viewpoints left out, within {NEIGHBOUR_CLEARANCE:g} m of a neighbour's keep-out"
+                f"; {dropped} viewpoints left out, within {NEIGHBOUR_CLEARANCE:g} m of a neighbour's keep-out "
+                "(a larger --spacing or a smaller routine.radius keeps them)"
                 if dropped
                 else ""
             )
