@@ -22,8 +22,7 @@ def bench_layout(config: RunConfig) -> list[BenchPlant]:
     (``--plant-seed``, else ``--seed``) plus its index."""
     bench = config.bench
     assert bench is not None
-    first_seed = config.plants.get(config.plant, {}).get("seed", config.seed)
-    first_seed = first_seed if isinstance(first_seed, int) else config.seed
+    first_seed = int(config.plants.get(config.plant, {}).get("seed", config.seed))  # (checked by check_run)
     if bench.grid is not None:
         rows, cols = parse_grid(bench.grid, "bench")
         spots: list[tuple[str, int | None, float, float]] = [
@@ -58,22 +57,15 @@ def bench_cell(cell: Cell, plants: list[BenchPlant], rig: str) -> Cell:
     xy = np.array([p.xy for p in plants])
     lo, hi = xy.min(axis=0), xy.max(axis=0)
     mid = np.append((lo + hi) / 2, 0.0)
-    grown = Box(
-        "table",
-        (table.size[0] + hi[0] - lo[0], table.size[1] + hi[1] - lo[1], table.size[2]),
-        translation(*mid) @ table.world_T,
-    )
+    size = (table.size[0] + hi[0] - lo[0], table.size[1] + hi[1] - lo[1], table.size[2])
+    grown = Box("table", size, translation(*mid) @ table.world_T)
     reach = _footprint(grown)
     for ob in cell.obstacles:
-        lo_ob, hi_ob = _footprint(ob)
-        if (
-            ob.name not in ("floor", "table", "pot", "plant_keepout")
-            and (lo_ob < reach[1]).all()
-            and (hi_ob > reach[0]).all()
-        ):
-            size = f"{grown.size[0]:.2f} x {grown.size[1]:.2f} m"
+        (lo_ob, hi_ob), own = _footprint(ob), ob.name in ("floor", "table", "pot", "plant_keepout")
+        if not own and (lo_ob < reach[1]).all() and (hi_ob > reach[0]).all():
             raise UserError(
-                f"bench: its table ({size}) would reach the rig's {ob.name}; use a smaller --spacing or fewer plants"
+                f"bench: its table ({size[0]:.2f} x {size[1]:.2f} m) would reach the rig's {ob.name}; "
+                "use a smaller --spacing or fewer plants"
             )
     obstacles = [grown if ob is table else ob for ob in cell.obstacles if ob.name not in ("pot", "plant_keepout")]
     for p in plants:
@@ -116,11 +108,9 @@ def join_plants(plants: list[Plant], bench: list[BenchPlant]) -> Plant:
             dataclasses.replace(x, labels=None if x.labels is None else lut[x.labels], label=int(lut[x.label]))
             for x in m.materials
         ]
-        inst = (
-            None
-            if m.face_instance is None
-            else np.where(m.face_instance > 0, m.face_instance.astype(np.int64) + leaves, 0)
-        )
+        inst = None if m.face_instance is None else m.face_instance.astype(np.int64)
+        if inst is not None:
+            inst[inst > 0] += leaves
         meshes.append(dataclasses.replace(m.transformed(translation(*slot.xy, 0.0)), materials=materials))
         instances.append(inst)
         placed.append(dataclasses.replace(slot, faces=(faces, faces + len(m.faces))))
@@ -128,12 +118,11 @@ def join_plants(plants: list[Plant], bench: list[BenchPlant]) -> Plant:
         leaves = max(leaves, 0 if inst is None or not len(inst) else int(inst.max()))
     if leaves > np.iinfo(np.uint16).max:
         raise UserError(f"bench: {leaves} leaves, more than the instance masks hold (65535)")
-    first = meshes[0]
     base = np.cumsum([0] + [len(m.vertices) for m in meshes])
     mat_base = np.cumsum([0] + [len(m.materials) for m in meshes])
     cat = np.concatenate
     mesh = Mesh(
-        first.name,
+        meshes[0].name,
         cat([m.vertices for m in meshes]),
         cat([m.faces + base[i] for i, m in enumerate(meshes)]),
         [x for m in meshes for x in m.materials],

@@ -348,9 +348,8 @@ class BenchPlantConfig(_Model):
     """One plant of a listed bench (``[[bench.plants]]``)."""
 
     x: float = Field(ge=-5.0, le=5.0)
-    """Where its pot stands from the cell's plant centre along x, m."""
+    """Where its pot stands from the cell's plant centre, x then y, m."""
     y: float = Field(ge=-5.0, le=5.0)
-    """... and along y, m."""
     plant: str | None = None
     """A species or a plant file, as ``--plant``; None: the run's plant."""
     seed: int | None = Field(default=None, ge=0, le=2**32 - 1)
@@ -371,10 +370,8 @@ class BenchConfig(_Model):
     def _one_layout(self) -> BenchConfig:
         if (self.grid is None) == (not self.plants):
             raise ValueError("[bench] takes a grid (--bench RxC) or a list of [[bench.plants]], one of them")
-        if self.grid is not None:
-            rows, cols = parse_grid(self.grid, "bench")
-            if rows * cols > 99:
-                raise ValueError(f"bench {self.grid}: at most 99 plants")
+        if self.grid is not None and math.prod(parse_grid(self.grid, "bench")) > 99:
+            raise ValueError(f"bench {self.grid}: at most 99 plants")
         return self
 
 

@@ -88,8 +88,7 @@ class Frame:
     #: uint16 H x W raw Bayer frame (digital numbers, black level included) that an imager
     #: developed ``rgb`` from, when the run keeps it (``raw/<frame>.png``)
     raw: np.ndarray | None = None
-    #: uint16 H x W: which plant of a bench each pixel shows (its index in ``Scene.bench`` plus
-    #: one; 0 where no plant), or None for one plant
+    #: uint16 H x W: which plant of a bench each pixel shows (k: ``Scene.bench[k - 1]``; 0: none)
     plants: np.ndarray | None = None
     # depth_mm's answer, kept: the dataset writer, the recording and the reconstruction all ask
     _depth_mm: np.ndarray | None = field(default=None, init=False, repr=False, compare=False)

@@ -142,12 +142,11 @@ def resolve_plant(registry: Registry, config: RunConfig) -> Plant:
     table's, else ``config.seed``), or a mesh or point-cloud file; drawn as points as
     ``config.points`` says. A bench's plants are joined into one (:func:`agrisim.bench.join_plants`)."""
     if config.bench is not None:
-        slots, plants = [], []
-        for slot, one in bench_configs(registry, config):
+        plants = []
+        for slot, one in (pairs := bench_configs(registry, config)):
             with _on_bench(slot):
                 plants.append(resolve_plant(registry, one))
-            slots.append(slot)
-        return join_plants(plants, slots)
+        return join_plants(plants, [slot for slot, _ in pairs])
     _check_points(config)
     name = config.plant
     species = registry.specs("plant")
