@@ -206,7 +206,7 @@ class Spread(SpreadMaximin):
     much of the sphere of directions a view would add, so a low view that opens the plant's
     underside and a flank at once beats one on the band's edge (greedy cover is within 1 - 1/e
     of the best set at every prefix, Nemhauser et al. 1978). 40 degrees won among 30-80 (ten
-    species, 30-50; three, 60-80: the guide). It uses only where the cameras were, never what
+    species, 30-50; three, 40-80: the guide). It uses only where the cameras were, never what
     they saw."""
 
     name = "spread"
