@@ -33,11 +33,12 @@ QUICK = [
 
 def test_policies_are_compared_and_the_oracle_leads(tmp_path: Path, cli) -> None:
     out = tmp_path / "nv"
-    args = ["nextview", "--plant", "coltsfoot", "--policies", "random,oracle,volumetric,volumetric-motion,surface"]
+    policies = "random,oracle,volumetric,volumetric-motion,surface,spread-surface"
+    args = ["nextview", "--plant", "coltsfoot", "--policies", policies]
     code, stdout, err = cli([*args, "--views", "5", "--out", str(out), *QUICK])
     assert code == 0, err
     doc = json.loads((out / "nextview.json").read_text())["plants"]["coltsfoot"]
-    assert set(doc) == {"paper", "random", "oracle", "volumetric", "volumetric-motion", "surface"}
+    assert set(doc) == {"paper", *policies.split(",")}
     assert len(doc["paper"]["coverage"]) == 12 and all(len(doc[p]["coverage"]) == 5 for p in doc if p != "paper")
     for name, episode in doc.items():
         coverage = episode["coverage"]
