@@ -24,6 +24,8 @@ from agrisim.registry import Registry, make_plugin_manager
 from agrisim.robot.cell import soil_pose
 from agrisim.validation import open_rig
 
+#: two ray casters (float32 Embree here, Open3D's there) agree on a hit's distance within this, m
+TIE = 1e-4
 FAST = ["--physics", "kinematic", "--no-rrd", "--shadow-samples", "0", "--recon", "none"]
 
 
@@ -106,11 +108,12 @@ def test_touching_plants_split_at_their_true_boundary(tmp_path: Path, cli) -> No
     assert code == 0, err
     registry = Registry(make_plugin_manager())
     soil = soil_pose(open_rig(RunConfig())[1])[2, 3]
-    rays = o3d.t.geometry.RaycastingScene()
+    scenes = []  # each plant a ray caster of its own: where both are hit within TIE, no plant is first
     for k, spot in enumerate(spots):
         alone = resolve_plant(registry, build_config({"plants": {"indian_cress": {"seed": k}}}))
         v = alone.mesh.vertices + np.array([spot["x"], spot["y"], soil])
-        assert rays.add_triangles(v.astype(np.float32), alone.mesh.faces.astype(np.uint32)) == k
+        scenes.append(o3d.t.geometry.RaycastingScene())
+        scenes[-1].add_triangles(v.astype(np.float32), alone.mesh.faces.astype(np.uint32))
     cams = json.loads((out / layout.CAMERAS_JSON).read_text())
     K = np.array(cams["intrinsics"]["K"])
     compared = agree = boundary = 0
@@ -121,9 +124,13 @@ def test_touching_plants_split_at_their_true_boundary(tmp_path: Path, cli) -> No
         v, u = np.mgrid[0 : ids.shape[0], 0 : ids.shape[1]]
         d = np.stack([(u - K[0, 2]) / K[0, 0], (v - K[1, 2]) / K[1, 1], np.ones(u.shape)], -1) @ T[:3, :3].T
         o = np.broadcast_to(T[:3, 3], d.shape)
-        hit = rays.cast_rays(o3d.core.Tensor(np.concatenate([o, d], -1).astype(np.float32)))
-        t, owner = hit["t_hit"].numpy(), hit["geometry_ids"].numpy().astype(np.int64) + 1
-        first_seen = (ids > 0) & np.isfinite(t) & (np.abs(t - depth) < 1e-4)  # t is planar: d's z is 1
+        rays = o3d.core.Tensor(np.concatenate([o, d], -1).astype(np.float32))
+        hits = np.stack([scene.cast_rays(rays)["t_hit"].numpy() for scene in scenes])  # planar: d's z is 1
+        t, owner = hits.min(axis=0), hits.argmin(axis=0) + 1
+        tie = np.isclose(
+            hits[0], hits[1], rtol=0.0, atol=TIE
+        )  # the two plants' surfaces cross here: either may be first
+        first_seen = (ids > 0) & np.isfinite(t) & (np.abs(t - depth) < TIE) & ~tie
         compared += int(first_seen.sum())
         agree += int((ids[first_seen] == owner[first_seen]).sum())
         boundary += int(((ids[:, 1:] * ids[:, :-1]) == 2).sum() + ((ids[1:] * ids[:-1]) == 2).sum())
