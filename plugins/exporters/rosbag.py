@@ -459,20 +459,14 @@ def bag_messages(export: RosbagExport, msgs: BagMessages) -> Iterator[tuple[str,
                 stamp,
                 msgs.image(stamp, optical, images.labels, "mono8"),
             )
-            if images.instances is not None:
-                yield (
-                    f"/{arm}/camera/instances",
-                    "sensor_msgs/msg/Image",
-                    stamp,
-                    msgs.image(stamp, optical, images.instances, "mono16"),
-                )
-            if images.plants is not None:
-                yield (
-                    f"/{arm}/camera/plants",
-                    "sensor_msgs/msg/Image",
-                    stamp,
-                    msgs.image(stamp, optical, images.plants, "mono16"),
-                )
+            for name, ids in (("instances", images.instances), ("plants", images.plants)):  # uint16 ids
+                if ids is not None:
+                    yield (
+                        f"/{arm}/camera/{name}",
+                        "sensor_msgs/msg/Image",
+                        stamp,
+                        msgs.image(stamp, optical, ids, "mono16"),
+                    )
         else:
             points, colors, labels = [np.zeros((0, 3))], [np.zeros((0, 3), np.uint8)], [np.zeros(0, np.uint8)]
             for row in export.labels:

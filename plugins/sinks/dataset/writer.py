@@ -156,9 +156,9 @@ class DatasetWriter:
         }
         # the plants, for readers that do not grow them again (a run of one has none), each with
         # its faces of scene/plant.glb where the run drew them
-        plants = run.scene.bench if run.scene is not None and run.scene.bench else run.cell.bench
-        if plants:
-            doc[bench.KEY] = bench.bench_rows(plants, faces=bool(run.scene is not None and run.scene.bench))
+        drawn = run.scene.bench if run.scene is not None else []
+        if drawn or run.cell.bench:
+            doc[bench.KEY] = bench.bench_rows(drawn or run.cell.bench, faces=bool(drawn))
         return doc
 
     def _collect(self, wait: bool = False) -> bool:
