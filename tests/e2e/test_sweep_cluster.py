@@ -47,7 +47,13 @@ def cluster(monkeypatch: pytest.MonkeyPatch) -> Iterator[object]:
     if ray.is_initialized():  # (another module's local Ray: this test needs its own cluster)
         ray.shutdown()
     monkeypatch.setattr(ray_constants, "ENABLE_RAY_CLUSTER", False)  # this process read it at import
-    made = Cluster(initialize_head=True, head_node_args={"num_cpus": 0, "include_dashboard": False})
+    # the head's GCS checks each node every second and declares it dead after two missed checks
+    # (Ray's defaults: 3 s and 5, 15 s or more of waiting on the lost node): what Ray's own
+    # suite sets for its failure tests
+    health = {"health_check_period_ms": 1000, "health_check_failure_threshold": 2, "health_check_timeout_ms": 1000}
+    made = Cluster(
+        initialize_head=True, head_node_args={"num_cpus": 0, "include_dashboard": False, "_system_config": health}
+    )
     nodes = [made.add_node(num_cpus=1) for _ in range(2)]
     made.wait_for_nodes()
     made.workers = nodes  # type: ignore[attr-defined]
