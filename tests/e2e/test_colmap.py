@@ -21,14 +21,16 @@ from agrisim.plugins.poses.colmap.photogrammetry import COLMAP_DIR, POSES_JSON
 
 @pytest.fixture(scope="module")
 def run_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    """36 views of coltsfoot, 960x540, the arms hidden (they move between views), eight shadow
-    rays a pixel (one gives speckle that SIFT takes for texture), from the part of the
-    hemisphere where neighbouring views overlap."""
+    """18 views of coltsfoot (3x3 an arm, 12 degrees apart), 960x540, the arms hidden (they move
+    between views), eight shadow rays a pixel (one gives speckle that SIFT takes for texture),
+    from the part of the hemisphere where neighbouring views overlap. (bench/colmap_robustness.py's
+    VIEWS: the same.) The 36 views 16 degrees apart the module had until 2026-11-29 cost twice
+    the time; 18 at that spacing placed 7 to 18 under the perturbations, these 18 every one."""
     out = tmp_path_factory.mktemp("colmap") / "run"
     return small_run(
         out,
         plant="coltsfoot",
-        routine={"setpoints": "3x6", "theta_deg": [50.0, 130.0], "phi_deg": [40.0, 70.0]},
+        routine={"setpoints": "3x3", "theta_deg": [50.0, 74.0], "phi_deg": [40.0, 64.0]},
         camera={"resolution": "960x540"},
         render={"hide_robots": True},
         renderer={"raycast": {"shadow_samples": 8}},
@@ -42,7 +44,7 @@ def features_once(tmp_path_factory: pytest.TempPathFactory) -> Iterator[None]:
     ``extract_features`` with the same arguments on the same image bytes gets a copy of the
     database the first call wrote (its features alone: the priors and matches are added after).
     The images-alone test extracts what the first test did (the same views, threshold, cap,
-    intrinsics and threads), about 17 CPU seconds of SIFT spared; the perturbation test's views
+    intrinsics and threads), about 10 CPU seconds of SIFT spared; the perturbation test's views
     and thread differ, and it extracts its own."""
     from agrisim.plugins.poses.colmap import photogrammetry as pg
 
@@ -67,9 +69,18 @@ def features_once(tmp_path_factory: pytest.TempPathFactory) -> Iterator[None]:
         yield
 
 
-#: views of 36 the default places (within 20 mm of the truth) as rendered and under every
-#: perturbation of test_placed_views_hold_a_band_under_perturbation: measured 34 to 36
-PLACED_AT_LEAST = 32
+#: the views ``run_dir`` renders
+VIEWS = 18
+#: views of 18 the default places (within 20 mm of the truth) as rendered and under every
+#: perturbation of test_placed_views_hold_a_band_under_perturbation: measured 18 in each of 48
+#: cases (bench/colmap_robustness.py: the views as rendered and five noisy copies, SIFT on every
+#: core and on one, mapper seeds 0-2; and the views rendered under the AVX2 emulation and a noisy
+#: copy of those; 21-31 pairs of 100 inliers where each arm needs one to start its model); the
+#: two views' margin that 32 of the 36 views before had (measured 34-36)
+PLACED_AT_LEAST = 16
+#: the median centre error's bound (mm), with and without the alignment: measured 0.27-0.43 in the
+#: same 48 cases; the 36 views 16 degrees apart had 0.65-0.93 and a bound of 2
+MEDIAN_CENTRE_MM = 1.0
 
 
 def _angle_deg(a: np.ndarray, b: np.ndarray) -> float:
@@ -90,10 +101,11 @@ def test_colmap_recovers_the_cameras_within_a_bound_of_the_truth(run_dir: Path, 
     summary, views = doc["summary"], doc["views"]
     assert doc["colmap"]["priors"] == "robot" and doc["colmap"]["matcher"] == "exhaustive"
     assert summary["pairs"]["dropped_by_kinematics"] > 0  # the pairs across the arms, at least
-    assert summary["views"] == len(truth) == 36
+    assert summary["views"] == len(truth) == VIEWS
     # nearly every view placed, as under every perturbation of test_placed_views_hold_a_band...
     assert summary["registered"] >= PLACED_AT_LEAST and summary["within_20mm"] >= PLACED_AT_LEAST, summary
-    assert summary["median_centre_error_mm"] < 2.0 and summary["median_rotation_error_deg"] < 0.3, summary
+    # (median rotation error measured 0.027-0.066 degrees, reprojection 0.49-0.58 px)
+    assert summary["median_centre_error_mm"] < MEDIAN_CENTRE_MM and summary["median_rotation_error_deg"] < 0.3, summary
     assert summary["reprojection_px"] < 1.0
 
     # Every model kept is held to the robot's priors: in the world's frame and metres already,
@@ -164,8 +176,10 @@ def test_a_reconstruction_on_colmaps_poses_costs_accuracy(run_dir: Path, cli, tm
         assert code == 0, err
         metrics[poses] = json.loads((out / "metrics.json").read_text())
     assert metrics["colmap"]["poses"] == "colmap" and metrics["colmap"]["frames"] == registered
-    assert metrics["truth"]["frames"] == 36
+    assert metrics["truth"]["frames"] == VIEWS
     plant = {k: m["labels"]["plant"] for k, m in metrics.items()}
+    # measured on COLMAP's models of the views as rendered and three noisy copies: precision 0.49-0.79
+    # at 1 mm (1.00 on the true poses), 1.00 at 5 mm, Chamfer 0.62-1.00 mm (0.31)
     assert plant["colmap"]["precision"]["5"] > 0.8
     assert plant["colmap"]["precision"]["1"] < plant["truth"]["precision"]["1"] - 0.1
     assert plant["colmap"]["chamfer_mm"] > plant["truth"]["chamfer_mm"]
@@ -198,12 +212,14 @@ def test_placed_views_hold_a_band_under_perturbation(run_dir: Path, tmp_path: Pa
     """Another machine renders the same views a grey level apart here and there, runs SIFT on
     other threads, draws other random numbers: the default pipeline must place nearly every view
     under each (bench/colmap_robustness.py: PLACED_AT_LEAST's comment), where COLMAP at its own
-    SIFT threshold from the images alone placed 17, 2 or 0 of these 36."""
+    SIFT threshold from the images alone placed none of these 18 (0 or 2 registered), and 17, 2 or
+    0 of the 36 views this module had before."""
     from agrisim.plugins.poses.colmap import photogrammetry as pg
     from agrisim.testing.perturb import noisy_copy
 
     # +-1 grey level on every pixel, SIFT on one thread (the first test's ran on every core), and
-    # three seeds of the mapper: the pipeline's own steps, its features and matches made once
+    # three seeds of the mapper: the pipeline's own steps, its features and matches made once (the
+    # mapper is the one step a seed reaches; SIFT and matching cost 30 times as much)
     noisy = noisy_copy(run_dir, tmp_path / "noisy", seed=1)
     run, cameras = pg.read_run(noisy)
     frames = sorted(run["frames_complete"])
@@ -213,12 +229,12 @@ def test_placed_views_hold_a_band_under_perturbation(run_dir: Path, tmp_path: Pa
     K = np.asarray(cameras["intrinsics"]["K"])
     pg.extract_features(database, noisy / "rgb", names, K, "known", 8192, pg.PEAK_THRESHOLD, threads=1)
     pg.write_position_priors(database, {n: T[:3, 3] for n, T in poses.items()}, pg.PRIOR_STD_MM)
-    pycolmap.set_random_seed(1)
+    pycolmap.set_random_seed(0)  # as run_colmap's first seed (the bench's rows match so)
     pg.match_features(database, "exhaustive", 10, {n: T[:3, :3] for n, T in poses.items()})
     for seed in range(3):
         sparse = tmp_path / f"sparse-{seed}"
         sparse.mkdir()
-        models, _ = pg.map_with_retries(database, noisy / "rgb", sparse, 36, "known", True, pg.PRIOR_STD_MM, seed, 1)
+        models, _ = pg.map_with_retries(database, noisy / "rgb", sparse, VIEWS, "known", True, pg.PRIOR_STD_MM, seed, 1)
         # held to the priors, the models are in the world: scored with no alignment at all
         errors = [
             np.linalg.norm(img.projection_center() - poses[img.name][:3, 3])
@@ -226,7 +242,8 @@ def test_placed_views_hold_a_band_under_perturbation(run_dir: Path, tmp_path: Pa
             for img in model.images.values()
             if img.has_pose
         ]
-        assert sum(e <= 0.02 for e in errors) >= PLACED_AT_LEAST and np.median(errors) < 0.002, (seed, sorted(errors))
+        placed, median = sum(e <= 0.02 for e in errors), np.median(errors) * 1e3
+        assert placed >= PLACED_AT_LEAST and median < MEDIAN_CENTRE_MM, (seed, sorted(errors))
 
 
 @pytest.mark.parametrize(

@@ -56,10 +56,12 @@ PRIORS: tuple[str, ...] = ("robot", "none")
 #: the stages :func:`run_colmap` reports to its progress callback, in order
 STAGES = ("features", "matching", "mapping")
 #: SIFT's contrast threshold (its peak threshold) for rendered views. COLMAP's own, 0.02 / 3,
-#: suits photographs; rendered plants in a plain lab are smoother, and at it the test's 36 views
+#: suits photographs; rendered plants in a plain lab are smoother, and at it 36 views of the test's
+#: plant (its views until 2026-11-29: 3x6 an arm, 16 degrees apart, 960x540)
 #: gave 400-970 features each and two or three pairs over the 100 inliers the mapper needs to
 #: start a model, so one grey level of noise decided between 18, 2 and 0 views placed. At 0.001:
-#: 1,700-2,300 features (median 2,300), 39 such pairs, 34-36 placed (bench/colmap_robustness.py).
+#: 1,700-2,300 features (median 2,300), 39 such pairs, 34-36 placed (bench/colmap_robustness.py
+#: --setpoints 3x6 --theta 50 130 --phi 40 70).
 PEAK_THRESHOLD = 0.001
 #: COLMAP's own SIFT peak threshold (what the paper's COLMAP ran with)
 COLMAP_PEAK_THRESHOLD = 0.02 / 3
@@ -68,7 +70,7 @@ MIN_SHARE = 0.9
 #: how far (mm, one standard deviation) the robot's kinematic camera centres are trusted as priors
 PRIOR_STD_MM = 10.0
 #: with the robot's priors, a verified pair whose relative rotation differs from the kinematics'
-#: by more than this (degrees) is dropped before mapping. On the test's 36 views, 118 of the 184
+#: by more than this (degrees) is dropped before mapping. On those 36 views, 118 of the 184
 #: pairs within an arm agree within 3 degrees; all but one of the 66 across the arms (views of
 #: the plant's far sides, matched on look-alike clutter) disagree by 30 or more, and mapped, they
 #: fold one arm's views onto the other's.
