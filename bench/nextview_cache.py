@@ -1,6 +1,6 @@
 """Each plant and seed's 100 candidate looks, taken once and kept on disk, so that replaying
-policies on them (``bench/nextview_replay.py --cache``) and training the ``learned`` policy
-(``bench/nextview_learn.py``) cost no rendering.
+policies on them (``bench/nextview_replay.py --cache``), or fitting a gain to them, costs no
+rendering.
 
 A plant and seed is grown as ``agrisim nextview`` grows it (``env.reset(seed=s, options=
 {"plant_seed": s, "pcg_seed": 42})``) and looked at from every candidate with the arms left out
