@@ -191,7 +191,7 @@ def local_ray(module: str, **resources: float) -> Iterator[None]:
 #: workers end within a short module of each other, where the path tracer's module, collected
 #: late, kept one busy for a minute after the other had finished.
 MODULE_SECONDS = {
-    "tests/unit/test_render_mitsuba.py": 200,
+    "tests/unit/test_render_mitsuba.py": 166,
     "tests/e2e/test_render_command.py": 78,
     "tests/e2e/test_compare.py": 58,
     "tests/e2e/test_colmap.py": 56,  # 18 views since 2026-11-29 (99 with 36)
