@@ -174,21 +174,7 @@ def replay(plant: str, seed: int, policies: list[str], views: int, resolution: s
     env.reset(seed=seed, options={"plant_seed": seed, "pcg_seed": 42})
     looks = [env.look_from(sp.world_T_camera) for sp in env.candidates]
     visible = [env.coverage.visible(v) for v in looks]  # the env's coverage is empty: all they see
-    out: dict[str, Any] = {}
-    for name in policies:
-        t0 = time.perf_counter()
-        run = Replay(env, looks, visible, views)
-        policy = POLICIES[name](seed)
-        policy.reset(run)  # type: ignore[arg-type]
-        coverage, travel = [], []
-        fuse = any(p in name for p in MAP_POLICIES)
-        for _ in range(views):
-            i = policy.act(run, {})  # type: ignore[arg-type]
-            run.step(i, fuse)
-            policy.observe(i, {"reached": True})
-            coverage.append(run.coverage.value)
-            travel.append(run.travel_m)
-        out[name] = {"coverage": coverage, "travel_m": travel, "wall_s": time.perf_counter() - t0}
+    out = {name: run_policy(Replay(env, looks, visible, views), name, seed, views) for name in policies}
     env.close()
     return out
 
